@@ -1,0 +1,72 @@
+"""One error hierarchy for the whole twin.
+
+Every error the twin raises on purpose derives from :class:`TwinError`. Errors about the
+user's input (scenario files, command-line values, missing tools) are :class:`ConfigError`
+and map to exit code 2; errors that happen while a run is under way are :class:`RunError`
+and map to exit code 1. Like pint, each also subclasses the matching builtin so callers
+that only know ``ValueError`` or ``RuntimeError`` still catch them.
+"""
+
+from __future__ import annotations
+
+
+class TwinError(Exception):
+    """Base class of every error raised by the twin on purpose."""
+
+    exit_code = 1
+
+
+class ConfigError(TwinError, ValueError):
+    """Bad input: a scenario file, a ``--set`` value, a command-line argument.
+
+    ``source`` names the file (or ``--set``/argument), ``key`` the dotted key; ``str()`` is one line.
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, source: str | None = None, key: str | None = None) -> None:
+        self.source = source
+        self.key = key
+        self.message = message
+        where = ": ".join(p for p in (source, key) if p)
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class ConfigErrors(ConfigError):
+    """Several input problems, all reported at once (one line each)."""
+
+    def __init__(self, problems: list[ConfigError]) -> None:
+        self.problems = list(problems)
+        first = self.problems[0]
+        super().__init__(first.message, source=first.source, key=first.key)
+        self.args = ("\n".join(str(p) for p in self.problems),)
+
+    def __str__(self) -> str:
+        return "\n".join(str(p) for p in self.problems)
+
+
+class ToolMissingError(ConfigError, FileNotFoundError):
+    """A build tool (C compiler, cmake) is not installed; the message says what to install."""
+
+
+class BuildError(TwinError, RuntimeError):
+    """Building an FMU failed (compiler error); carries the build log tail."""
+
+
+class RunError(TwinError, RuntimeError):
+    """A failure while the co-simulation runs."""
+
+
+class FMUError(RunError):
+    """An FMU returned fmi2Error/fmi2Fatal/fmi2Discard or a non-finite output.
+
+    Names the FMU instance, the FMI call and the simulation time.
+    """
+
+    def __init__(self, instance: str, call: str, time_s: float, detail: str = "") -> None:
+        self.instance = instance
+        self.call = call
+        self.time_s = time_s
+        self.detail = detail
+        msg = f"FMU '{instance}' failed in {call} at t = {time_s:.6g} s"
+        super().__init__(f"{msg}: {detail}" if detail else msg)
