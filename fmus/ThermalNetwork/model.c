@@ -1,0 +1,185 @@
+/*
+ * ThermalNetwork -- lumped RC network of the bearing tester's bodies (equations in readme.md).
+ *
+ *   C_i dT_i/dt = sum_j G_ij (T_j - T_i) + G_i,room (T_room - T_i) + s^hyd_i Q_hyd + s^fric_i Q_fric
+ *
+ * Written as dT/dt = A T + B u with u = (T_room, Q_hyd, Q_fric) held constant over each internal
+ * step (zero-order hold, exactly what a co-simulation master delivers). The step map is exact:
+ * [phi gamma; psi lambda] come from one matrix exponential of the augmented system
+ *
+ *   d/dt [T; S; u] = [A 0 B; I 0 0; 0 0 0] [T; S; u],   S = integral of T over the step,
+ *
+ * computed once at initialization. Exact for any step, so unconditionally stable; the integral
+ * S gives the heat lost to the room exactly, which the energy-balance outputs use.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "linalg.h"
+#include "model.h"
+
+/* node order used by every table below */
+static const int VR_T[TN_NODES] = {VR_t_base, VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
+                                   VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base, VR_t_pole_lower,
+                                   VR_t_clamp, VR_t_sensor, VR_t_oil};
+static const int VR_C[TN_NODES] = {VR_c_base, VR_c_heel_block, VR_c_bearing_block, VR_c_spindle, VR_c_bearing,
+                                   VR_c_t_plate, VR_c_detecting_frame, VR_c_pole_heel, VR_c_pole_base, VR_c_pole_lower,
+                                   VR_c_clamp, VR_c_sensor, VR_c_oil};
+static const int VR_GROOM[TN_NODES] = {VR_g_base_room, VR_g_heel_block_room, VR_g_bearing_block_room, VR_g_spindle_room,
+                                       VR_g_bearing_room, VR_g_t_plate_room, VR_g_detecting_frame_room,
+                                       VR_g_pole_heel_room, VR_g_pole_base_room, VR_g_pole_lower_room, VR_g_clamp_room,
+                                       VR_g_sensor_room, VR_g_oil_room};
+static const int VR_HYD[TN_NODES] = {VR_hyd_share_base, VR_hyd_share_heel_block, VR_hyd_share_bearing_block,
+                                     VR_hyd_share_spindle, VR_hyd_share_bearing, VR_hyd_share_t_plate,
+                                     VR_hyd_share_detecting_frame, VR_hyd_share_pole_heel, VR_hyd_share_pole_base,
+                                     VR_hyd_share_pole_lower, VR_hyd_share_clamp, VR_hyd_share_sensor, VR_hyd_share_oil};
+static const int VR_FRIC[TN_NODES] = {VR_fric_share_base, VR_fric_share_heel_block, VR_fric_share_bearing_block,
+                                      VR_fric_share_spindle, VR_fric_share_bearing, VR_fric_share_t_plate,
+                                      VR_fric_share_detecting_frame, VR_fric_share_pole_heel, VR_fric_share_pole_base,
+                                      VR_fric_share_pole_lower, VR_fric_share_clamp, VR_fric_share_sensor,
+                                      VR_fric_share_oil};
+static const int VR_TSTART[TN_NODES] = {VR_t_start_base, VR_t_start_heel_block, VR_t_start_bearing_block,
+                                        VR_t_start_spindle, VR_t_start_bearing, VR_t_start_t_plate,
+                                        VR_t_start_detecting_frame, VR_t_start_pole_heel, VR_t_start_pole_base,
+                                        VR_t_start_pole_lower, VR_t_start_clamp, VR_t_start_sensor, VR_t_start_oil};
+
+enum { BASE, HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, SENSOR, OIL };
+
+/* the network's edges: which bodies touch, and the parameter holding the conductance */
+static const struct { int a, b, vr; } EDGES[TN_EDGES] = {
+    {BASE, HEEL, VR_g_base__heel_block},
+    {HEEL, BBLOCK, VR_g_heel_block__bearing_block},
+    {BBLOCK, SPINDLE, VR_g_bearing_block__spindle},
+    {SPINDLE, BEARING, VR_g_spindle__bearing},
+    {BEARING, TPLATE, VR_g_bearing__t_plate},
+    {BASE, FRAME, VR_g_base__detecting_frame},
+    {HEEL, POLE_HEEL, VR_g_heel_block__pole_heel},
+    {BASE, POLE_BASE, VR_g_base__pole_base},
+    {FRAME, POLE_LOWER, VR_g_detecting_frame__pole_lower},
+    {POLE_HEEL, POLE_BASE, VR_g_pole_heel__pole_base},
+    {POLE_BASE, POLE_LOWER, VR_g_pole_base__pole_lower},
+    {POLE_LOWER, CLAMP, VR_g_pole_lower__clamp},
+    {CLAMP, SENSOR, VR_g_clamp__sensor},
+    {SENSOR, FRAME, VR_g_sensor__detecting_frame},
+    {TPLATE, POLE_HEEL, VR_g_t_plate__pole_heel},
+    {OIL, BASE, VR_g_oil__base},
+};
+
+static double share_sum(const ModelInstance *comp, const int *vrs) {
+    double s = 0.0;
+    int i;
+    for (i = 0; i < TN_NODES; i++) s += comp->v.r[vrs[i]];
+    return s;
+}
+
+int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
+    double sh = share_sum(comp, VR_HYD), sf = share_sum(comp, VR_FRIC);
+    /* shares that do not add up to one would create or destroy energy */
+    if (fabs(sh - 1.0) > 1e-9) {
+        snprintf(msg, msg_size, "the hyd_share_* parameters sum to %.12g, they must sum to 1", sh);
+        return -1;
+    }
+    if (fabs(sf - 1.0) > 1e-9) {
+        snprintf(msg, msg_size, "the fric_share_* parameters sum to %.12g, they must sum to 1", sf);
+        return -1;
+    }
+    return 0;
+}
+
+static void inputs(const ModelInstance *comp, double u[TN_INPUTS]) {
+    u[0] = comp->v.r[VR_t_room];
+    u[1] = comp->v.r[VR_q_hydraulic];
+    u[2] = comp->v.r[VR_q_friction];
+}
+
+/* Builds the step matrices for step h from the parameters. */
+static fmi2Status make_step_matrices(ModelInstance *comp, double h) {
+    ModelState *m = &comp->v.m;
+    static const size_t N = TN_AUG;
+    double aug[TN_AUG * TN_AUG], e[TN_AUG * TN_AUG], work[3 * TN_AUG * TN_AUG];
+    int i, j, k;
+
+    memset(aug, 0, sizeof aug);
+    for (k = 0; k < TN_EDGES; k++) {
+        int a = EDGES[k].a, b = EDGES[k].b;
+        double g = comp->v.r[EDGES[k].vr];
+        aug[a * N + a] -= g / comp->v.r[VR_C[a]];
+        aug[a * N + b] += g / comp->v.r[VR_C[a]];
+        aug[b * N + b] -= g / comp->v.r[VR_C[b]];
+        aug[b * N + a] += g / comp->v.r[VR_C[b]];
+    }
+    for (i = 0; i < TN_NODES; i++) {
+        double c = comp->v.r[VR_C[i]];
+        double groom = comp->v.r[VR_GROOM[i]];
+        aug[i * N + i] -= groom / c;
+        aug[i * N + 2 * TN_NODES + 0] = groom / c;
+        aug[i * N + 2 * TN_NODES + 1] = comp->v.r[VR_HYD[i]] / c;
+        aug[i * N + 2 * TN_NODES + 2] = comp->v.r[VR_FRIC[i]] / c;
+        aug[(TN_NODES + i) * N + i] = 1.0; /* S' = T */
+    }
+    for (i = 0; i < (int)(N * N); i++) aug[i] *= h;
+    if (la_expm(N, aug, e, work) != 0) {
+        log_error(comp, "thermal network matrix is not finite: check capacities and conductances");
+        return fmi2Error;
+    }
+    for (i = 0; i < TN_NODES; i++) {
+        for (j = 0; j < TN_NODES; j++) {
+            m->phi[i * TN_NODES + j] = e[i * N + j];
+            m->psi[i * TN_NODES + j] = e[(TN_NODES + i) * N + j];
+        }
+        for (j = 0; j < TN_INPUTS; j++) {
+            m->gamma[i * TN_INPUTS + j] = e[i * N + 2 * TN_NODES + j];
+            m->lambda[i * TN_INPUTS + j] = e[(TN_NODES + i) * N + 2 * TN_NODES + j];
+        }
+    }
+    m->phi_h = h;
+    return fmi2OK;
+}
+
+static double heat_content(const ModelInstance *comp) {
+    double s = 0.0;
+    int i;
+    for (i = 0; i < TN_NODES; i++) s += comp->v.r[VR_C[i]] * comp->v.m.temp[i];
+    return s;
+}
+
+fmi2Status model_initialize(ModelInstance *comp) {
+    ModelState *m = &comp->v.m;
+    int i;
+    for (i = 0; i < TN_NODES; i++)
+        m->temp[i] = comp->v.b[VR_start_at_room] ? comp->v.r[VR_t_room] : comp->v.r[VR_TSTART[i]];
+    m->energy_stored0 = heat_content(comp);
+    m->energy_in = 0.0;
+    m->energy_lost = 0.0;
+    return make_step_matrices(comp, comp->v.r[VR_solver_step]);
+}
+
+fmi2Status model_step(ModelInstance *comp, double h) {
+    ModelState *m = &comp->v.m;
+    double u[TN_INPUTS], tnew[TN_NODES], tint[TN_NODES], gu[TN_NODES], lu[TN_NODES], lost = 0.0;
+    int i;
+    inputs(comp, u);
+    la_matvec(TN_NODES, TN_NODES, m->phi, m->temp, tnew);
+    la_matvec(TN_NODES, TN_INPUTS, m->gamma, u, gu);
+    la_matvec(TN_NODES, TN_NODES, m->psi, m->temp, tint);
+    la_matvec(TN_NODES, TN_INPUTS, m->lambda, u, lu);
+    for (i = 0; i < TN_NODES; i++) {
+        tnew[i] += gu[i];
+        tint[i] += lu[i];
+        lost += comp->v.r[VR_GROOM[i]] * (tint[i] - h * u[0]);
+    }
+    memcpy(m->temp, tnew, sizeof tnew);
+    m->energy_in += h * (u[1] * share_sum(comp, VR_HYD) + u[2] * share_sum(comp, VR_FRIC));
+    m->energy_lost += lost;
+    return fmi2OK;
+}
+
+void model_outputs(ModelInstance *comp) {
+    ModelState *m = &comp->v.m;
+    int i;
+    for (i = 0; i < TN_NODES; i++) comp->v.r[VR_T[i]] = m->temp[i];
+    comp->v.r[VR_energy_stored] = heat_content(comp) - m->energy_stored0;
+    comp->v.r[VR_energy_in] = m->energy_in;
+    comp->v.r[VR_energy_lost] = m->energy_lost;
+}

@@ -1,0 +1,628 @@
+/*
+ * fmi2_wrapper.c -- the one implementation of the FMI 2.0 co-simulation API shared by
+ * every model of the twin (in the shape of the Modelica Reference-FMUs' cosimulation.c).
+ *
+ * Rules it enforces for every model:
+ *  - a call-sequence state machine: a call in the wrong state returns fmi2Error and logs
+ *    why; it never aborts or crashes the host;
+ *  - value access checks: unknown value reference, causality/variability that forbids
+ *    the set, NaN/Inf, values outside the declared [min, max] -> fmi2Error, nothing changed;
+ *  - fmi2DoStep runs a fixed internal step (the model's INTERNAL_STEP_VR parameter) an
+ *    integer number of times and keeps time as start + k*h from an integer counter, so
+ *    doStep(2h) equals two doStep(h) bit for bit;
+ *  - the whole FMU state is one plain struct (ModelValues): get/set state is a copy,
+ *    serialization is that copy behind a small header that is checked on the way back.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* the variable tables live in this translation unit only */
+#define MODEL_VARS_TABLES
+#include "model.h"
+
+#define MSG_SIZE 1024
+#define ALL_LIVE_STATES (ST_INSTANTIATED | ST_INIT_MODE | ST_STEP_COMPLETE | ST_STEP_FAILED | ST_TERMINATED | ST_ERROR)
+#define STATE_MAGIC "TWINSTA1"
+
+/* ------------------------------------------------------------------ logging */
+
+static void vlog(ModelInstance *comp, fmi2Status status, const char *category, const char *fmt, va_list ap) {
+    char buf[MSG_SIZE];
+    if (!comp || !comp->logger) return;
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    /* the logger is printf-like: never hand it our text as a format */
+    comp->logger(comp->env, comp->instance_name ? comp->instance_name : "?", status, category, "%s", buf);
+}
+
+void log_error(ModelInstance *comp, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vlog(comp, fmi2Error, "logStatusError", fmt, ap);
+    va_end(ap);
+}
+
+void log_info(ModelInstance *comp, const char *fmt, ...) {
+    va_list ap;
+    if (!comp || !comp->logging_on) return;
+    va_start(ap, fmt);
+    vlog(comp, fmi2OK, "logAll", fmt, ap);
+    va_end(ap);
+}
+
+static const char *state_name(int s) {
+    switch (s) {
+        case ST_INSTANTIATED: return "instantiated";
+        case ST_INIT_MODE: return "initialization mode";
+        case ST_STEP_COMPLETE: return "step complete";
+        case ST_STEP_FAILED: return "step failed";
+        case ST_TERMINATED: return "terminated";
+        case ST_ERROR: return "error";
+        case ST_FATAL: return "fatal";
+        default: return "unknown";
+    }
+}
+
+/* Returns 1 if the call is allowed in the current state, else logs and returns 0. */
+static int allowed(ModelInstance *comp, const char *fn, int states) {
+    if (!comp) return 0;
+    if (comp->state & states) return 1;
+    log_error(comp, "%s is not allowed in state '%s'", fn, state_name(comp->state));
+    return 0;
+}
+
+double model_time(const ModelInstance *comp) {
+    return comp->v.start_time + (double)comp->v.steps_taken * comp->v.r[INTERNAL_STEP_VR];
+}
+
+/* ------------------------------------------------------------------ start values */
+
+static void set_start_values(ModelInstance *comp) {
+    size_t k;
+    memset(&comp->v, 0, sizeof comp->v);
+    for (k = 0; k < N_REALS; k++) comp->v.r[k] = VARS_REAL[k].start;
+    for (k = 0; k < N_INTEGERS; k++) comp->v.i[k] = (int)VARS_INTEGER[k].start;
+    for (k = 0; k < N_BOOLEANS; k++) comp->v.b[k] = VARS_BOOLEAN[k].start != 0.0;
+}
+
+/* ------------------------------------------------------------------ common API */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!allowed(comp, "fmi2SetDebugLogging", ALL_LIVE_STATES)) return fmi2Error;
+    if (nCategories > 0 && !categories) {
+        log_error(comp, "fmi2SetDebugLogging: categories is NULL but nCategories = %zu", nCategories);
+        return fmi2Error;
+    }
+    for (k = 0; k < nCategories; k++) {
+        if (!categories[k] || (strcmp(categories[k], "logStatusError") && strcmp(categories[k], "logAll"))) {
+            log_error(comp, "fmi2SetDebugLogging: unknown log category '%s'", categories[k] ? categories[k] : "(null)");
+            return fmi2Error;
+        }
+    }
+    comp->logging_on = loggingOn ? 1 : 0;
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID, fmi2String fmuResourceLocation,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean loggingOn) {
+    ModelInstance tmp, *comp;
+    (void)fmuResourceLocation;
+    (void)visible;
+    if (!functions || !functions->logger) return NULL; /* nobody to tell why */
+    memset(&tmp, 0, sizeof tmp);
+    tmp.logger = functions->logger;
+    tmp.env = functions->componentEnvironment;
+    tmp.instance_name = (char *)(instanceName ? instanceName : "?");
+    if (!instanceName || !instanceName[0]) {
+        log_error(&tmp, "fmi2Instantiate: missing instance name");
+        return NULL;
+    }
+    if (fmuType != fmi2CoSimulation) {
+        log_error(&tmp, "fmi2Instantiate: this FMU supports co-simulation only");
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, MODEL_GUID) != 0) {
+        log_error(&tmp, "fmi2Instantiate: GUID '%s' does not match this binary's '%s'", fmuGUID ? fmuGUID : "(null)",
+                  MODEL_GUID);
+        return NULL;
+    }
+    /* own allocation: the FMU never depends on the host's allocator for its lifetime */
+    comp = (ModelInstance *)calloc(1, sizeof *comp);
+    if (!comp) {
+        log_error(&tmp, "fmi2Instantiate: out of memory");
+        return NULL;
+    }
+    comp->instance_name = (char *)malloc(strlen(instanceName) + 1);
+    if (!comp->instance_name) {
+        free(comp);
+        log_error(&tmp, "fmi2Instantiate: out of memory");
+        return NULL;
+    }
+    strcpy(comp->instance_name, instanceName);
+    comp->logger = functions->logger;
+    comp->env = functions->componentEnvironment;
+    comp->logging_on = loggingOn ? 1 : 0;
+    set_start_values(comp);
+    comp->state = ST_INSTANTIATED;
+    return comp;
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!comp) return;
+    free(comp->instance_name);
+    free(comp);
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime,
+                               fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)toleranceDefined;
+    (void)tolerance;
+    if (!allowed(comp, "fmi2SetupExperiment", ST_INSTANTIATED)) return fmi2Error;
+    if (!isfinite(startTime) || (stopTimeDefined && (!isfinite(stopTime) || stopTime < startTime))) {
+        log_error(comp, "fmi2SetupExperiment: invalid start/stop time (%g, %g)", startTime, stopTime);
+        return fmi2Error;
+    }
+    comp->v.start_time = startTime;
+    comp->v.steps_taken = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2EnterInitializationMode", ST_INSTANTIATED)) return fmi2Error;
+    comp->state = ST_INIT_MODE;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    char msg[MSG_SIZE] = "";
+    double h;
+    if (!allowed(comp, "fmi2ExitInitializationMode", ST_INIT_MODE)) return fmi2Error;
+    h = comp->v.r[INTERNAL_STEP_VR];
+    if (!(h > 0.0) || !isfinite(h)) {
+        log_error(comp, "parameter %s = %g must be a positive finite step", VARS_REAL[INTERNAL_STEP_VR].name, h);
+        return fmi2Error; /* stay in initialization mode: the host may correct the parameter */
+    }
+    if (model_check(comp, msg, sizeof msg) != 0) {
+        log_error(comp, "invalid parameters: %s", msg);
+        return fmi2Error;
+    }
+    if (model_initialize(comp) != fmi2OK) {
+        comp->state = ST_ERROR;
+        return fmi2Error;
+    }
+    model_outputs(comp);
+    comp->state = ST_STEP_COMPLETE;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2Terminate", ST_STEP_COMPLETE | ST_STEP_FAILED | ST_ERROR)) return fmi2Error;
+    comp->state = ST_TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2Reset", ALL_LIVE_STATES)) return fmi2Error;
+    set_start_values(comp);
+    comp->state = ST_INSTANTIATED;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------ get / set */
+
+#define GET_STATES (ST_INIT_MODE | ST_STEP_COMPLETE | ST_STEP_FAILED | ST_TERMINATED | ST_ERROR)
+#define SET_STATES (ST_INSTANTIATED | ST_INIT_MODE | ST_STEP_COMPLETE)
+
+static int check_get_args(ModelInstance *comp, const char *fn, const fmi2ValueReference vr[], size_t nvr,
+                          const void *value, size_t n_vars) {
+    size_t k;
+    if (!allowed(comp, fn, GET_STATES)) return 0;
+    if (nvr > 0 && (!vr || !value)) {
+        log_error(comp, "%s: NULL argument", fn);
+        return 0;
+    }
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] >= n_vars) {
+            log_error(comp, "%s: unknown value reference %u", fn, vr[k]);
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* May variable `info` be set now?  Returns 1 or logs and returns 0. */
+static int settable(ModelInstance *comp, const char *fn, const VarInfo *info, double value) {
+    if (info->variability == VAR_CONSTANT || (info->causality != CAUS_PARAMETER && info->causality != CAUS_INPUT)) {
+        log_error(comp, "%s: variable '%s' cannot be set (not a parameter or input)", fn, info->name);
+        return 0;
+    }
+    if (comp->state == ST_STEP_COMPLETE && info->causality == CAUS_PARAMETER && info->variability != VAR_TUNABLE) {
+        log_error(comp, "%s: parameter '%s' is fixed after initialization", fn, info->name);
+        return 0;
+    }
+    if (!isfinite(value)) {
+        log_error(comp, "%s: value of '%s' is not finite (%g)", fn, info->name, value);
+        return 0;
+    }
+    if (value < info->min || value > info->max) {
+        log_error(comp, "%s: value %g of '%s' is outside its range [%g, %g]", fn, value, info->name, info->min, info->max);
+        return 0;
+    }
+    return 1;
+}
+
+/* Checks the whole request first, so a rejected call changes nothing. */
+static int check_set_args(ModelInstance *comp, const char *fn, const fmi2ValueReference vr[], size_t nvr, const void *value,
+                          size_t n_vars, const VarInfo *table, int kind) {
+    size_t k;
+    if (!allowed(comp, fn, SET_STATES)) return 0;
+    if (nvr > 0 && (!vr || !value)) {
+        log_error(comp, "%s: NULL argument", fn);
+        return 0;
+    }
+    for (k = 0; k < nvr; k++) {
+        double x;
+        if (vr[k] >= n_vars) {
+            log_error(comp, "%s: unknown value reference %u", fn, vr[k]);
+            return 0;
+        }
+        if (kind == 0) x = ((const fmi2Real *)value)[k];
+        else if (kind == 1) x = (double)((const fmi2Integer *)value)[k];
+        else {
+            int bv = ((const fmi2Boolean *)value)[k];
+            if (bv != fmi2True && bv != fmi2False) {
+                log_error(comp, "%s: value %d of '%s' is not a Boolean", fn, bv, table[vr[k]].name);
+                return 0;
+            }
+            x = (double)bv;
+        }
+        if (!settable(comp, fn, &table[vr[k]], x)) return 0;
+    }
+    return 1;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_get_args(comp, "fmi2GetReal", vr, nvr, value, N_REALS)) return fmi2Error;
+    for (k = 0; k < nvr; k++) value[k] = comp->v.r[vr[k]];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_get_args(comp, "fmi2GetInteger", vr, nvr, value, N_INTEGERS)) return fmi2Error;
+    for (k = 0; k < nvr; k++) value[k] = comp->v.i[vr[k]];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_get_args(comp, "fmi2GetBoolean", vr, nvr, value, N_BOOLEANS)) return fmi2Error;
+    for (k = 0; k < nvr; k++) value[k] = comp->v.b[vr[k]];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    /* the twin's models have no String variables: any reference is unknown */
+    if (!check_get_args(comp, "fmi2GetString", vr, nvr, value, 0)) return fmi2Error;
+    return fmi2OK;
+}
+
+static void after_set(ModelInstance *comp) {
+    /* outputs with direct feedthrough follow their inputs at once */
+    if (comp->state == ST_STEP_COMPLETE) model_outputs(comp);
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_set_args(comp, "fmi2SetReal", vr, nvr, value, N_REALS, VARS_REAL, 0)) return fmi2Error;
+    for (k = 0; k < nvr; k++) comp->v.r[vr[k]] = value[k];
+    if (nvr) after_set(comp);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_set_args(comp, "fmi2SetInteger", vr, nvr, value, N_INTEGERS, VARS_INTEGER, 1)) return fmi2Error;
+    for (k = 0; k < nvr; k++) comp->v.i[vr[k]] = value[k];
+    if (nvr) after_set(comp);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_set_args(comp, "fmi2SetBoolean", vr, nvr, value, N_BOOLEANS, VARS_BOOLEAN, 2)) return fmi2Error;
+    for (k = 0; k < nvr; k++) comp->v.b[vr[k]] = value[k] ? 1 : 0;
+    if (nvr) after_set(comp);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2SetString", SET_STATES)) return fmi2Error;
+    if (nvr > 0) {
+        log_error(comp, "fmi2SetString: unknown value reference %u", vr ? vr[0] : 0u);
+        return fmi2Error;
+    }
+    (void)value;
+    return fmi2OK;
+}
+
+/* ------------------------------------------------------------------ FMU state */
+
+typedef struct {
+    char magic[8];
+    char guid[64];
+    uint64_t size;
+    ModelValues v;
+} SerializedState;
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    ModelInstance *comp = (ModelInstance *)c;
+    ModelValues *s;
+    if (!allowed(comp, "fmi2GetFMUstate", ALL_LIVE_STATES)) return fmi2Error;
+    if (!FMUstate) {
+        log_error(comp, "fmi2GetFMUstate: NULL argument");
+        return fmi2Error;
+    }
+    s = (ModelValues *)*FMUstate;
+    if (!s) {
+        s = (ModelValues *)malloc(sizeof *s);
+        if (!s) {
+            log_error(comp, "fmi2GetFMUstate: out of memory");
+            return fmi2Error;
+        }
+        *FMUstate = s;
+    }
+    *s = comp->v;
+    s->state = comp->state;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
+    ModelInstance *comp = (ModelInstance *)c;
+    const ModelValues *s = (const ModelValues *)FMUstate;
+    if (!allowed(comp, "fmi2SetFMUstate", ALL_LIVE_STATES)) return fmi2Error;
+    if (!s) {
+        log_error(comp, "fmi2SetFMUstate: NULL state");
+        return fmi2Error;
+    }
+    if (!(s->state & ALL_LIVE_STATES)) {
+        log_error(comp, "fmi2SetFMUstate: not a state of this FMU");
+        return fmi2Error;
+    }
+    comp->v = *s;
+    comp->state = s->state;
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2FreeFMUstate", ALL_LIVE_STATES)) return fmi2Error;
+    if (FMUstate) {
+        free(*FMUstate);
+        *FMUstate = NULL;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2SerializedFMUstateSize", ALL_LIVE_STATES)) return fmi2Error;
+    if (!FMUstate || !size) {
+        log_error(comp, "fmi2SerializedFMUstateSize: NULL argument");
+        return fmi2Error;
+    }
+    *size = sizeof(SerializedState);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
+    ModelInstance *comp = (ModelInstance *)c;
+    SerializedState out;
+    if (!allowed(comp, "fmi2SerializeFMUstate", ALL_LIVE_STATES)) return fmi2Error;
+    if (!FMUstate || !serializedState) {
+        log_error(comp, "fmi2SerializeFMUstate: NULL argument");
+        return fmi2Error;
+    }
+    if (size < sizeof out) {
+        log_error(comp, "fmi2SerializeFMUstate: buffer of %zu bytes is smaller than the state (%zu)", size, sizeof out);
+        return fmi2Error;
+    }
+    memset(&out, 0, sizeof out);
+    memcpy(out.magic, STATE_MAGIC, 8);
+    strncpy(out.guid, MODEL_GUID, sizeof out.guid - 1);
+    out.size = sizeof(ModelValues);
+    out.v = *(const ModelValues *)FMUstate;
+    memcpy(serializedState, &out, sizeof out);
+    return fmi2OK;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate) {
+    ModelInstance *comp = (ModelInstance *)c;
+    SerializedState in;
+    ModelValues *s;
+    if (!allowed(comp, "fmi2DeSerializeFMUstate", ALL_LIVE_STATES)) return fmi2Error;
+    if (!serializedState || !FMUstate) {
+        log_error(comp, "fmi2DeSerializeFMUstate: NULL argument");
+        return fmi2Error;
+    }
+    if (size != sizeof in) {
+        log_error(comp, "fmi2DeSerializeFMUstate: %zu bytes given, a state of this FMU has %zu", size, sizeof in);
+        return fmi2Error;
+    }
+    memcpy(&in, serializedState, sizeof in);
+    in.guid[sizeof in.guid - 1] = '\0';
+    if (memcmp(in.magic, STATE_MAGIC, 8) != 0 || in.size != sizeof(ModelValues) || strcmp(in.guid, MODEL_GUID) != 0) {
+        log_error(comp, "fmi2DeSerializeFMUstate: the bytes are not a serialized state of this FMU");
+        return fmi2Error;
+    }
+    if (!(in.v.state & ALL_LIVE_STATES)) {
+        log_error(comp, "fmi2DeSerializeFMUstate: corrupt state");
+        return fmi2Error;
+    }
+    s = (ModelValues *)*FMUstate;
+    if (!s) {
+        s = (ModelValues *)malloc(sizeof *s);
+        if (!s) {
+            log_error(comp, "fmi2DeSerializeFMUstate: out of memory");
+            return fmi2Error;
+        }
+        *FMUstate = s;
+    }
+    *s = in.v;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],
+                                        fmi2Real dvUnknown[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)vUnknown_ref, (void)nUnknown, (void)vKnown_ref, (void)nKnown, (void)dvKnown, (void)dvUnknown;
+    if (!comp) return fmi2Error;
+    log_error(comp, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
+    return fmi2Error;
+}
+
+/* ------------------------------------------------------------------ co-simulation */
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],
+                                       const fmi2Real value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)vr, (void)nvr, (void)order, (void)value;
+    if (!comp) return fmi2Error;
+    log_error(comp, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],
+                                        fmi2Real value[]) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)vr, (void)nvr, (void)order, (void)value;
+    if (!comp) return fmi2Error;
+    log_error(comp, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
+    return fmi2Error;
+}
+
+/* Scans the outputs for NaN/Inf after a step: a model must never hand one to the host. */
+static int outputs_finite(ModelInstance *comp) {
+    size_t k;
+    for (k = 0; k < N_REALS; k++) {
+        if (VARS_REAL[k].causality == CAUS_OUTPUT && !isfinite(comp->v.r[k])) {
+            log_error(comp, "output '%s' is not finite at t = %.9g s", VARS_REAL[k].name, model_time(comp));
+            return 0;
+        }
+    }
+    return 1;
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    ModelInstance *comp = (ModelInstance *)c;
+    double h_int, t, tol, n_real;
+    int64_t n, k;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!allowed(comp, "fmi2DoStep", ST_STEP_COMPLETE)) return fmi2Error;
+    if (!isfinite(communicationStepSize) || communicationStepSize < 0.0 || !isfinite(currentCommunicationPoint)) {
+        log_error(comp, "fmi2DoStep: invalid step size %g at %g (must be finite and >= 0)", communicationStepSize,
+                  currentCommunicationPoint);
+        return fmi2Error;
+    }
+    h_int = comp->v.r[INTERNAL_STEP_VR];
+    t = model_time(comp);
+    tol = 1e-6 * h_int + 1e-12 * fabs(t);
+    if (fabs(currentCommunicationPoint - t) > tol) {
+        log_error(comp, "fmi2DoStep: currentCommunicationPoint %.12g s does not match the FMU's time %.12g s",
+                  currentCommunicationPoint, t);
+        return fmi2Error;
+    }
+    n_real = communicationStepSize / h_int;
+    n = (int64_t)llround(n_real);
+    if (fabs((double)n * h_int - communicationStepSize) > 1e-9 * (communicationStepSize > h_int ? communicationStepSize : h_int)) {
+        log_error(comp, "fmi2DoStep: step %.12g s is not a multiple of the fixed internal step %s = %.12g s",
+                  communicationStepSize, VARS_REAL[INTERNAL_STEP_VR].name, h_int);
+        return fmi2Error;
+    }
+    for (k = 0; k < n; k++) {
+        if (model_step(comp, h_int) != fmi2OK) {
+            comp->state = ST_ERROR;
+            return fmi2Error;
+        }
+        comp->v.steps_taken++;
+    }
+    model_outputs(comp);
+    if (!outputs_finite(comp)) {
+        comp->state = ST_ERROR;
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!comp) return fmi2Error;
+    log_error(comp, "fmi2CancelStep: fmi2DoStep always completes synchronously, there is nothing to cancel");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)s;
+    if (!allowed(comp, "fmi2GetStatus", GET_STATES) || !value) return fmi2Error;
+    log_error(comp, "fmi2GetStatus: no asynchronous step is ever pending");
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2GetRealStatus", GET_STATES) || !value) return fmi2Error;
+    if (s == fmi2LastSuccessfulTime) {
+        *value = model_time(comp);
+        return fmi2OK;
+    }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)s;
+    if (!allowed(comp, "fmi2GetIntegerStatus", GET_STATES) || !value) return fmi2Error;
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    if (!allowed(comp, "fmi2GetBooleanStatus", GET_STATES) || !value) return fmi2Error;
+    if (s == fmi2Terminated) {
+        *value = fmi2False;
+        return fmi2OK;
+    }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    (void)s;
+    if (!allowed(comp, "fmi2GetStringStatus", GET_STATES) || !value) return fmi2Error;
+    return fmi2Discard;
+}

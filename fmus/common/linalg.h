@@ -1,0 +1,20 @@
+/*
+ * linalg.h -- the small dense linear algebra the models share (row-major double arrays).
+ */
+#ifndef TWIN_LINALG_H
+#define TWIN_LINALG_H
+
+#include <stddef.h>
+
+/* out = expm(a) for an n x n matrix (scaling and squaring with a Taylor series). out must
+ * not alias a; work must hold 3*n*n doubles. Returns 0, or -1 if a has NaN/Inf. */
+int la_expm(size_t n, const double *a, double *out, double *work);
+
+/* y = m x for an r x c matrix m. */
+void la_matvec(size_t r, size_t c, const double *m, const double *x, double *y);
+
+/* x = solution of a x = b (n x n, Gaussian elimination with partial pivoting).
+ * a and b are overwritten. Returns 0, or -1 if a is singular. */
+int la_solve(size_t n, double *a, double *b);
+
+#endif

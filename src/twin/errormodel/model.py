@@ -1,0 +1,505 @@
+"""The comprehensive error model: branches of characteristic matrices and the error e_z.
+
+Each body ``j`` with lower body ``i`` carries four 4x4 matrices (the paper's Tables 2 and 3):
+
+- ``T_ijp`` ideal positioning characteristic matrix (constant),
+- ``dT_ijp`` positioning error matrix from six parameters ``p_dx .. p_ez``,
+- ``T_ijs`` ideal kinematic characteristic matrix (constant, per sample, or a function of the motion),
+- ``dT_ijs`` kinematic error matrix from six parameters ``s_dx .. s_ez``.
+
+A point ``p_n`` given in the frame of a branch's end body ``n`` lies in the base frame at
+``p_1n = prod over the chain base->n of (T_ijp dT_ijp T_ijs dT_ijs) @ p_n``. Its error is the actual
+position minus the ideal one (all error matrices = I). Dropping the higher-order terms leaves a sum,
+over every error matrix, of ``[ideal prefix] (dT - I) [ideal suffix] p_n``, linear in the error
+parameters: a fixed sensitivity coefficient per parameter when the ideal matrices are constant.
+
+The comprehensive error is ``e_z = (error of branch-1 end)_z - (error of branch-2 end)_z``, both ends in
+the base frame. Lengths in metres, angles in radians; ``e_z`` has the unit of the lengths.
+
+Errors are given as ``{body: {"p_dz": values, "s_ex": values, ...}}``; ``body`` is a name or index,
+values are scalars or arrays of shape ``(N,)`` (one per sample). Motion variables (e.g. the spindle
+swing angle) are given as ``{"angle": values}`` and passed to callable kinematic matrices.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from twin.errormodel.topology import Topology
+from twin.errormodel.transforms import (
+    ERROR_PARAMETERS,
+    apply,
+    exact_error_matrix,
+    small_error_matrix,
+)
+from twin.errors import ConfigError
+
+__all__ = [
+    "ERROR_KEYS",
+    "KINDS",
+    "BranchModel",
+    "ErrorModel",
+    "Errors",
+    "Joint",
+    "Kinematic",
+    "Motion",
+]
+
+#: The two error matrices of a joint: ``p`` = positioning (dT_ijp), ``s`` = kinematic (dT_ijs).
+KINDS: tuple[str, ...] = ("p", "s")
+#: Accepted keys of one body's error parameters: ``p_dx .. p_ez`` and ``s_dx .. s_ez``.
+ERROR_KEYS: tuple[str, ...] = tuple(f"{k}_{q}" for k in KINDS for q in ERROR_PARAMETERS)
+
+Array = NDArray[np.float64]
+Motion = Mapping[str, ArrayLike]
+Errors = Mapping[Union[str, int], Mapping[str, ArrayLike]]  # noqa: UP007 (a runtime alias)
+#: An ideal kinematic matrix: ``None`` (identity), a ``(4, 4)`` or ``(N, 4, 4)`` array, or a function
+#: of the motion variables (a mapping of name -> array of shape ``()`` or ``(m,)``) returning either.
+Kinematic = Union[None, ArrayLike, Callable[[Mapping[str, Array]], ArrayLike]]  # noqa: UP007
+
+# Samples per chunk on the per-sample paths: bounds memory (a (m, 4, 4) stack is 1 MB at 8192)
+# while keeping the Python overhead per chunk negligible.
+CHUNK = 8192
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Ideal characteristic matrices of a body relative to its lower body.
+
+    ``positioning`` is ``T_ijp`` (constant 4x4); ``kinematic`` is ``T_ijs`` (see :data:`Kinematic`).
+    """
+
+    positioning: ArrayLike = field(default_factory=lambda: np.eye(4))
+    kinematic: Kinematic = None
+
+
+def _check_matrix(value: Any, what: str, *, stack: bool) -> Array:
+    try:
+        m = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{what}: not a numeric 4x4 matrix ({exc})") from None
+    if m.shape[-2:] != (4, 4) or m.ndim not in ((2, 3) if stack else (2,)):
+        allowed = "(4, 4) or (N, 4, 4)" if stack else "(4, 4)"
+        raise ConfigError(f"{what}: shape must be {allowed}, got {m.shape}")
+    if not np.allclose(m[..., 3, :], [0.0, 0.0, 0.0, 1.0]):
+        raise ConfigError(f"{what}: last row must be [0, 0, 0, 1]")
+    return m
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    """A slice of the samples: its motion values and error parameters, already sliced."""
+
+    sl: slice
+    m: int | None  # samples in the chunk; None when everything is scalar
+    motion: dict[str, Array]
+    errors: dict[int, list[tuple[int, int, Array]]]  # body -> [(kind, parameter, values)]
+
+
+@dataclass(frozen=True)
+class _Inputs:
+    n: int | None
+    motion: dict[str, Array]
+    errors: dict[int, list[tuple[int, int, Array]]]
+
+    def chunks(self, size: int | None) -> Iterator[_Chunk]:
+        """The whole input at once (``size=None`` or scalar input), else slices of ``size`` samples."""
+        if self.n is None or size is None or size >= self.n:
+            yield _Chunk(slice(None), self.n, self.motion, self.errors)
+            return
+        for start in range(0, self.n, size):
+            sl = slice(start, min(start + size, self.n))
+            cut = lambda a, sl=sl: a[sl] if a.ndim else a  # noqa: E731
+            yield _Chunk(
+                sl,
+                sl.stop - sl.start,
+                {k: cut(v) for k, v in self.motion.items()},
+                {b: [(k, q, cut(v)) for k, q, v in e] for b, e in self.errors.items()},
+            )
+
+
+def _as_samples(value: ArrayLike, what: str) -> Array:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{what}: not numeric ({exc})") from None
+    if a.ndim > 1:
+        raise ConfigError(f"{what}: must be a scalar or an array of shape (N,), got shape {a.shape}")
+    return a
+
+
+def _run(
+    inputs: _Inputs, size: int | None, tail: tuple[int, ...], compute: Callable[[_Chunk], dict[Any, Array]]
+) -> dict[Any, Array]:
+    """Apply ``compute`` chunk by chunk and assemble the outputs, each of shape ``(N, *tail)``.
+
+    A chunk's output is either per sample, ``(m, *tail)``, or constant, ``tail`` (then broadcast), so
+    a model with constant ideal matrices computes its coefficients once and never per sample.
+    With scalar input (``N`` is ``None``) the outputs have shape ``tail``.
+    """
+    n = inputs.n
+    if n is None:
+        return compute(next(inputs.chunks(None)))
+    out: dict[Any, Array] = {}
+    for chunk in inputs.chunks(size):
+        for key, value in compute(chunk).items():
+            if key not in out:
+                out[key] = np.empty((n, *tail))
+            out[key][chunk.sl] = value  # broadcasts a constant over the chunk
+    return out
+
+
+class BranchModel:
+    """One branch: the chain of joints from the base to an end body and a point on that body.
+
+    Build it through :class:`ErrorModel` or directly from a topology and joints.
+    """
+
+    def __init__(
+        self,
+        topology: Topology,
+        joints: Mapping[str | int, Joint],
+        end: str | int,
+        point: ArrayLike = (0.0, 0.0, 0.0),
+        *,
+        motion_defaults: Mapping[str, float] | None = None,
+    ) -> None:
+        self.topology = topology
+        self.chain: tuple[int, ...] = topology.branch(end)
+        self.end = topology.body(end).name
+        known = _normalise_joints(topology, joints)
+        self._positioning = [known[k][0] for k in self.chain[1:]]
+        self._kinematic = [known[k][1] for k in self.chain[1:]]
+        p = np.asarray(point, dtype=np.float64)
+        if p.shape not in ((3,), (4,)):
+            raise ConfigError(f"branch end point must have 3 or 4 coordinates, got shape {p.shape}")
+        self.point: Array = np.append(p, 1.0) if p.shape == (3,) else p
+        self.motion_defaults = dict(motion_defaults or {})
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        """Names of the bodies with a joint on this branch (base excluded), base side first."""
+        return tuple(self.topology.body(k).name for k in self.chain[1:])
+
+    # -- inputs -----------------------------------------------------------------------------------
+
+    def _time_varying(self, motion: Mapping[str, Array]) -> bool:
+        any_array_motion = any(v.ndim for v in motion.values())
+        return any(
+            (callable(k) and any_array_motion) or (isinstance(k, np.ndarray) and k.ndim == 3)
+            for k in self._kinematic
+        )
+
+    def _stack_length(self) -> int | None:
+        lengths = {k.shape[0] for k in self._kinematic if isinstance(k, np.ndarray) and k.ndim == 3}
+        return lengths.pop() if lengths else None
+
+    def _kinematics(self, chunk: _Chunk) -> list[Array]:
+        mats = []
+        for body, k in zip(self.chain[1:], self._kinematic, strict=True):
+            if callable(k):
+                m = _check_matrix(k(chunk.motion), f"kinematic matrix of body {body}", stack=True)
+                if m.ndim == 3 and m.shape[0] != chunk.m:
+                    raise ConfigError(
+                        f"kinematic matrix of body {body}: {m.shape[0]} samples for {chunk.m} motion samples"
+                    )
+            else:
+                m = k[chunk.sl] if k.ndim == 3 else k
+            mats.append(m)
+        return mats
+
+    # -- the three evaluations, on one chunk --------------------------------------------------------
+
+    def _ideal(self, kins: list[Array]) -> Array:
+        v = self.point
+        for tp, ts in zip(reversed(self._positioning), reversed(kins), strict=True):
+            v = apply(tp, apply(ts, v))
+        return v
+
+    def _actual(self, kins: list[Array], errors: Mapping[int, list[tuple[int, int, Array]]], exact: bool) -> Array:
+        build = exact_error_matrix if exact else small_error_matrix
+        v = self.point
+        for j in reversed(range(len(self.chain) - 1)):
+            params: list[list[Array | float]] = [[0.0] * 6, [0.0] * 6]
+            given = [False, False]
+            for kind, q, x in errors.get(self.chain[j + 1], ()):
+                params[kind][q] = x
+                given[kind] = True
+            if given[1]:
+                v = apply(build(*params[1]), v)
+            v = apply(kins[j], v)
+            if given[0]:
+                v = apply(build(*params[0]), v)
+            v = apply(self._positioning[j], v)
+        return v
+
+    def _coefficients(self, kins: list[Array]) -> Array:
+        """Sensitivities ``d p_1n / d parameter``, shape ``(..., K, 2, 3, 6)``.
+
+        Axes: joint along the chain, kind (p, s), base-frame component (x, y, z), parameter.
+        The error matrix of slot ``m`` (``2 * joint + kind``) sits after the ideal matrices
+        ``M_0 .. M_m``; its term is ``R(M_0..M_m) @ G_q @ (M_{m+1} .. M_last @ p)``; ``G_q v`` has no
+        homogeneous part, so only the prefix's rotation block matters.
+        """
+        mats: list[Array] = []
+        for tp, ts in zip(self._positioning, kins, strict=True):
+            mats += [tp, ts]
+        prefixes: list[Array] = []
+        acc: Array = np.eye(4)
+        for m in mats:
+            acc = acc @ m
+            prefixes.append(acc[..., :3, :3])
+        suffixes: list[Array] = [self.point]
+        for m in reversed(mats[1:]):
+            suffixes.append(apply(m, suffixes[-1]))
+        suffixes.reverse()
+        blocks = []
+        for rot, v in zip(prefixes, suffixes, strict=True):
+            b = np.zeros((*v.shape[:-1], 3, 6))
+            x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
+            b[..., 0, 0] = b[..., 1, 1] = b[..., 2, 2] = w  # translations move the point as such
+            # columns 3..5: e_x x v, e_y x v, e_z x v (small rotations about the slot's axes)
+            b[..., 1, 3], b[..., 2, 3] = -z, y
+            b[..., 0, 4], b[..., 2, 4] = z, -x
+            b[..., 0, 5], b[..., 1, 5] = -y, x
+            blocks.append(rot @ b)
+        c = np.stack(blocks, axis=-3)  # (..., 2K, 3, 6)
+        return c.reshape(*c.shape[:-3], len(mats) // 2, 2, 3, 6)
+
+    def _first_order(
+        self, coef: Array, errors: Mapping[int, list[tuple[int, int, Array]]], rows: slice | int
+    ) -> dict[int, Array]:
+        """Per-body first-order contribution ``sum_q coef * x_q`` (components ``rows``)."""
+        out: dict[int, Array] = {}
+        for j, body in enumerate(self.chain[1:]):
+            total: Array | float = 0.0
+            for kind, q, x in errors.get(body, ()):
+                c = coef[..., j, kind, rows, q]
+                # (3,) or (m, 3) components times a per-sample x need x as a column
+                total = total + (c * x if isinstance(rows, int) else c * x[..., None])
+            out[body] = np.asarray(total)
+        return out
+
+    # -- public evaluations -------------------------------------------------------------------------
+
+    def _inputs(self, errors: Errors | None, motion: Motion | None) -> _Inputs:
+        return _prepare(self.topology, [self], errors, motion, self.motion_defaults)
+
+    def ideal_position(self, motion: Motion | None = None) -> Array:
+        """Ideal position of the end point in the base frame, shape ``(..., 3)``."""
+        inputs = self._inputs(None, motion)
+        res = _run(inputs, CHUNK, (3,), lambda c: {"p": self._ideal(self._kinematics(c))[..., :3]})
+        return res["p"]
+
+    def actual_position(self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False) -> Array:
+        """Actual position (full 4x4 product), shape ``(..., 3)``.
+
+        ``exact=False`` uses the first-order error matrices (the paper's), ``True`` full rotations.
+        """
+        inputs = self._inputs(errors, motion)
+
+        def compute(c: _Chunk) -> dict[str, Array]:
+            return {"p": self._actual(self._kinematics(c), c.errors, exact)[..., :3]}
+
+        return _run(inputs, CHUNK, (3,), compute)["p"]
+
+    def position_error(self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False) -> Array:
+        """Actual minus ideal position of the end point (full product), shape ``(..., 3)``."""
+        inputs = self._inputs(errors, motion)
+
+        def compute(c: _Chunk) -> dict[str, Array]:
+            kins = self._kinematics(c)
+            return {"e": (self._actual(kins, c.errors, exact) - self._ideal(kins))[..., :3]}
+
+        return _run(inputs, CHUNK, (3,), compute)["e"]
+
+    def first_order_error(self, errors: Errors | None, motion: Motion | None = None) -> Array:
+        """Position error with higher-order terms dropped (linear in the parameters), ``(..., 3)``."""
+        inputs = self._inputs(errors, motion)
+        size = CHUNK if self._time_varying(inputs.motion) else None
+
+        def compute(c: _Chunk) -> dict[str, Array]:
+            coef = self._coefficients(self._kinematics(c))
+            parts = self._first_order(coef, c.errors, slice(0, 3))
+            return {"e": np.asarray(sum(parts.values(), np.zeros(3)))}
+
+        return _run(inputs, size, (3,), compute)["e"]
+
+    def sensitivities(self, motion: Motion | None = None) -> Array:
+        """First-order sensitivities of the end point, shape ``(..., K, 2, 3, 6)``.
+
+        ``[..., j, kind, axis, q]`` is ``d p_1n[axis] / d (kind, parameter q)`` of the ``j``-th body of
+        :attr:`bodies`. Constant (no sample axis) when the ideal matrices are constant.
+        """
+        inputs = self._inputs(None, motion)
+        size = CHUNK if self._time_varying(inputs.motion) else None
+        tail = (len(self.chain) - 1, 2, 3, 6)
+        return _run(inputs, size, tail, lambda c: {"c": self._coefficients(self._kinematics(c))})["c"]
+
+
+def _normalise_joints(topology: Topology, joints: Mapping[str | int, Joint]) -> dict[int, tuple[Array, Any]]:
+    out: dict[int, tuple[Array, Any]] = {b.index: (np.eye(4), np.eye(4)) for b in topology.bodies if b.lower is not None}
+    for key, joint in joints.items():
+        body = topology.body(key)
+        if body.lower is None:
+            raise ConfigError(f"body '{body.name}' is the base: it has no joint")
+        what = f"body '{body.name}'"
+        tp = _check_matrix(joint.positioning, f"{what}: positioning matrix", stack=False)
+        kin = joint.kinematic
+        if kin is None:
+            ks: Any = np.eye(4)
+        elif callable(kin):
+            ks = kin
+        else:
+            ks = _check_matrix(kin, f"{what}: kinematic matrix", stack=True)
+        out[body.index] = (tp, ks)
+    return out
+
+
+def _prepare(
+    topology: Topology,
+    branches: Sequence[BranchModel],
+    errors: Errors | None,
+    motion: Motion | None,
+    defaults: Mapping[str, float],
+) -> _Inputs:
+    """Validate errors and motion and find the sample count ``N`` (``None`` if all scalar)."""
+    lengths: dict[int, str] = {}
+    mot: dict[str, Array] = {}
+    for name, value in {**defaults, **(motion or {})}.items():
+        mot[name] = _as_samples(value, f"motion variable '{name}'")
+        if mot[name].ndim:
+            lengths.setdefault(mot[name].shape[0], f"motion variable '{name}'")
+    errs: dict[int, list[tuple[int, int, Array]]] = {}
+    for key, params in (errors or {}).items():
+        body = topology.body(key)
+        if body.lower is None:
+            raise ConfigError(f"body '{body.name}' is the base (the reference): it takes no errors")
+        if body.index in errs:
+            raise ConfigError(f"errors of body '{body.name}' given twice")
+        if not isinstance(params, Mapping):
+            raise ConfigError(f"errors of body '{body.name}' must map parameter names to values")
+        entries = []
+        for pkey, value in params.items():
+            if pkey not in ERROR_KEYS:
+                raise ConfigError(
+                    f"body '{body.name}': unknown error parameter {pkey!r} (expected p_dx..p_ez or s_dx..s_ez)"
+                )
+            x = _as_samples(value, f"body '{body.name}' {pkey}")
+            if x.ndim:
+                lengths.setdefault(x.shape[0], f"body '{body.name}' {pkey}")
+            kind, q = pkey.split("_")
+            entries.append((KINDS.index(kind), ERROR_PARAMETERS.index(q), x))
+        errs[body.index] = entries
+    for b in branches:
+        n_stack = b._stack_length()
+        if n_stack is not None:
+            lengths.setdefault(n_stack, "a kinematic matrix stack")
+    if len(lengths) > 1:
+        detail = ", ".join(f"{who}: {n}" for n, who in lengths.items())
+        raise ConfigError(f"inconsistent sample counts ({detail})")
+    n = next(iter(lengths), None)
+    return _Inputs(n, mot, errs)
+
+
+class ErrorModel:
+    """The comprehensive error model of a two-branch MBS (the paper's eq. 9).
+
+    ``ends`` are the end bodies of branch 1 and branch 2; ``points`` the points on them (default:
+    their frame origins). ``e_z = (error of branch-1 end)_z - (error of branch-2 end)_z``.
+    ``motion_defaults`` gives values for motion variables not passed to an evaluation.
+    """
+
+    def __init__(
+        self,
+        topology: Topology,
+        joints: Mapping[str | int, Joint],
+        ends: tuple[str | int, str | int],
+        points: tuple[ArrayLike, ArrayLike] = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+        *,
+        motion_defaults: Mapping[str, float] | None = None,
+    ) -> None:
+        if len(ends) != 2 or len(points) != 2:
+            raise ConfigError("the comprehensive error needs exactly two branch ends and two points")
+        self.topology = topology
+        self.motion_defaults = dict(motion_defaults or {})
+        self.branches: tuple[BranchModel, BranchModel] = (
+            BranchModel(topology, joints, ends[0], points[0], motion_defaults=self.motion_defaults),
+            BranchModel(topology, joints, ends[1], points[1], motion_defaults=self.motion_defaults),
+        )
+        # Bodies on either branch, branch 1 first; a body shared by both branches appears once.
+        self.bodies: tuple[str, ...] = tuple(dict.fromkeys(self.branches[0].bodies + self.branches[1].bodies))
+
+    def _inputs(self, errors: Errors | None, motion: Motion | None) -> _Inputs:
+        return _prepare(self.topology, self.branches, errors, motion, self.motion_defaults)
+
+    def _size(self, inputs: _Inputs) -> int | None:
+        return CHUNK if any(b._time_varying(inputs.motion) for b in self.branches) else None
+
+    def _parts(self, c: _Chunk) -> dict[str, Array]:
+        """First-order e_z per body on one chunk: +branch-1 contribution - branch-2 contribution."""
+        parts: dict[str, Array] = {}
+        for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
+            coef = branch._coefficients(branch._kinematics(c))
+            for body, value in branch._first_order(coef, c.errors, 2).items():
+                name = self.topology.body(body).name
+                parts[name] = parts.get(name, 0.0) + sign * value
+        return {k: np.asarray(v) for k, v in parts.items()}
+
+    def e_z(self, errors: Errors | None, motion: Motion | None = None) -> Array:
+        """First-order comprehensive error along Z, shape ``()`` or ``(N,)``."""
+        inputs = self._inputs(errors, motion)
+        return _run(inputs, self._size(inputs), (), lambda c: {"e": np.asarray(sum(self._parts(c).values()))})["e"]
+
+    def e_z_by_body(self, errors: Errors | None, motion: Motion | None = None) -> dict[str, Array]:
+        """First-order ``e_z`` split by body (each body's own parameters); sums to :meth:`e_z`.
+
+        Keys are :attr:`bodies` in order; a body without errors contributes zeros.
+        """
+        inputs = self._inputs(errors, motion)
+        return _run(inputs, self._size(inputs), (), self._parts)
+
+    def e_z_full(self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False) -> Array:
+        """``e_z`` from the full 4x4 products (no terms dropped), shape ``()`` or ``(N,)``.
+
+        ``exact=True`` also replaces the first-order error matrices by full rotations.
+        """
+        inputs = self._inputs(errors, motion)
+
+        def compute(c: _Chunk) -> dict[str, Array]:
+            e = []
+            for b in self.branches:
+                kins = b._kinematics(c)
+                e.append(b._actual(kins, c.errors, exact)[..., 2] - b._ideal(kins)[..., 2])
+            return {"e": e[0] - e[1]}
+
+        return _run(inputs, CHUNK, (), compute)["e"]
+
+    def e_z_coefficients(self, motion: Motion | None = None) -> dict[tuple[str, str], Array]:
+        """Sensitivity of ``e_z`` to every error parameter: ``{(body, "p_dz"): d e_z / d p_dz, ...}``.
+
+        Constant values when the ideal matrices are constant, else one per sample.
+        """
+        inputs = self._inputs(None, motion)
+
+        def compute(c: _Chunk) -> dict[tuple[str, str], Array]:
+            out: dict[tuple[str, str], Array] = {}
+            for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
+                coef = branch._coefficients(branch._kinematics(c))[..., 2, :]  # (..., K, 2, 6)
+                for j, body in enumerate(branch.bodies):
+                    for kind in range(2):
+                        for q in range(6):
+                            key = (body, f"{KINDS[kind]}_{ERROR_PARAMETERS[q]}")
+                            out[key] = out.get(key, 0.0) + sign * coef[..., j, kind, q]
+            return out
+
+        return _run(inputs, self._size(inputs), (), compute)
+
+    def ideal_gap(self, motion: Motion | None = None) -> Array:
+        """Ideal branch-1 end minus ideal branch-2 end, shape ``(..., 3)``: zero for a closed geometry."""
+        return self.branches[0].ideal_position(motion) - self.branches[1].ideal_position(motion)
