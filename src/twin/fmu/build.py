@@ -214,7 +214,8 @@ def _check_tools() -> tuple[str, str]:
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if not cc:
         raise ToolMissingError(
-            "no C compiler found: install one (Debian: apt-get install -y gcc) to build the FMUs", source="build"
+            "no C compiler found: install one (Debian: apt-get install -y gcc) to build the FMUs",
+            source="build",
         )
     cmake = shutil.which("cmake")
     if not cmake:
@@ -244,9 +245,8 @@ def build_fmu(model: str, out_dir: Path, *, src: Path | None = None, debug: bool
     Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
     (with the tail of the compiler output) when compilation fails.
     """
-    from fmpy.build import create_cmake_settings  # fmpy's cmake settings, headers and CMakeLists
-
     import fmpy
+    from fmpy.build import create_cmake_settings  # fmpy's cmake settings, headers and CMakeLists
 
     src = src or fmu_sources_dir()
     files = _model_files(src, model)

@@ -1,0 +1,62 @@
+"""Drive an FMU through fmpy's thin FMI 2.0 binding (no master involved)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+
+class Driver:
+    """One instantiated co-simulation slave with name-based access."""
+
+    def __init__(self, fmu: Path, name: str = "inst", unzipdir: str | None = None) -> None:
+        self.md = read_model_description(str(fmu))
+        self.unzipdir = unzipdir or extract(str(fmu))
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzipdir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
+        self.slave.instantiate()
+        self.time = 0.0
+
+    def vr(self, name: str) -> int:
+        return self.vars[name].valueReference
+
+    def set(self, values: dict[str, float | bool]) -> None:
+        for name, value in values.items():
+            v = self.vars[name]
+            if v.type == "Boolean":
+                self.slave.setBoolean([v.valueReference], [bool(value)])
+            elif v.type == "Integer":
+                self.slave.setInteger([v.valueReference], [int(value)])
+            else:
+                self.slave.setReal([v.valueReference], [float(value)])
+
+    def init(
+        self, parameters: dict[str, float] | None = None, inputs: dict[str, float] | None = None
+    ) -> None:
+        self.slave.setupExperiment(startTime=0.0)
+        self.set(parameters or {})
+        self.set(inputs or {})
+        self.slave.enterInitializationMode()
+        self.slave.exitInitializationMode()
+
+    def outputs(self) -> list[str]:
+        return [v.name for v in self.md.modelVariables if v.causality == "output" and v.type == "Real"]
+
+    def get(self, names: list[str]) -> np.ndarray:
+        return np.array(self.slave.getReal([self.vr(n) for n in names]))
+
+    def step(self, h: float) -> None:
+        self.slave.doStep(currentCommunicationPoint=self.time, communicationStepSize=h)
+        self.time += h
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()

@@ -1,0 +1,56 @@
+"""`twin build`: builds every FMU; without the tools it says what to install, exit code 2."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+from twin.cli import main
+from twin.fmu.build import model_names, source_hash
+
+
+def test_build_writes_every_fmu_into_out(tmp_path: Path, capsys) -> None:
+    assert main(["build", "--out", str(tmp_path)]) == 0
+    for model in model_names():
+        fmu = tmp_path / f"{model}.fmu"
+        assert f"binaries/linux64/{model}.so" in zipfile.ZipFile(fmu).namelist()
+    assert "ThermalNetwork" in capsys.readouterr().out
+
+
+def test_missing_compiler_and_cmake_give_one_line_and_exit_2(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "CC"}
+    env["PATH"] = str(tmp_path)  # nothing on PATH: no cc, no cmake
+    proc = subprocess.run(
+        [sys.executable, "-m", "twin.cli", "build", "--out", str(tmp_path / "out")],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr
+    assert "install" in lines[0]
+
+
+def test_source_hash_changes_with_any_source(tmp_path: Path) -> None:
+    import shutil
+
+    from twin.fmu.build import fmu_sources_dir
+
+    copy = tmp_path / "fmus"
+    shutil.copytree(fmu_sources_dir(), copy)
+    before = source_hash("ThermalNetwork", copy)
+    (copy / "common" / "linalg.c").write_text(
+        (copy / "common" / "linalg.c").read_text() + "\n/* changed */\n"
+    )
+    assert source_hash("ThermalNetwork", copy) != before
+
+
+def test_bad_command_line_gives_exit_2(capsys) -> None:
+    assert main(["no-such-command"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("twin: ")
