@@ -1,0 +1,120 @@
+/*
+ * FixtureMechanics -- the two branches of the wear-depth detecting system along Z
+ * (equations in readme.md). Z is the wear direction, positive DOWN.
+ *
+ * Branch 1 (bearing side): base -> heel block + bearing block -> spindle -> bearing -> T-plate.
+ * Branch 2 (detecting side): base -> detecting frame -> sensor -> clamp -> long pole.
+ * The spring keeps the long pole's top on the T-plate's bottom; the clamp on the pole
+ * presses the probe's head; the probe reads the clamp's Z position relative to the sensor.
+ * All displacements are small (micrometres), so each body's thermal term is linear:
+ * alpha * L * (T - T_ref).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "model.h"
+
+#define G_ACCEL 9.80665 /* m/s2, standard gravity */
+
+static const int VR_TEMPS[FM_TEMPS] = {VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
+                                       VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base,
+                                       VR_t_pole_lower, VR_t_clamp};
+enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP };
+
+int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
+    double *r = comp->v.r;
+    if (r[VR_k_spring] + r[VR_k_head] <= 0.0) {
+        snprintf(msg, msg_size, "k_spring + k_head must be > 0 (the pole needs a restoring force)");
+        return -1;
+    }
+    return 0;
+}
+
+fmi2Status model_initialize(ModelInstance *comp) {
+    int i;
+    for (i = 0; i < FM_TEMPS; i++)
+        comp->v.m.t_ref[i] = comp->v.b[VR_reference_at_start] ? comp->v.r[VR_TEMPS[i]] : comp->v.r[VR_t_reference];
+    comp->v.m.z_tplate0 = 0.0;
+    return fmi2OK;
+}
+
+fmi2Status model_step(ModelInstance *comp, double h) {
+    /* purely algebraic for now: nothing to integrate between communication points */
+    (void)comp;
+    (void)h;
+    return fmi2OK;
+}
+
+void model_outputs(ModelInstance *comp) {
+    double *r = comp->v.r;
+    const double *tref = comp->v.m.t_ref;
+    double dt[FM_TEMPS];
+    double a_ci = r[VR_alpha_cast_iron], a_st = r[VR_alpha_steel], a_b = r[VR_alpha_bearing_steel];
+    double dz_bb, dz_sp, dz_br, dz_tp, dz_load, dz_run, z_t, dz_fr, dz_pole, dz_cl;
+    double f_free, k_total, z_top, gap, force, z_clamp, z_sensor;
+    int i;
+
+    for (i = 0; i < FM_TEMPS; i++) dt[i] = r[VR_TEMPS[i]] - tref[i];
+
+    /* branch 1: heel and bearing block grow up (-Z); below the spindle axis the spindle
+     * radius, the bearing rings and the T-plate grow down (+Z) */
+    dz_bb = -a_ci * (r[VR_h_heel_block] * dt[HEEL] + r[VR_h_bearing_block] * dt[BBLOCK]);
+    dz_sp = a_st * r[VR_r_spindle] * dt[SPINDLE];
+    dz_br = a_b * r[VR_t_bearing_rings] * dt[BEARING];
+    dz_tp = a_st * r[VR_l_t_plate] * dt[TPLATE];
+    dz_load = r[VR_compliance_loading_chain] * r[VR_radial_load];
+    dz_run = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
+    z_t = dz_bb + dz_sp + dz_br + dz_tp + dz_load + dz_run + r[VR_wear_depth];
+
+    /* branch 2: the frame hangs from the base and grows down; the pole grows down from its
+     * top (held on the T-plate) to the clamp, and the clamp down to the head's contact face */
+    dz_fr = a_st * r[VR_l_detecting_frame] * dt[FRAME];
+    dz_pole = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
+                      r[VR_l_pole_lower] * dt[POLE_LOWER]);
+    dz_cl = a_st * r[VR_l_clamp] * dt[CLAMP];
+    z_sensor = dz_fr;
+
+    /* contact: with the pole top at z_top, the spring pushes up with f_spring0 + k_spring*z_top,
+     * the head with f_head0 + k_head*(z_clamp - z_sensor), gravity pulls m g down. The net upward
+     * force grows as the pole goes down. The pole follows the T-plate while that force (the
+     * contact force) stays >= 0; otherwise the pole stops below the T-plate where the force
+     * vanishes and a gap opens (lift-off is reported, not hidden). */
+    k_total = r[VR_k_spring] + r[VR_k_head];
+    f_free = r[VR_f_spring0] + r[VR_f_head0] - r[VR_m_pole] * G_ACCEL;
+    /* the head's force depends on the clamp relative to the sensor: fold the sensor's own
+     * thermal motion and the pole/clamp growth into the equivalent pole-top position */
+    {
+        double shift = r[VR_k_head] * (dz_pole + dz_cl - z_sensor);
+        double force_at_contact = f_free + r[VR_k_spring] * z_t + r[VR_k_head] * z_t + shift;
+        if (force_at_contact >= 0.0) {
+            z_top = z_t;
+            force = force_at_contact;
+            gap = 0.0;
+        } else {
+            z_top = -(f_free + shift) / k_total; /* below the T-plate, where the net force is zero */
+            force = 0.0;
+            gap = z_top - z_t;
+        }
+    }
+    z_clamp = z_top + dz_pole + dz_cl;
+
+    r[VR_dz_bearing_block] = dz_bb;
+    r[VR_dz_spindle] = dz_sp;
+    r[VR_dz_bearing] = dz_br;
+    r[VR_dz_t_plate] = dz_tp;
+    r[VR_dz_loading] = dz_load;
+    r[VR_dz_runout] = dz_run;
+    r[VR_z_t_plate] = z_t;
+    r[VR_dz_detecting_frame] = dz_fr;
+    r[VR_dz_long_pole] = dz_pole;
+    r[VR_dz_clamp] = dz_cl;
+    r[VR_z_pole_top] = z_top;
+    r[VR_pole_gap] = gap;
+    r[VR_contact_force] = force;
+    r[VR_lift_off] = gap > 0.0 ? 1.0 : 0.0;
+    r[VR_z_clamp] = z_clamp;
+    r[VR_z_sensor] = z_sensor;
+    r[VR_probe_true] = r[VR_probe_preload] + z_clamp - z_sensor;
+    r[VR_wear_depth_true] = r[VR_wear_depth];
+}
