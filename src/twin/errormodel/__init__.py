@@ -10,7 +10,7 @@ Pure numpy, vectorised over time series: error parameters and motion variables m
 
 from __future__ import annotations
 
-from twin.errormodel.model import ERROR_KEYS, BranchModel, ErrorModel, Joint
+from twin.errormodel.model import ERROR_KEYS, BranchModel, ErrorModel, Errors, Joint, Motion
 from twin.errormodel.tester import load_tester_spec, tester_model
 from twin.errormodel.topology import Body, Topology
 
@@ -19,7 +19,9 @@ __all__ = [
     "Body",
     "BranchModel",
     "ErrorModel",
+    "Errors",
     "Joint",
+    "Motion",
     "Topology",
     "load_tester_spec",
     "tester_model",

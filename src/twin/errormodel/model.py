@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -57,10 +57,11 @@ ERROR_KEYS: tuple[str, ...] = tuple(f"{k}_{q}" for k in KINDS for q in ERROR_PAR
 
 Array = NDArray[np.float64]
 Motion = Mapping[str, ArrayLike]
-Errors = Mapping[Union[str, int], Mapping[str, ArrayLike]]  # noqa: UP007 (a runtime alias)
+# keyed by body name or by body index (two mapping types: Mapping keys are invariant for type checkers)
+Errors = Mapping[str, Mapping[str, ArrayLike]] | Mapping[int, Mapping[str, ArrayLike]]
 #: An ideal kinematic matrix: ``None`` (identity), a ``(4, 4)`` or ``(N, 4, 4)`` array, or a function
 #: of the motion variables (a mapping of name -> array of shape ``()`` or ``(m,)``) returning either.
-Kinematic = Union[None, ArrayLike, Callable[[Mapping[str, Array]], ArrayLike]]  # noqa: UP007
+Kinematic = None | ArrayLike | Callable[[Mapping[str, Array]], ArrayLike]
 
 # Samples per chunk on the per-sample paths: bounds memory (a (m, 4, 4) stack is 1 MB at 8192)
 # while keeping the Python overhead per chunk negligible.
@@ -78,6 +79,10 @@ class Joint:
     kinematic: Kinematic = None
 
 
+#: Joints keyed by body name or by body index; bodies left out get identity matrices.
+Joints = Mapping[str, Joint] | Mapping[int, Joint]
+
+
 def _check_matrix(value: Any, what: str, *, stack: bool) -> Array:
     try:
         m = np.asarray(value, dtype=np.float64)
@@ -86,7 +91,8 @@ def _check_matrix(value: Any, what: str, *, stack: bool) -> Array:
     if m.shape[-2:] != (4, 4) or m.ndim not in ((2, 3) if stack else (2,)):
         allowed = "(4, 4) or (N, 4, 4)" if stack else "(4, 4)"
         raise ConfigError(f"{what}: shape must be {allowed}, got {m.shape}")
-    if not np.allclose(m[..., 3, :], [0.0, 0.0, 0.0, 1.0]):
+    # max-abs rather than allclose: this runs on every chunk of a callable's output
+    if m.size and np.abs(m[..., 3, :] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-12:
         raise ConfigError(f"{what}: last row must be [0, 0, 0, 1]")
     return m
 
@@ -154,6 +160,16 @@ def _run(
     return out
 
 
+def _add_cm(a: Array, b: Array | float) -> Array:
+    """``a + b`` for component-major arrays ``(rows,)`` or ``(rows, m)``: the sample axis is last."""
+    a, b = np.asarray(a), np.asarray(b)
+    if 0 < a.ndim < b.ndim:
+        a = a[..., None]
+    elif 0 < b.ndim < a.ndim:
+        b = b[..., None]
+    return a + b
+
+
 class BranchModel:
     """One branch: the chain of joints from the base to an end body and a point on that body.
 
@@ -163,7 +179,7 @@ class BranchModel:
     def __init__(
         self,
         topology: Topology,
-        joints: Mapping[str | int, Joint],
+        joints: Joints,
         end: str | int,
         point: ArrayLike = (0.0, 0.0, 0.0),
         *,
@@ -203,11 +219,10 @@ class BranchModel:
         mats = []
         for body, k in zip(self.chain[1:], self._kinematic, strict=True):
             if callable(k):
-                m = _check_matrix(k(chunk.motion), f"kinematic matrix of body {body}", stack=True)
+                what = f"kinematic matrix of body '{self.topology.body(body).name}'"
+                m = _check_matrix(k(chunk.motion), what, stack=True)
                 if m.ndim == 3 and m.shape[0] != chunk.m:
-                    raise ConfigError(
-                        f"kinematic matrix of body {body}: {m.shape[0]} samples for {chunk.m} motion samples"
-                    )
+                    raise ConfigError(f"{what}: {m.shape[0]} samples for {chunk.m} motion samples")
             else:
                 m = k[chunk.sl] if k.ndim == 3 else k
             mats.append(m)
@@ -221,7 +236,9 @@ class BranchModel:
             v = apply(tp, apply(ts, v))
         return v
 
-    def _actual(self, kins: list[Array], errors: Mapping[int, list[tuple[int, int, Array]]], exact: bool) -> Array:
+    def _actual(
+        self, kins: list[Array], errors: Mapping[int, list[tuple[int, int, Array]]], exact: bool
+    ) -> Array:
         build = exact_error_matrix if exact else small_error_matrix
         v = self.point
         for j in reversed(range(len(self.chain) - 1)):
@@ -238,51 +255,80 @@ class BranchModel:
             v = apply(self._positioning[j], v)
         return v
 
-    def _coefficients(self, kins: list[Array]) -> Array:
-        """Sensitivities ``d p_1n / d parameter``, shape ``(..., K, 2, 3, 6)``.
+    def _coefficients(
+        self, kins: list[Array], rows: tuple[int, ...] = (0, 1, 2), slots: set[int] | None = None
+    ) -> dict[int, Array]:
+        """First-order sensitivities ``d p_1n[row] / d parameter`` per error slot.
 
-        Axes: joint along the chain, kind (p, s), base-frame component (x, y, z), parameter.
-        The error matrix of slot ``m`` (``2 * joint + kind``) sits after the ideal matrices
-        ``M_0 .. M_m``; its term is ``R(M_0..M_m) @ G_q @ (M_{m+1} .. M_last @ p)``; ``G_q v`` has no
-        homogeneous part, so only the prefix's rotation block matters.
+        Slot ``2 * joint + kind`` (kind 0 = p, 1 = s) maps to an array ``(len(rows), 6, *batch)``:
+        base-frame components ``rows`` of x, y, z, the six parameters, then the sample axis if the ideal
+        matrices vary per sample (component-major, so every operation below runs on contiguous
+        per-sample vectors). ``slots=None`` computes all of them.
+
+        The error matrix of slot ``m`` sits after the ideal matrices ``M_0 .. M_m``; its first-order
+        term is ``R @ G_q @ v``, with ``R`` the rotation block of ``M_0 .. M_m`` (``G_q v`` has no
+        homogeneous part) and ``v = M_{m+1} .. M_last @ p``. For a row ``r`` of ``R``, a translation
+        ``q`` gives ``r[q] * w`` and a small rotation about axis ``q`` gives ``r . (e_q x v) = (v x r)[q]``.
+        So only rows of ``R`` and the point are propagated, skipping pure translations' rotations.
         """
         mats: list[Array] = []
         for tp, ts in zip(self._positioning, kins, strict=True):
             mats += [tp, ts]
-        prefixes: list[Array] = []
-        acc: Array = np.eye(4)
+        # per-sample stacks (m, 4, 4) -> component-major (4, 4, m)
+        mats = [m if m.ndim == 2 else np.ascontiguousarray(np.moveaxis(m, 0, -1)) for m in mats]
+        eye = np.eye(3)
+        r: Array = eye[list(rows)]  # (rows, 3, *batch)
+        prefix_rows: list[Array] = []
         for m in mats:
-            acc = acc @ m
-            prefixes.append(acc[..., :3, :3])
-        suffixes: list[Array] = [self.point]
+            rot = m[:3, :3]
+            if rot.ndim == 2 and r.ndim == 2:
+                r = r @ rot
+            elif rot.ndim > 2 or not np.array_equal(rot, eye):
+                r = np.einsum("ri...,ij...->rj...", r, rot)
+            prefix_rows.append(r)
+        v: Array = self.point  # (4, *batch)
+        points: list[Array] = [v]
         for m in reversed(mats[1:]):
-            suffixes.append(apply(m, suffixes[-1]))
-        suffixes.reverse()
-        blocks = []
-        for rot, v in zip(prefixes, suffixes, strict=True):
-            b = np.zeros((*v.shape[:-1], 3, 6))
-            x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
-            b[..., 0, 0] = b[..., 1, 1] = b[..., 2, 2] = w  # translations move the point as such
-            # columns 3..5: e_x x v, e_y x v, e_z x v (small rotations about the slot's axes)
-            b[..., 1, 3], b[..., 2, 3] = -z, y
-            b[..., 0, 4], b[..., 2, 4] = z, -x
-            b[..., 0, 5], b[..., 1, 5] = -y, x
-            blocks.append(rot @ b)
-        c = np.stack(blocks, axis=-3)  # (..., 2K, 3, 6)
-        return c.reshape(*c.shape[:-3], len(mats) // 2, 2, 3, 6)
+            if m.ndim == 2 and np.array_equal(m[:3, :3], eye):
+                # a pure translation: three scaled additions instead of a matrix product
+                t = m[:3, 3].reshape(3, *([1] * (v.ndim - 1)))
+                v = np.concatenate([v[:3] + t * v[3], v[3:]]) if t.any() else v
+            else:
+                v = np.einsum("ij...,j...->i...", m, v)
+            points.append(v)
+        points.reverse()
+        out: dict[int, Array] = {}
+        for slot, (r, v) in enumerate(zip(prefix_rows, points, strict=True)):
+            if slots is not None and slot not in slots:
+                continue
+            batch = np.broadcast_shapes(r.shape[2:], v.shape[1:])
+            c = np.empty((len(rows), 6, *batch))
+            if r.ndim == 2 and v.ndim == 2:
+                r = r[..., None]  # constant rows against per-sample points: add the sample axis
+            x, y, z, w = v
+            rx, ry, rz = r[:, 0], r[:, 1], r[:, 2]
+            c[:, 0], c[:, 1], c[:, 2] = rx * w, ry * w, rz * w
+            c[:, 3], c[:, 4], c[:, 5] = y * rz - z * ry, z * rx - x * rz, x * ry - y * rx
+            out[slot] = c
+        return out
+
+    def _error_slots(self, errors: Mapping[int, list[tuple[int, int, Array]]]) -> set[int]:
+        """The slots (``2 * joint + kind``) that carry at least one given error parameter."""
+        return {2 * j + kind for j, body in enumerate(self.chain[1:]) for kind, _, _ in errors.get(body, ())}
 
     def _first_order(
-        self, coef: Array, errors: Mapping[int, list[tuple[int, int, Array]]], rows: slice | int
+        self, coef: Mapping[int, Array], errors: Mapping[int, list[tuple[int, int, Array]]]
     ) -> dict[int, Array]:
-        """Per-body first-order contribution ``sum_q coef * x_q`` (components ``rows``)."""
+        """Per-body first-order contribution ``sum_q coef[:, q] * x_q``, shape ``(rows, *batch)``."""
+        n_rows = next(iter(coef.values())).shape[0] if coef else 1
         out: dict[int, Array] = {}
         for j, body in enumerate(self.chain[1:]):
-            total: Array | float = 0.0
+            total: Array = np.zeros(n_rows)
             for kind, q, x in errors.get(body, ()):
-                c = coef[..., j, kind, rows, q]
-                # (3,) or (m, 3) components times a per-sample x need x as a column
-                total = total + (c * x if isinstance(rows, int) else c * x[..., None])
-            out[body] = np.asarray(total)
+                c = coef[2 * j + kind][:, q]
+                # constant (rows,) coefficients times per-sample x: the sample axis goes last
+                total = _add_cm(total, c[:, None] * x if c.ndim == 1 and x.ndim == 1 else c * x)
+            out[body] = total
         return out
 
     # -- public evaluations -------------------------------------------------------------------------
@@ -296,7 +342,9 @@ class BranchModel:
         res = _run(inputs, CHUNK, (3,), lambda c: {"p": self._ideal(self._kinematics(c))[..., :3]})
         return res["p"]
 
-    def actual_position(self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False) -> Array:
+    def actual_position(
+        self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False
+    ) -> Array:
         """Actual position (full 4x4 product), shape ``(..., 3)``.
 
         ``exact=False`` uses the first-order error matrices (the paper's), ``True`` full rotations.
@@ -308,7 +356,9 @@ class BranchModel:
 
         return _run(inputs, CHUNK, (3,), compute)["p"]
 
-    def position_error(self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False) -> Array:
+    def position_error(
+        self, errors: Errors | None, motion: Motion | None = None, *, exact: bool = False
+    ) -> Array:
         """Actual minus ideal position of the end point (full product), shape ``(..., 3)``."""
         inputs = self._inputs(errors, motion)
 
@@ -324,9 +374,11 @@ class BranchModel:
         size = CHUNK if self._time_varying(inputs.motion) else None
 
         def compute(c: _Chunk) -> dict[str, Array]:
-            coef = self._coefficients(self._kinematics(c))
-            parts = self._first_order(coef, c.errors, slice(0, 3))
-            return {"e": np.asarray(sum(parts.values(), np.zeros(3)))}
+            coef = self._coefficients(self._kinematics(c), slots=self._error_slots(c.errors))
+            total: Array = np.zeros(3)
+            for part in self._first_order(coef, c.errors).values():
+                total = _add_cm(total, part)
+            return {"e": np.moveaxis(total, 0, -1)}
 
         return _run(inputs, size, (3,), compute)["e"]
 
@@ -338,12 +390,22 @@ class BranchModel:
         """
         inputs = self._inputs(None, motion)
         size = CHUNK if self._time_varying(inputs.motion) else None
-        tail = (len(self.chain) - 1, 2, 3, 6)
-        return _run(inputs, size, tail, lambda c: {"c": self._coefficients(self._kinematics(c))})["c"]
+        k = len(self.chain) - 1
+
+        def compute(c: _Chunk) -> dict[str, Array]:
+            coef = self._coefficients(self._kinematics(c))
+            full = np.stack(np.broadcast_arrays(*(coef[s] for s in range(2 * k))))  # (2K, 3, 6, *batch)
+            return {
+                "c": np.moveaxis(full.reshape(k, 2, 3, 6, *full.shape[3:]), (0, 1, 2, 3), (-4, -3, -2, -1))
+            }
+
+        return _run(inputs, size, (k, 2, 3, 6), compute)["c"]
 
 
-def _normalise_joints(topology: Topology, joints: Mapping[str | int, Joint]) -> dict[int, tuple[Array, Any]]:
-    out: dict[int, tuple[Array, Any]] = {b.index: (np.eye(4), np.eye(4)) for b in topology.bodies if b.lower is not None}
+def _normalise_joints(topology: Topology, joints: Joints) -> dict[int, tuple[Array, Any]]:
+    out: dict[int, tuple[Array, Any]] = {
+        b.index: (np.eye(4), np.eye(4)) for b in topology.bodies if b.lower is not None
+    }
     for key, joint in joints.items():
         body = topology.body(key)
         if body.lower is None:
@@ -418,7 +480,7 @@ class ErrorModel:
     def __init__(
         self,
         topology: Topology,
-        joints: Mapping[str | int, Joint],
+        joints: Joints,
         ends: tuple[str | int, str | int],
         points: tuple[ArrayLike, ArrayLike] = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
         *,
@@ -445,16 +507,18 @@ class ErrorModel:
         """First-order e_z per body on one chunk: +branch-1 contribution - branch-2 contribution."""
         parts: dict[str, Array] = {}
         for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
-            coef = branch._coefficients(branch._kinematics(c))
-            for body, value in branch._first_order(coef, c.errors, 2).items():
+            coef = branch._coefficients(branch._kinematics(c), rows=(2,), slots=branch._error_slots(c.errors))
+            for body, value in branch._first_order(coef, c.errors).items():
                 name = self.topology.body(body).name
-                parts[name] = parts.get(name, 0.0) + sign * value
+                parts[name] = parts.get(name, 0.0) + sign * value[0]
         return {k: np.asarray(v) for k, v in parts.items()}
 
     def e_z(self, errors: Errors | None, motion: Motion | None = None) -> Array:
         """First-order comprehensive error along Z, shape ``()`` or ``(N,)``."""
         inputs = self._inputs(errors, motion)
-        return _run(inputs, self._size(inputs), (), lambda c: {"e": np.asarray(sum(self._parts(c).values()))})["e"]
+        return _run(
+            inputs, self._size(inputs), (), lambda c: {"e": np.asarray(sum(self._parts(c).values()))}
+        )["e"]
 
     def e_z_by_body(self, errors: Errors | None, motion: Motion | None = None) -> dict[str, Array]:
         """First-order ``e_z`` split by body (each body's own parameters); sums to :meth:`e_z`.
@@ -490,12 +554,12 @@ class ErrorModel:
         def compute(c: _Chunk) -> dict[tuple[str, str], Array]:
             out: dict[tuple[str, str], Array] = {}
             for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
-                coef = branch._coefficients(branch._kinematics(c))[..., 2, :]  # (..., K, 2, 6)
+                coef = branch._coefficients(branch._kinematics(c), rows=(2,))  # slot -> (1, 6, *batch)
                 for j, body in enumerate(branch.bodies):
                     for kind in range(2):
                         for q in range(6):
                             key = (body, f"{KINDS[kind]}_{ERROR_PARAMETERS[q]}")
-                            out[key] = out.get(key, 0.0) + sign * coef[..., j, kind, q]
+                            out[key] = out.get(key, 0.0) + sign * coef[2 * j + kind][0, q]
             return out
 
         return _run(inputs, self._size(inputs), (), compute)

@@ -149,14 +149,20 @@ def _value(raw: Any, key: str, problems: list[ConfigError], source: str) -> Valu
         problems.append(ConfigError(f"value must be a finite number, got {v!r}", source=source, key=key))
         return None
     if src not in SOURCES:
-        problems.append(ConfigError(f"source must be one of {sorted(SOURCES)}, got {src!r}", source=source, key=key))
+        problems.append(
+            ConfigError(f"source must be one of {sorted(SOURCES)}, got {src!r}", source=source, key=key)
+        )
         return None
     return Value(float(v), src, str(raw.get("note", "")))
 
 
 def _body(raw: Any, i: int, problems: list[ConfigError], source: str) -> BodySpec | None:
     key = f"body[{i}]"
-    if not isinstance(raw, dict) or not isinstance(raw.get("index"), int) or not isinstance(raw.get("name"), str):
+    if (
+        not isinstance(raw, dict)
+        or not isinstance(raw.get("index"), int)
+        or not isinstance(raw.get("name"), str)
+    ):
         problems.append(ConfigError("needs an integer 'index' and a string 'name'", source=source, key=key))
         return None
     lower = raw.get("lower")
@@ -169,7 +175,9 @@ def _body(raw: Any, i: int, problems: list[ConfigError], source: str) -> BodySpe
     position: dict[str, Value] = {}
     for axis, v in raw.get("position", {}).items():
         if axis not in "xyz" or len(axis) != 1:
-            problems.append(ConfigError(f"position axis must be x, y or z, got {axis!r}", source=source, key=key))
+            problems.append(
+                ConfigError(f"position axis must be x, y or z, got {axis!r}", source=source, key=key)
+            )
         elif (val := _value(v, f"{key}.position.{axis}", problems, source)) is not None:
             position[axis] = val
     dimensions = {
@@ -197,28 +205,49 @@ def _body(raw: Any, i: int, problems: list[ConfigError], source: str) -> BodySpe
             )
         else:
             motion = MotionSpec(m["type"], m["axis"], m["variable"], float(m.get("scale", 1.0)))
-    return BodySpec(Body(raw["index"], raw["name"], lower), position, motion, dimensions, str(raw.get("note", "")))
+    return BodySpec(
+        Body(raw["index"], raw["name"], lower), position, motion, dimensions, str(raw.get("note", ""))
+    )
 
 
 def _parse(data: dict[str, Any], source: str) -> TesterSpec:
     problems: list[ConfigError] = []
     model = data.get("model", {})
-    bodies = [b for i, raw in enumerate(data.get("body", [])) if (b := _body(raw, i, problems, source)) is not None]
+    bodies = [
+        b for i, raw in enumerate(data.get("body", [])) if (b := _body(raw, i, problems, source)) is not None
+    ]
     branches = []
     raw_branches = data.get("branch", [])
     if len(raw_branches) != 2:
-        problems.append(ConfigError(f"exactly two [[branch]] tables needed, got {len(raw_branches)}", source=source))
+        problems.append(
+            ConfigError(f"exactly two [[branch]] tables needed, got {len(raw_branches)}", source=source)
+        )
     for i, raw in enumerate(raw_branches):
         point = raw.get("point", [0.0, 0.0, 0.0])
         if not isinstance(raw.get("end"), str) or not (
             isinstance(point, list) and len(point) == 3 and all(isinstance(c, int | float) for c in point)
         ):
-            problems.append(ConfigError("needs 'end' (a body name) and 'point' = [x, y, z]", source=source, key=f"branch[{i}]"))
+            problems.append(
+                ConfigError(
+                    "needs 'end' (a body name) and 'point' = [x, y, z]", source=source, key=f"branch[{i}]"
+                )
+            )
             continue
-        branches.append(BranchSpec(str(raw.get("name", f"branch {i + 1}")), raw["end"], tuple(map(float, point)), str(raw.get("note", ""))))  # type: ignore[arg-type]
+        branches.append(
+            BranchSpec(
+                str(raw.get("name", f"branch {i + 1}")),
+                raw["end"],
+                (float(point[0]), float(point[1]), float(point[2])),
+                str(raw.get("note", "")),
+            )
+        )
     defaults = model.get("motion_defaults", {})
     if not isinstance(defaults, dict) or not all(isinstance(v, int | float) for v in defaults.values()):
-        problems.append(ConfigError("must map motion variable names to numbers", source=source, key="model.motion_defaults"))
+        problems.append(
+            ConfigError(
+                "must map motion variable names to numbers", source=source, key="model.motion_defaults"
+            )
+        )
         defaults = {}
     if problems:
         raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
@@ -260,3 +289,8 @@ def load_tester_spec(path: str | Path | None = None) -> TesterSpec:
 def tester_model(path: str | Path | None = None) -> ErrorModel:
     """The tester's ready :class:`ErrorModel` (bodies named as in the data file, motion ``angle``)."""
     return load_tester_spec(path).model()
+
+
+# pytest collects module-level callables named test*; "tester_model" imported into a test module would
+# be run as a test. Tell pytest it is not one.
+tester_model.__test__ = False  # type: ignore[attr-defined]

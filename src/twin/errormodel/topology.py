@@ -70,7 +70,9 @@ class Topology:
         elif len(bases) > 1:
             problems.append(f"several base bodies: {sorted(b.index for b in bases)} (exactly one allowed)")
         elif bases[0].index != BASE_INDEX:
-            problems.append(f"the base body must have index {BASE_INDEX} (Huston numbering), got {bases[0].index}")
+            problems.append(
+                f"the base body must have index {BASE_INDEX} (Huston numbering), got {bases[0].index}"
+            )
         for b in by_index.values():
             if b.lower is not None and b.lower not in by_index:
                 problems.append(f"body {b.index} ('{b.name}'): unknown lower body {b.lower}")
