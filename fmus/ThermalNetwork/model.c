@@ -179,6 +179,7 @@ void model_outputs(ModelInstance *comp) {
     ModelState *m = &comp->v.m;
     int i;
     for (i = 0; i < TN_NODES; i++) comp->v.r[VR_T[i]] = m->temp[i];
+    comp->v.r[VR_t_ambient] = comp->v.r[VR_t_room];
     comp->v.r[VR_energy_stored] = heat_content(comp) - m->energy_stored0;
     comp->v.r[VR_energy_in] = m->energy_in;
     comp->v.r[VR_energy_lost] = m->energy_lost;

@@ -83,8 +83,12 @@ static void set_start_values(ModelInstance *comp) {
     size_t k;
     memset(&comp->v, 0, sizeof comp->v);
     for (k = 0; k < N_REALS; k++) comp->v.r[k] = VARS_REAL[k].start;
+#if N_INTEGERS > 0
     for (k = 0; k < N_INTEGERS; k++) comp->v.i[k] = (int)VARS_INTEGER[k].start;
+#endif
+#if N_BOOLEANS > 0
     for (k = 0; k < N_BOOLEANS; k++) comp->v.b[k] = VARS_BOOLEAN[k].start != 0.0;
+#endif
 }
 
 /* ------------------------------------------------------------------ common API */

@@ -24,4 +24,44 @@ CASES: dict[str, Case] = {
         stop=4 * 3600.0,
         parameters={"t_start_bearing": 295.0},
     ),
+    "SensorsDAQ": Case(
+        # the paper's thermal experiment, part way through: the eight points a few K above a
+        # 20 degC start, the probe at its 4.805 mm start reading
+        inputs={
+            "t_bearing_block": 297.5,
+            "t_heel_block": 297.0,
+            "t_bearing": 295.2,
+            "t_t_plate": 297.4,
+            "t_base": 297.1,
+            "t_long_pole": 299.3,
+            "t_detecting_frame": 298.9,
+            "t_room": 298.9,
+            "t_probe_body": 298.0,
+            "probe_true": 4.805e-3,
+        },
+        step=0.1,
+        stop=30.0,
+        parameters={"temp_tau": 20.0},
+    ),
+    "FixtureMechanics": Case(
+        # the paper's measured rises on a 293.15 K start (inputs are held; the model is algebraic)
+        inputs={
+            "t_heel_block": 298.95,
+            "t_bearing_block": 299.65,
+            "t_spindle": 296.35,
+            "t_bearing": 296.35,
+            "t_t_plate": 299.45,
+            "t_detecting_frame": 302.05,
+            "t_pole_heel": 298.95,
+            "t_pole_base": 299.15,
+            "t_pole_lower": 302.75,
+            "t_clamp": 302.75,
+            "radial_load": 1000.0,
+            "angle": 0.3,
+            "wear_depth": 2e-6,
+        },
+        step=1.0,
+        stop=120.0,
+        parameters={"reference_at_start": False, "compliance_loading_chain": 2e-9, "spindle_runout": 3e-6},
+    ),
 }

@@ -67,8 +67,13 @@ def run_libcosim(fmu: Path, model: str) -> np.ndarray:
     refs = {v.name.decode(): (v.reference, v.type) for v in execution.slave_variables(idx)}
     for name, value in {**case.parameters, **case.inputs}.items():
         ref, vtype = refs[name]
-        assert vtype == CosimVariableType.REAL.value
-        execution.real_initial_value(idx, ref, float(value))
+        if vtype == CosimVariableType.BOOLEAN.value:
+            execution.boolean_initial_value(idx, ref, bool(value))
+        elif vtype == CosimVariableType.INTEGER.value:
+            execution.integer_initial_value(idx, ref, int(value))
+        else:
+            assert vtype == CosimVariableType.REAL.value
+            execution.real_initial_value(idx, ref, float(value))
     d = Driver(fmu)
     outs = d.outputs()
     d.slave.freeInstance()
