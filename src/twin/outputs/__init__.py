@@ -1,0 +1,45 @@
+"""Output sinks of a run: ``signals.csv``, ``summary.json``, ``recording.rrd``, the error-budget PNG.
+
+The CSV and JSON writers are imported eagerly; the rerun recording and the plot are loaded
+on first use (PEP 562 ``__getattr__``) because importing rerun and matplotlib takes about a
+second each, which commands that never write them should not pay.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from twin.outputs.csv import SignalsCsvWriter, read_signals_csv, units_sidecar_path, write_signals_csv
+from twin.outputs.summary import to_jsonable, write_summary
+
+if TYPE_CHECKING:
+    from twin.outputs.plots import error_budget_png
+    from twin.outputs.rerun_rec import RecordingWriter, read_recording, write_recording
+
+__all__ = [
+    "RecordingWriter",
+    "SignalsCsvWriter",
+    "error_budget_png",
+    "read_recording",
+    "read_signals_csv",
+    "to_jsonable",
+    "units_sidecar_path",
+    "write_recording",
+    "write_signals_csv",
+    "write_summary",
+]
+
+_LAZY = {
+    "RecordingWriter": "twin.outputs.rerun_rec",
+    "read_recording": "twin.outputs.rerun_rec",
+    "write_recording": "twin.outputs.rerun_rec",
+    "error_budget_png": "twin.outputs.plots",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)

@@ -1,0 +1,321 @@
+"""``signals.csv``: the signal table as a CSV file that FMPy reads.
+
+Format (the FMI cross-check convention that :func:`fmpy.util.read_csv` parses):
+
+* first line ``time,<name>,<name>,...``; the names are the signal names as they are
+  (``thermal.t_base``): fmpy splits the header on commas only and numpy accepts dots in
+  field names, so no quoting or renaming is needed. Names holding a comma, a quote, a
+  space or a line break are refused because fmpy could not read them back;
+* one row per time, values in SI units, written with ``repr`` (shortest text that reads
+  back to the identical float64), so the file round-trips exactly and identical inputs give
+  byte-identical files; NaN and infinities are written ``nan``/``inf``;
+* every row ends with ``\\n``. A run killed mid-write leaves at most one partial last line
+  without its ``\\n``; :func:`read_signals_csv` drops that line (with a warning), so the file
+  stays readable up to its last complete row.
+
+Units, subsystems and descriptions go to a small sidecar ``<stem>.units.json`` next to the
+CSV (fmpy ignores it) so :func:`read_signals_csv` can rebuild the full table.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import IO
+
+import numpy as np
+
+from twin.errors import ConfigError
+from twin.outputs.summary import write_summary
+from twin.signals.table import Signal, SignalTable
+
+__all__ = [
+    "SignalsCsvWriter",
+    "read_signals_csv",
+    "units_sidecar_path",
+    "write_signals_csv",
+]
+
+TIME = "time"
+_FORBIDDEN = frozenset(",\"'\n\r \t")
+# Subsystem given to a column whose name has no "<instance>." prefix and no sidecar entry,
+# e.g. a column of a user's own measurement file.
+DEFAULT_SUBSYSTEM = "measured"
+
+
+def units_sidecar_path(csv_path: str | os.PathLike[str]) -> Path:
+    """Where the units sidecar of ``csv_path`` lives: ``signals.csv`` -> ``signals.units.json``."""
+    return Path(csv_path).with_suffix(".units.json")
+
+
+def _default_subsystem(name: str) -> str:
+    prefix, dot, _ = name.partition(".")
+    return prefix if dot and prefix else DEFAULT_SUBSYSTEM
+
+
+def _check_names(names: Sequence[str]) -> None:
+    seen: set[str] = set()
+    for name in names:
+        if not name or _FORBIDDEN.intersection(name):
+            raise ValueError(
+                f"signal name {name!r} cannot be a CSV column (empty, or holds , \" ' or blanks)"
+            )
+        if name == TIME:
+            raise ValueError("'time' is the time column and cannot also be a signal name")
+        if name in seen:
+            raise ValueError(f"signal name {name!r} appears twice")
+        seen.add(name)
+
+
+class SignalsCsvWriter:
+    """Stream a run's signals to ``path`` chunk by chunk.
+
+    The header (and the units sidecar) are written on construction; each :meth:`append`
+    writes its rows and flushes them to the OS, so a killed run keeps every appended row.
+    Use as a context manager or call :meth:`close`.
+
+    ``units`` is one unit per name (or a mapping name -> unit); ``subsystems`` and
+    ``descriptions`` are optional and default to the name's prefix and ``""``. With
+    ``fsync=True`` each append also waits for the disk (survives a power cut, costs time).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        names: Sequence[str],
+        units: Sequence[str] | Mapping[str, str],
+        *,
+        subsystems: Sequence[str] | None = None,
+        descriptions: Sequence[str] | None = None,
+        sidecar: bool = True,
+        fsync: bool = False,
+    ) -> None:
+        self.path = Path(path)
+        self.names = list(names)
+        _check_names(self.names)
+        self._name_set = frozenset(self.names)
+        unit_list = [units[n] for n in self.names] if isinstance(units, Mapping) else list(units)
+        subsystem_list = (
+            list(subsystems) if subsystems is not None else [_default_subsystem(n) for n in self.names]
+        )
+        description_list = list(descriptions) if descriptions is not None else [""] * len(self.names)
+        for label, values in (
+            ("units", unit_list),
+            ("subsystems", subsystem_list),
+            ("descriptions", description_list),
+        ):
+            if len(values) != len(self.names):
+                raise ValueError(f"{len(values)} {label} for {len(self.names)} names")
+        self.signals = [
+            Signal(n, u, s, d)
+            for n, u, s, d in zip(self.names, unit_list, subsystem_list, description_list, strict=True)
+        ]
+        self._fsync = fsync
+        self._last_time = -math.inf
+        self.rows = 0
+        # One %-template per row, applied to a whole chunk at once: formatting then runs in C
+        # instead of a Python loop over values. %r gives the shortest exact text of a float.
+        self._row = ",".join(["%r"] * (len(self.names) + 1)) + "\n"
+        if sidecar:
+            write_units_sidecar(self.path, self.signals)
+        # newline="\n": the same bytes on every platform (deterministic files).
+        self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        self._file.write(",".join([TIME, *self.names]) + "\n")
+        self._flush()
+
+    @classmethod
+    def for_signals(
+        cls, path: str | os.PathLike[str], signals: Sequence[Signal], **kwargs: bool
+    ) -> SignalsCsvWriter:
+        """A writer whose columns, units and subsystems come from ``signals`` (in order)."""
+        return cls(
+            path,
+            [s.name for s in signals],
+            [s.unit for s in signals],
+            subsystems=[s.subsystem for s in signals],
+            descriptions=[s.description for s in signals],
+            **kwargs,
+        )
+
+    def append(self, time_chunk: np.ndarray, columns_chunk: Mapping[str, np.ndarray]) -> None:
+        """Write the rows of one chunk: ``time_chunk`` (s) and one array per signal name.
+
+        Times must be finite and strictly increasing, also across chunks (readers rely on it).
+        """
+        if self._file is None:
+            raise ValueError(f"{self.path} is closed")
+        t = np.asarray(time_chunk, dtype=np.float64)
+        if t.ndim != 1:
+            raise ValueError(f"time chunk must be 1-D, got shape {t.shape}")
+        missing = [n for n in self.names if n not in columns_chunk]
+        extra = [n for n in columns_chunk if n not in self._name_set]
+        if missing or extra:
+            raise ValueError(f"chunk columns do not match the header: missing {missing}, unexpected {extra}")
+        if t.size == 0:
+            return
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] <= self._last_time:
+            raise ValueError(
+                f"times must be finite and strictly increasing (after t = {self._last_time!r} s)"
+            )
+        block = np.empty((t.size, len(self.names) + 1), dtype=np.float64)
+        block[:, 0] = t
+        for j, name in enumerate(self.names, start=1):
+            values = np.asarray(columns_chunk[name], dtype=np.float64)
+            if values.shape != t.shape:
+                raise ValueError(f"column '{name}' has shape {values.shape}, time has {t.shape}")
+            block[:, j] = values
+        # tolist() gives Python floats, whose repr is the shortest exact one (numpy scalars
+        # would print as "np.float64(...)").
+        self._file.write((self._row * t.size) % tuple(block.ravel().tolist()))
+        self._flush()
+        self._last_time = float(t[-1])
+        self.rows += t.size
+
+    def _flush(self) -> None:
+        assert self._file is not None
+        self._file.flush()
+        if self._fsync:
+            os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> SignalsCsvWriter:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+def write_units_sidecar(csv_path: str | os.PathLike[str], signals: Sequence[Signal]) -> Path:
+    """Write ``<stem>.units.json``: name -> {unit, subsystem, description}, time first."""
+    data: dict[str, dict[str, str]] = {TIME: {"unit": "s", "subsystem": "", "description": "simulation time"}}
+    for s in signals:
+        data[s.name] = {"unit": s.unit, "subsystem": s.subsystem, "description": s.description}
+    return write_summary(units_sidecar_path(csv_path), data)
+
+
+def write_signals_csv(table: SignalTable, path: str | os.PathLike[str], *, sidecar: bool = True) -> Path:
+    """Write a whole :class:`SignalTable` to ``path`` (and its units sidecar); returns ``path``."""
+    signals = [table.meta[n] for n in table.names()]
+    with SignalsCsvWriter.for_signals(path, signals, sidecar=sidecar) as writer:
+        writer.append(table.time, table.columns)
+    return Path(path)
+
+
+def _read_sidecar(csv_path: Path) -> dict[str, dict[str, str]]:
+    side = units_sidecar_path(csv_path)
+    if not side.is_file():
+        return {}
+    try:
+        data = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"unreadable units sidecar: {exc}", source=str(side)) from None
+    if not isinstance(data, dict) or not all(isinstance(v, dict) for v in data.values()):
+        raise ConfigError(
+            "units sidecar must map each name to {unit, subsystem, description}", source=str(side)
+        )
+    return data
+
+
+def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
+    """Read a signals CSV (ours or a user's measurement in the same format) into a table.
+
+    Rules: the header is ``time,<name>,...`` (names may be double-quoted); every row has one
+    number per column (``nan``/``inf`` allowed); times are finite and strictly increasing;
+    blank lines are skipped. A last line without its terminating newline is taken as the
+    partial row of an interrupted run and ignored (a :class:`RuntimeWarning` says so).
+    Units and subsystems come from the ``<stem>.units.json`` sidecar when present, else the
+    unit is ``""`` and the subsystem the name's prefix before the first dot.
+
+    Raises :class:`~twin.errors.ConfigError` (one line: file, line number, problem) on a bad file.
+    """
+    path = Path(path)
+    source = str(path)
+    try:
+        # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
+        with open(path, encoding="utf-8-sig", newline=None) as f:
+            lines = f.readlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read signals CSV: {exc}", source=source) from None
+    if not lines or not lines[0].strip():
+        raise ConfigError("empty file, expected a header 'time,<name>,...'", source=source)
+    if not lines[0].endswith("\n"):
+        raise ConfigError("header line is incomplete (no line break after it)", source=source)
+    header = [h.strip().strip('"').strip() for h in lines[0].split(",")]
+    if header[0] != TIME:
+        raise ConfigError(f"line 1: first column must be 'time', got {header[0]!r}", source=source)
+    names = header[1:]
+    for name in names:
+        if not name:
+            raise ConfigError("line 1: empty column name", source=source)
+    if len(set(header)) != len(header):
+        dup = next(n for n in header if header.count(n) > 1)
+        raise ConfigError(f"line 1: column {dup!r} appears twice", source=source)
+
+    if len(lines) > 1 and not lines[-1].endswith("\n"):
+        if lines[-1].strip():
+            warnings.warn(
+                f"{source}: ignored incomplete last line {len(lines)} (no line break: interrupted write?)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        lines = lines[:-1]
+
+    ncol = len(header)
+    rows: list[list[float]] = []
+    for lineno, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        fields = line.split(",")
+        if len(fields) != ncol:
+            raise ConfigError(
+                f"line {lineno}: {len(fields)} values, header has {ncol} columns", source=source
+            )
+        try:
+            rows.append([float(v) for v in fields])
+        except ValueError:
+            col, bad = next((h, v) for h, v in zip(header, fields, strict=True) if not _is_float(v))
+            raise ConfigError(
+                f"line {lineno}, column '{col}': {bad.strip()!r} is not a number", source=source
+            ) from None
+
+    data = np.array(rows, dtype=np.float64).reshape(len(rows), ncol)
+    time = data[:, 0]
+    if not np.all(np.isfinite(time)):
+        raise ConfigError("column 'time' holds a non-finite value", source=source)
+    steps = np.diff(time)
+    if np.any(steps <= 0):
+        k = int(np.argmax(steps <= 0))
+        raise ConfigError(f"time is not strictly increasing after t = {float(time[k])!r} s", source=source)
+
+    sidecar = _read_sidecar(path)
+    table = SignalTable(time=np.ascontiguousarray(time))
+    for j, name in enumerate(names, start=1):
+        info = sidecar.get(name, {})
+        signal = Signal(
+            name=name,
+            unit=str(info.get("unit", "")),
+            subsystem=str(info.get("subsystem") or _default_subsystem(name)),
+            description=str(info.get("description", "")),
+        )
+        table.add(signal, np.ascontiguousarray(data[:, j]))
+    return table
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

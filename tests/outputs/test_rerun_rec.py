@@ -1,0 +1,121 @@
+"""recording.rrd: passes `rerun rrd verify`, values round-trip, the blueprint is in the file."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from twin.outputs.rerun_rec import (
+    BUDGET_VIEW_NAME,
+    RecordingWriter,
+    entity_path,
+    read_recording,
+    write_recording,
+)
+from twin.signals.table import Signal, SignalTable
+
+from .sample import BUDGET
+
+
+def _verify(path: Path) -> subprocess.CompletedProcess[str]:
+    # `python -m rerun_cli` runs the CLI bundled with the rerun-sdk of this interpreter
+    # (the same binary as the venv's `rerun` script), whatever is on PATH.
+    return subprocess.run(
+        [sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def _blueprint_rows(path: Path) -> list[dict[str, list]]:
+    reader = RrdReader(path)
+    (store,) = reader.blueprints()
+    rows = []
+    for chunk in reader.stream(store=store).to_chunks():
+        batch = chunk.to_record_batch()
+        rows.append({n: batch.column(n).to_pylist() for n in batch.schema.names if ":" in n})
+    return rows
+
+
+def test_rrd_verifies_and_values_round_trip(table: SignalTable, tmp_path: Path) -> None:
+    path = write_recording(table, tmp_path / "recording.rrd", recording_name="test", budget_columns=BUDGET)
+    result = _verify(path)
+    assert result.returncode == 0, result.stderr
+    series = read_recording(path)
+    assert set(series) == {entity_path(table.meta[n]) for n in table.names()}
+    t, values = series["/thermal/t_base"]
+    np.testing.assert_array_equal(t, table.time)
+    np.testing.assert_array_equal(values, table["thermal.t_base"])
+    np.testing.assert_array_equal(series["/errormodel/e_total"][1], table["errormodel.e_total"])
+
+
+def test_blueprint_has_error_budget_first_and_one_view_per_subsystem(
+    table: SignalTable, tmp_path: Path
+) -> None:
+    path = write_recording(table, tmp_path / "recording.rrd", budget_columns=BUDGET)
+    rows = _blueprint_rows(path)
+    views = {r["ViewBlueprint:display_name"][0][0]: r for r in rows if "ViewBlueprint:display_name" in r}
+    assert set(views) == {BUDGET_VIEW_NAME, "thermal", "errormodel", "probe"}
+    assert all(v["ViewBlueprint:class_identifier"][0] == ["TimeSeries"] for v in views.values())
+    assert views["thermal"]["ViewBlueprint:space_origin"][0] == ["/thermal"]
+    queries = [r["ViewContents:query"][0] for r in rows if "ViewContents:query" in r]
+    assert ["+ /errormodel/e_total", *(f"+ /errormodel/{n.split('.')[1]}" for n in BUDGET[1:])] in queries
+    # The root container is vertical with the budget view first and the larger share.
+    (root,) = [r for r in rows if r.get("ContainerBlueprint:row_shares")]
+    assert root["ContainerBlueprint:row_shares"][0] == [3.0, 2.0]
+    assert root["ContainerBlueprint:contents"][0][0].startswith("view/")
+
+
+def test_static_series_names_and_units(table: SignalTable, tmp_path: Path) -> None:
+    path = write_recording(table, tmp_path / "recording.rrd")
+    static = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        if chunk.is_static:
+            batch = chunk.to_record_batch()
+            static.setdefault(chunk.entity_path, {}).update(
+                {n: batch.column(n).to_pylist()[0] for n in batch.schema.names if n != "rerun.controls.RowId"}
+            )
+    meta = static["/thermal/t_base"]
+    assert meta["SeriesLines:names"] == ["t_base [K]"]
+    # AnyValues components keep their plain names.
+    assert (meta["signal"], meta["unit"], meta["description"]) == (["thermal.t_base"], ["K"], ["base plate"])
+    assert not any(k.startswith("Scalars") for k in meta)  # the samples themselves are not static
+
+
+def test_streaming_writer_matches_the_table(table: SignalTable, tmp_path: Path) -> None:
+    signals = [table.meta[n] for n in table.names()]
+    path = tmp_path / "stream.rrd"
+    with RecordingWriter(path, signals, budget_columns=BUDGET) as writer:
+        for lo in range(0, len(table), 100):
+            writer.append(table.time[lo : lo + 100], {n: v[lo : lo + 100] for n, v in table.columns.items()})
+    assert writer.rows == len(table)
+    assert _verify(path).returncode == 0
+    t, values = read_recording(path)["/probe/reading"]
+    np.testing.assert_array_equal(t, table.time)
+    np.testing.assert_array_equal(values, table["probe.reading"])
+
+
+def test_sim_time_is_rounded_to_whole_nanoseconds(tmp_path: Path) -> None:
+    table = SignalTable(time=np.array([0.0, 0.1, 0.3, 86400.7]))
+    table.add(Signal("x.a", "m", "x"), np.arange(4.0))
+    t, _ = read_recording(write_recording(table, tmp_path / "r.rrd"))["/x/a"]
+    np.testing.assert_array_equal(t, table.time)  # truncation would give 0.299999999
+
+
+def test_entity_paths() -> None:
+    assert entity_path(Signal("thermal.t_base", "K", "thermal")) == "/thermal/t_base"
+    assert entity_path(Signal("loading.f_radial", "N", "mechanics")) == "/mechanics/loading.f_radial"
+
+
+def test_bad_budget_column_and_entity_collision(tmp_path: Path) -> None:
+    signals = [Signal("x.a", "m", "x")]
+    with pytest.raises(ValueError, match="not among the signals"):
+        RecordingWriter(tmp_path / "a.rrd", signals, budget_columns=["x.b"])
+    with pytest.raises(ValueError, match="both map to"):
+        RecordingWriter(tmp_path / "b.rrd", [Signal("x.a", "m", "x"), Signal("a", "m", "x")])
