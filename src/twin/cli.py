@@ -31,6 +31,69 @@ def _cmd_build(args: argparse.Namespace) -> int:
     return 0
 
 
+def _load(args: argparse.Namespace):
+    from twin.config.load import default_scenario_path, load_scenario
+
+    path = Path(args.scenario) if args.scenario else default_scenario_path()
+    return load_scenario(path, args.set or [])
+
+
+def _progress_bar(quiet: bool):
+    """A progress bar on a terminal (tqdm), nothing with --quiet or without a tty."""
+    if quiet or not sys.stderr.isatty():
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=100, unit="%", desc="simulating", leave=False, file=sys.stderr)
+
+    def update(now_ns: int, total_ns: int) -> None:
+        bar.n = round(100 * now_ns / total_ns)
+        bar.refresh()
+
+    return update, bar.close
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    import time
+
+    from twin.pipeline import run, summary_line
+
+    start = time.perf_counter()
+    scenario = _load(args)
+    out = Path(args.out) if args.out else Path("runs") / scenario.name
+    update, done = _progress_bar(args.quiet)
+    try:
+        summary = run(scenario, out, progress=update, process_start=args.process_start or start)
+    finally:
+        done()
+    if not args.quiet:
+        print(summary_line(summary))
+        print(f"outputs: {out}")
+    return 0
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from twin.pipeline import evaluation_config
+
+    scenario = _load(args)
+    evaluation_config(scenario)
+    print(
+        f"{scenario.source_path}: ok ({scenario.name}: {len(scenario.fmus)} FMUs, "
+        f"{len(scenario.connections)} connections, {len(scenario.profiles)} profiles, {len(scenario.events)} events)"
+    )
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from twin.calibrate import calibrate_file
+
+    path = calibrate_file(
+        Path(args.scenario) if args.scenario else None, Path(args.out) if args.out else None
+    )
+    print(f"calibrated thermal network written to {path}")
+    return 0
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="twin", description="Co-simulation digital twin of a spherical plain bearing tester."
@@ -40,6 +103,33 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("build", help="build every FMU in fmus/ (into the cache, or --out DIR)")
     p.add_argument("--out", metavar="DIR", help="write the .fmu files here instead of the cache")
     p.set_defaults(func=_cmd_build)
+
+    p = sub.add_parser("run", help="run a scenario (default: the paper's 480 min thermal experiment)")
+    p.add_argument(
+        "scenario", nargs="?", help="scenario TOML file (default: scenarios/li2017-thermal-experiment.toml)"
+    )
+    p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
+    p.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    p.set_defaults(func=_cmd_run, process_start=None)
+
+    p = sub.add_parser("validate", help="check a scenario without running it")
+    p.add_argument("scenario", help="scenario TOML file")
+    p.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
+    )
+    p.set_defaults(func=_cmd_validate)
+
+    p = sub.add_parser("calibrate", help="fit the thermal network to the paper's measured temperature rises")
+    p.add_argument(
+        "scenario", nargs="?", help="scenario whose thermal network is calibrated (default: the paper's)"
+    )
+    p.add_argument(
+        "--out", metavar="FILE", help="parameter file to write (default: the one the scenario includes)"
+    )
+    p.set_defaults(func=_cmd_calibrate)
     return parser
 
 

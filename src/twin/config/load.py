@@ -1,0 +1,668 @@
+"""Load a scenario file (TOML) into a checked, frozen :class:`~twin.config.spec.Scenario`.
+
+Every problem in a file is collected and reported at once, one line each naming the file
+and the dotted key (like FMPy's validators), as :class:`~twin.errors.ConfigErrors`.
+Connections are checked before any run (as mosaik does): endpoints exist, an output feeds
+an input, units agree, no input is fed twice, and loops between FMUs go through an explicit
+delay with an initial value.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from fractions import Fraction
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+from twin.config.spec import (
+    NS_PER_S,
+    Connection,
+    Event,
+    FMUSpec,
+    Parameter,
+    Profile,
+    Scenario,
+)
+from twin.errors import ConfigError, ConfigErrors
+
+#: longest run accepted: a year of simulated time
+MAX_DURATION_NS = 366 * 24 * 3600 * NS_PER_S
+
+_UNITS_NS = {
+    "ns": 1,
+    "us": 1_000,
+    "ms": 1_000_000,
+    "s": NS_PER_S,
+    "min": 60 * NS_PER_S,
+    "h": 3600 * NS_PER_S,
+    "d": 86400 * NS_PER_S,
+}
+_DURATION_RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?)\s*([a-z]+)\s*$")
+
+_TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"}
+_SCENARIO_KEYS = {"name", "description", "duration", "step", "output_interval", "seed", "drift_window"}
+_FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
+_PROFILE_PARAMS: dict[str, tuple[set[str], set[str]]] = {
+    # kind: (required, optional)
+    "constant": ({"value"}, set()),
+    "ramp": ({"start", "end", "duration"}, {"delay"}),
+    "exponential": ({"start", "rise", "time_constant"}, {"rise_at"}),
+    "sine": ({"mean", "amplitude", "period"}, {"phase"}),
+    "table": ({"points"}, set()),
+}
+_PROFILE_DURATIONS = {"duration", "delay", "time_constant", "rise_at", "period"}
+_EVENT_KEYS = {"at", "action", "target", "value", "duration"}
+_EVENT_ACTIONS = {"set", "ramp", "bias"}
+
+
+def parse_duration(value: Any) -> int:
+    """A duration as integer nanoseconds: a number of seconds or a string like ``"480 min"``.
+
+    Exact (rational arithmetic), so ``"0.1 s"`` is 100_000_000 ns, never 99_999_999.
+    Raises ``ValueError`` with a short reason.
+    """
+    if isinstance(value, bool):
+        raise ValueError(f"expected a duration, got {value!r}")
+    if isinstance(value, int | float):
+        if not math.isfinite(value):
+            raise ValueError(f"expected a finite duration, got {value!r}")
+        frac, unit = Fraction(repr(float(value)) if isinstance(value, float) else value), NS_PER_S
+    elif isinstance(value, str):
+        m = _DURATION_RE.match(value)
+        if not m or m.group(2) not in _UNITS_NS:
+            raise ValueError(
+                f"expected a duration like '480 min' or '0.1 s' (units {', '.join(_UNITS_NS)}), got {value!r}"
+            )
+        frac, unit = Fraction(m.group(1)), _UNITS_NS[m.group(2)]
+    else:
+        raise ValueError(f"expected a duration, got {type(value).__name__}")
+    ns = frac * unit
+    if ns.denominator != 1:
+        raise ValueError(f"{value!r} is not a whole number of nanoseconds")
+    return int(ns)
+
+
+def format_duration(ns: int) -> str:
+    """Shortest exact text for a duration, for messages."""
+    for unit in ("d", "h", "min", "s", "ms", "us"):
+        if ns % _UNITS_NS[unit] == 0:
+            return f"{ns // _UNITS_NS[unit]} {unit}"
+    return f"{ns} ns"
+
+
+# ----------------------------------------------------------------------------- model metadata
+
+
+@cache
+def model_variables(model: str) -> Mapping[str, Any]:
+    """The ``modelDescription.xml`` variables of a model in ``fmus/`` by name (no build needed)."""
+    from fmpy import read_model_description
+
+    from twin.fmu.build import fmu_sources_dir
+
+    md = read_model_description(str(fmu_sources_dir() / model / "modelDescription.xml"))
+    return {v.name: v for v in md.modelVariables}
+
+
+def variable_unit(v: Any) -> str:
+    """Declared unit of an FMI variable (directly or through its declared type)."""
+    if getattr(v, "unit", None):
+        return str(v.unit)
+    declared = getattr(v, "declaredType", None)
+    return str(declared.unit) if declared is not None and declared.unit else ""
+
+
+def _known_models() -> list[str]:
+    from twin.fmu.build import model_names
+
+    return model_names()
+
+
+# ----------------------------------------------------------------------------- --set overrides
+
+
+def _split_key(key: str) -> list[str]:
+    """Dotted key with optional quoted parts: ``input."thermal.t_room".rise``."""
+    parts, buf, quoted = [], "", False
+    for ch in key:
+        if ch == '"':
+            quoted = not quoted
+        elif ch == "." and not quoted:
+            parts.append(buf)
+            buf = ""
+        else:
+            buf += ch
+    parts.append(buf)
+    if quoted or any(not p for p in parts):
+        raise ConfigError(f"malformed key {key!r}", source="--set")
+    return parts
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> None:
+    """Apply ``KEY=VALUE`` overrides in place; VALUE is read as TOML (else as a plain string)."""
+    for item in overrides:
+        if "=" not in item:
+            raise ConfigError(f"expected KEY=VALUE, got {item!r}", source="--set")
+        key, raw = item.split("=", 1)
+        parts = _split_key(key.strip())
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw
+        node = data
+        for p in parts[:-1]:
+            child = node.get(p)
+            if child is None:
+                child = node[p] = {}
+            elif not isinstance(child, dict):
+                raise ConfigError(f"cannot set {key!r}: '{p}' is not a table", source="--set", key=key)
+            node = child
+        node[parts[-1]] = value
+
+
+# ----------------------------------------------------------------------------- the loader
+
+
+class _Problems:
+    """Collects problems with the file name, so all of them are reported at once."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.items: list[ConfigError] = []
+
+    def add(self, key: str, message: str) -> None:
+        self.items.append(ConfigError(message, source=self.source, key=key))
+
+    def unknown_keys(self, table: Mapping[str, Any], allowed: set[str], prefix: str) -> None:
+        for k in table:
+            if k not in allowed:
+                hint = ", ".join(sorted(allowed))
+                self.add(f"{prefix}{k}", f"unknown key (expected one of: {hint})")
+
+    def duration(
+        self, table: Mapping[str, Any], key: str, prefix: str, *, required: bool = True
+    ) -> int | None:
+        if key not in table:
+            if required:
+                self.add(prefix + key, "missing (a duration such as '480 min')")
+            return None
+        try:
+            return parse_duration(table[key])
+        except ValueError as exc:
+            self.add(prefix + key, str(exc))
+            return None
+
+    def number(self, table: Mapping[str, Any], key: str, prefix: str) -> float | None:
+        v = table.get(key)
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            self.add(prefix + key, f"expected a number, got {v!r}" if key in table else "missing (a number)")
+            return None
+        if not math.isfinite(v):
+            self.add(prefix + key, f"expected a finite number, got {v!r}")
+            return None
+        return float(v)
+
+
+def _table(p: _Problems, data: Mapping[str, Any], key: str, prefix: str = "") -> dict[str, Any]:
+    v = data.get(key, {})
+    if not isinstance(v, dict):
+        p.add(prefix + key, f"expected a table, got {type(v).__name__}")
+        return {}
+    return v
+
+
+def _read_toml(path: Path, source: str) -> dict[str, Any]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", source=source) from None
+    except IsADirectoryError:
+        raise ConfigError("is a directory, expected a TOML file", source=source) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read: {exc.__class__.__name__}: {exc}", source=source) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"TOML syntax error: {exc}", source=source) from None
+
+
+def _parameter_value(p: _Problems, model: str, var: Any, raw: Any, key: str) -> Parameter | None:
+    source = ""
+    if isinstance(raw, dict):
+        extra = set(raw) - {"value", "source"}
+        if extra:
+            p.add(key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source }})")
+            return None
+        if "value" not in raw:
+            p.add(key, "missing 'value'")
+            return None
+        source = str(raw.get("source", ""))
+        raw = raw["value"]
+    if var.type == "Boolean":
+        if not isinstance(raw, bool):
+            p.add(key, f"expected true or false, got {raw!r}")
+            return None
+        return Parameter(raw, source)
+    if var.type == "Integer":
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            p.add(key, f"expected an integer, got {raw!r}")
+            return None
+        value: float | int = raw
+    else:
+        if isinstance(raw, bool) or not isinstance(raw, int | float):
+            p.add(key, f"expected a number, got {raw!r}")
+            return None
+        value = float(raw)
+        if not math.isfinite(value):
+            p.add(key, f"expected a finite number, got {raw!r}")
+            return None
+    lo = (
+        float(var.min)
+        if var.min is not None
+        else (
+            float(var.declaredType.min)
+            if var.declaredType and var.declaredType.min is not None
+            else -math.inf
+        )
+    )
+    hi = (
+        float(var.max)
+        if var.max is not None
+        else (
+            float(var.declaredType.max) if var.declaredType and var.declaredType.max is not None else math.inf
+        )
+    )
+    if not lo <= value <= hi:
+        unit = variable_unit(var)
+        p.add(
+            key,
+            f"{value!r} {unit} is outside the physical range [{lo!r}, {hi!r}] of {model}.{var.name}".replace(
+                "  ", " "
+            ),
+        )
+        return None
+    return Parameter(value, source)
+
+
+def _load_fmus(p: _Problems, data: Mapping[str, Any], base_dir: Path, step_ns: int | None) -> list[FMUSpec]:
+    fmus_raw = _table(p, data, "fmu")
+    if not fmus_raw:
+        p.add("fmu", "at least one [fmu.<name>] table is needed")
+    known = _known_models()
+    out = []
+    for name, raw in fmus_raw.items():
+        prefix = f"fmu.{name}."
+        if not isinstance(raw, dict):
+            p.add(f"fmu.{name}", "expected a table")
+            continue
+        if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+            p.add(f"fmu.{name}", "instance names are lower_snake (letters, digits, _)")
+        p.unknown_keys(raw, _FMU_KEYS, prefix)
+        model = raw.get("model")
+        if model not in known:
+            p.add(prefix + "model", f"unknown model {model!r} (known: {', '.join(known)})")
+            continue
+        period = p.duration(raw, "period", prefix)
+        if period is not None:
+            if period <= 0:
+                p.add(prefix + "period", "must be positive")
+            elif step_ns and period % step_ns:
+                p.add(
+                    prefix + "period",
+                    f"{format_duration(period)} is not a multiple of scenario.step ({format_duration(step_ns)})",
+                )
+        variables = model_variables(model)
+        merged: dict[str, tuple[Any, str]] = {}
+        files = raw.get("parameter_files", [])
+        if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+            p.add(prefix + "parameter_files", "expected a list of file names")
+            files = []
+        for f in files:
+            fpath = (base_dir / f).resolve()
+            try:
+                fdata = _read_toml(fpath, str(fpath))
+            except ConfigError as exc:
+                p.items.append(exc)
+                continue
+            params = fdata.get("parameters", {})
+            if not isinstance(params, dict):
+                p.items.append(
+                    ConfigError("expected a [parameters] table", source=str(fpath), key="parameters")
+                )
+                continue
+            for k, v in params.items():
+                merged[k] = (v, f"{fpath.name}: parameters.{k}")
+        params_raw = raw.get("parameters", {})
+        if not isinstance(params_raw, dict):
+            p.add(prefix + "parameters", "expected a table")
+            params_raw = {}
+        for k, v in params_raw.items():
+            merged[k] = (v, f"{prefix}parameters.{k}")
+        params: dict[str, Parameter] = {}
+        for k, (v, where) in merged.items():
+            var = variables.get(k)
+            if var is None or var.causality != "parameter":
+                p.add(where, f"{model} has no parameter '{k}'")
+                continue
+            param = _parameter_value(p, model, var, v, where)
+            if param is not None:
+                params[k] = param
+        if period is not None:
+            out.append(FMUSpec(name=name, model=model, period_ns=period, parameters=params))
+    return out
+
+
+def _endpoint(p: _Problems, fmus: Mapping[str, FMUSpec], ref: Any, key: str, causality: str) -> Any | None:
+    if not isinstance(ref, str) or ref.count(".") != 1:
+        p.add(key, f"expected 'instance.variable', got {ref!r}")
+        return None
+    inst, var = ref.split(".")
+    spec = fmus.get(inst)
+    if spec is None:
+        p.add(key, f"unknown FMU instance '{inst}' in {ref!r} (known: {', '.join(sorted(fmus))})")
+        return None
+    v = model_variables(spec.model).get(var)
+    if v is None:
+        p.add(key, f"{spec.model} has no variable '{var}' (in {ref!r})")
+        return None
+    if v.causality != causality:
+        p.add(key, f"{ref!r} is a {v.causality}, expected an {causality}")
+        return None
+    if v.type != "Real":
+        p.add(key, f"{ref!r} is {v.type}; only Real variables are exchanged")
+        return None
+    return v
+
+
+def _load_connections(p: _Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
+    out: list[Connection] = []
+    conns = _table(p, data, "connections")
+    for src, dsts in conns.items():
+        key = f'connections."{src}"'
+        if isinstance(dsts, str):
+            dsts = [dsts]
+        if not isinstance(dsts, list) or not all(isinstance(d, str) for d in dsts):
+            p.add(key, "expected an input name or a list of them")
+            continue
+        for dst in dsts:
+            out.append(Connection(src, dst))
+    delays = data.get("delay", [])
+    if not isinstance(delays, list):
+        p.add("delay", "expected an array of tables [[delay]]")
+        delays = []
+    for i, raw in enumerate(delays):
+        key = f"delay[{i}]"
+        if not isinstance(raw, dict):
+            p.add(key, "expected a table with from, to, initial")
+            continue
+        p.unknown_keys(raw, {"from", "to", "initial"}, key + ".")
+        initial = p.number(raw, "initial", key + ".")
+        if isinstance(raw.get("from"), str) and isinstance(raw.get("to"), str) and initial is not None:
+            out.append(Connection(raw["from"], raw["to"], delay=True, initial=initial))
+        elif not (isinstance(raw.get("from"), str) and isinstance(raw.get("to"), str)):
+            p.add(key, "needs 'from' and 'to' as 'instance.variable'")
+    fed: dict[str, str] = {}
+    for c in out:
+        key = f'connections."{c.src}"' if not c.delay else "delay"
+        vs = _endpoint(p, fmus, c.src, key, "output")
+        vd = _endpoint(p, fmus, c.dst, key, "input")
+        if vs is not None and vd is not None and variable_unit(vs) != variable_unit(vd):
+            p.add(
+                key, f"unit mismatch: {c.src} is in '{variable_unit(vs)}', {c.dst} in '{variable_unit(vd)}'"
+            )
+        if c.dst in fed:
+            p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
+        fed[c.dst] = c.src
+    _check_loops(p, out)
+    return out
+
+
+def _check_loops(p: _Problems, connections: Sequence[Connection]) -> None:
+    """Loops between instances must contain a delayed connection (no algebraic loops)."""
+    graph: dict[str, set[str]] = {}
+    for c in connections:
+        if not c.delay and "." in c.src and "." in c.dst:
+            a, b = c.src.split(".")[0], c.dst.split(".")[0]
+            graph.setdefault(a, set()).add(b)
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(n: str) -> list[str] | None:
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if state.get(m) == 1:
+                return [*stack[stack.index(m) :], m]
+            if m not in state and (cycle := visit(m)):
+                return cycle
+        state[n] = 2
+        stack.pop()
+        return None
+
+    for n in sorted(graph):
+        if n not in state and (cycle := visit(n)):
+            p.add(
+                "connections",
+                "algebraic loop " + " -> ".join(cycle) + ": break it with a [[delay]] (from, to, initial)",
+            )
+            return
+
+
+def _load_profiles(
+    p: _Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]
+) -> list[Profile]:
+    out = []
+    fed = {c.dst for c in connections}
+    inputs = _table(p, data, "input")
+    for inst, per_var in inputs.items():
+        if not isinstance(per_var, dict):
+            p.add(f"input.{inst}", "expected a table [input.<instance>.<variable>]")
+            continue
+        for var, raw in per_var.items():
+            key = f"input.{inst}.{var}"
+            target = f"{inst}.{var}"
+            if not isinstance(raw, dict):
+                p.add(key, "expected a table with 'profile' and its parameters")
+                continue
+            if _endpoint(p, fmus, target, key, "input") is None:
+                continue
+            if target in fed:
+                p.add(key, f"input {target!r} is fed by a connection; it cannot also have a profile")
+            kind = raw.get("profile")
+            if kind not in _PROFILE_PARAMS:
+                p.add(
+                    key + ".profile",
+                    f"unknown profile {kind!r} (expected one of: {', '.join(_PROFILE_PARAMS)})",
+                )
+                continue
+            required, optional = _PROFILE_PARAMS[kind]
+            p.unknown_keys(raw, required | optional | {"profile", "source"}, key + ".")
+            params: dict[str, float] = {}
+            table: tuple[tuple[float, float], ...] = ()
+            for k in sorted(required | optional):
+                if k not in raw:
+                    if k in required:
+                        p.add(f"{key}.{k}", f"missing (needed by the '{kind}' profile)")
+                    continue
+                if k == "points":
+                    pts = raw[k]
+                    ok = (
+                        isinstance(pts, list)
+                        and len(pts) >= 2
+                        and all(isinstance(q, list) and len(q) == 2 for q in pts)
+                    )
+                    if not ok:
+                        p.add(f"{key}.points", "expected [[time, value], ...] with at least two points")
+                        continue
+                    try:
+                        times = [parse_duration(q[0]) / NS_PER_S for q in pts]
+                    except ValueError as exc:
+                        p.add(f"{key}.points", str(exc))
+                        continue
+                    values = [q[1] for q in pts]
+                    if any(isinstance(v, bool) or not isinstance(v, int | float) for v in values):
+                        p.add(f"{key}.points", "values must be numbers")
+                        continue
+                    if any(b <= a for a, b in itertools.pairwise(times)):
+                        p.add(f"{key}.points", "times must increase strictly")
+                        continue
+                    table = tuple(zip(times, map(float, values), strict=True))
+                elif k in _PROFILE_DURATIONS:
+                    ns = p.duration(raw, k, key + ".")
+                    if ns is not None:
+                        if ns <= 0 and k != "delay":
+                            p.add(f"{key}.{k}", "must be positive")
+                        params[k] = ns / NS_PER_S
+                else:
+                    v = p.number(raw, k, key + ".")
+                    if v is not None:
+                        params[k] = v
+            out.append(Profile(target, kind, params, table, str(raw.get("source", ""))))
+    return out
+
+
+def _load_events(
+    p: _Problems,
+    data: Mapping[str, Any],
+    fmus: Mapping[str, FMUSpec],
+    duration_ns: int | None,
+    connections: Sequence[Connection],
+) -> list[Event]:
+    fed = {c.dst for c in connections}
+    raw_events = data.get("event", [])
+    if not isinstance(raw_events, list):
+        p.add("event", "expected an array of tables [[event]]")
+        return []
+    out = []
+    for i, raw in enumerate(raw_events):
+        key = f"event[{i}]"
+        if not isinstance(raw, dict):
+            p.add(key, "expected a table")
+            continue
+        p.unknown_keys(raw, _EVENT_KEYS, key + ".")
+        at = p.duration(raw, "at", key + ".")
+        action = raw.get("action")
+        if action not in _EVENT_ACTIONS:
+            p.add(
+                key + ".action",
+                f"unknown action {action!r} (expected one of: {', '.join(sorted(_EVENT_ACTIONS))})",
+            )
+            continue
+        causality = "output" if action == "bias" else "input"
+        target_ok = _endpoint(p, fmus, raw.get("target"), key + ".target", causality) is not None
+        if target_ok and action != "bias" and raw["target"] in fed:
+            p.add(
+                key + ".target",
+                f"input {raw['target']!r} is fed by a connection; {action} needs a free input",
+            )
+            target_ok = False
+        value = p.number(raw, "value", key + ".")
+        dur = p.duration(raw, "duration", key + ".", required=action == "ramp") or 0
+        if action == "ramp" and dur <= 0:
+            p.add(key + ".duration", "a ramp needs a positive duration")
+        if at is not None and (at < 0 or (duration_ns is not None and at >= duration_ns)):
+            p.add(key + ".at", "must lie within the scenario's duration")
+        if at is not None and value is not None and target_ok:
+            out.append(Event(at, action, raw["target"], value, dur))
+    return sorted(out, key=lambda e: e.at_ns)
+
+
+def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Scenario:
+    """Check an already-parsed scenario; raises :class:`ConfigErrors` listing every problem."""
+    p = _Problems(source)
+    p.unknown_keys(data, _TOP_KEYS, "")
+    sc = _table(p, data, "scenario")
+    if "scenario" not in data:
+        p.add("scenario", "missing [scenario] table")
+    p.unknown_keys(sc, _SCENARIO_KEYS, "scenario.")
+    name = sc.get("name", Path(source).stem)
+    if not isinstance(name, str) or not name:
+        p.add("scenario.name", "expected a non-empty string")
+        name = Path(source).stem
+    step = p.duration(sc, "step", "scenario.")
+    duration = p.duration(sc, "duration", "scenario.")
+    interval = p.duration(sc, "output_interval", "scenario.")
+    if step is not None and step <= 0:
+        p.add("scenario.step", "must be positive")
+        step = None
+    if duration is not None:
+        if duration <= 0:
+            p.add("scenario.duration", "must be positive")
+        elif duration > MAX_DURATION_NS:
+            p.add("scenario.duration", f"{format_duration(duration)} is absurdly long (at most 366 d)")
+        elif step and duration % step:
+            p.add("scenario.duration", f"{format_duration(duration)} is not a multiple of scenario.step")
+        elif step and duration < 2 * step:
+            p.add("scenario.duration", "too short: needs at least two steps")
+    if interval is not None:
+        if interval <= 0:
+            p.add("scenario.output_interval", "must be positive")
+        elif step and interval % step:
+            p.add(
+                "scenario.output_interval", f"{format_duration(interval)} is not a multiple of scenario.step"
+            )
+    drift_window = p.duration(sc, "drift_window", "scenario.", required=False)
+    if drift_window is not None and drift_window <= 0:
+        p.add("scenario.drift_window", "must be positive")
+    seed = sc.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
+        p.add("scenario.seed", f"expected an integer in [0, 2^31), got {seed!r}")
+        seed = 0
+    description = sc.get("description", "")
+    if not isinstance(description, str):
+        p.add("scenario.description", "expected a string")
+        description = ""
+
+    fmus = _load_fmus(p, data, base_dir, step)
+    for f in fmus:
+        if duration and duration > 0 and duration % f.period_ns:
+            p.add(f"fmu.{f.name}.period", f"{format_duration(f.period_ns)} does not divide scenario.duration")
+    by_name = {f.name: f for f in fmus}
+    connections = _load_connections(p, data, by_name)
+    profiles = _load_profiles(p, data, by_name, connections)
+    events = _load_events(p, data, by_name, duration, connections)
+    errormodel = _table(p, data, "errormodel")
+
+    if p.items:
+        raise ConfigErrors(p.items)
+    assert step is not None and duration is not None and interval is not None
+    return Scenario(
+        name=name,
+        description=description,
+        source_path=source,
+        duration_ns=duration,
+        step_ns=step,
+        output_interval_ns=interval,
+        seed=int(seed),
+        fmus=tuple(fmus),
+        connections=tuple(connections),
+        profiles=tuple(profiles),
+        events=tuple(events),
+        drift_window_ns=drift_window if drift_window is not None else 300 * NS_PER_S,
+        errormodel={k: Parameter(v) for k, v in errormodel.items()},
+    )
+
+
+def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Read, override (``--set``) and check a scenario file."""
+    path = Path(path)
+    data = _read_toml(path, str(path))
+    apply_overrides(data, overrides)
+    return load_scenario_data(data, str(path), path.resolve().parent)
+
+
+def default_scenario_path() -> Path:
+    """The paper's thermal experiment: ``scenarios/li2017-thermal-experiment.toml``."""
+    return scenarios_dir() / "li2017-thermal-experiment.toml"
+
+
+def scenarios_dir() -> Path:
+    """The ``scenarios/`` folder of the source tree this package runs from."""
+    from twin.fmu.build import fmu_sources_dir
+
+    return fmu_sources_dir().parent / "scenarios"

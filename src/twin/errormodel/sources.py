@@ -1,0 +1,102 @@
+"""Error sources: from measured streams to the error parameters of the tester's bodies.
+
+The comprehensive error model needs, per body, its small-error parameters (dx .. ez). Each of
+the paper's five error factors maps measured quantities to some of them:
+
+- thermal dE_T: ``alpha * L * dT`` of every body from the eight temperature sensors (this
+  module), plus the probe's own zero drift with temperature (body 7);
+- loading dE_F, fluctuating dE_V, positioning dE_G, interference dE_I: added with the
+  loading/oscillation models (their parts are zero while their causes are absent).
+
+Only measured streams are used (the temperature sensors' readings, never the FMUs' node
+temperatures), so the same code runs on a lab's CSV of real measurements.
+
+Sign convention (Z down, the paper's): a body's ``p_dz`` moves the next body of its branch
+down. Branch 1 bodies enter e_z with +1, branch 2 bodies with -1, so for branch 2 a growth
+that moves the clamp's contact face down (pole, clamp) is a negative ``p_dz`` of that body.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from twin.errors import ConfigError
+
+#: default measured columns of the twin; a lab maps its own CSV columns instead
+DEFAULT_TEMPERATURES: dict[str, str] = {
+    "bearing_block": "sensors.t_bearing_block_meas",
+    "heel_block": "sensors.t_heel_block_meas",
+    "bearing": "sensors.t_bearing_meas",
+    "t_plate": "sensors.t_t_plate_meas",
+    "base": "sensors.t_base_meas",
+    "long_pole": "sensors.t_long_pole_meas",
+    "detecting_frame": "sensors.t_detecting_frame_meas",
+    "room": "sensors.t_room_meas",
+}
+DEFAULT_READING = "sensors.probe_meas"
+
+
+@dataclass(frozen=True)
+class ThermalGeometry:
+    """Expansion coefficients (1/K), effective lengths (m) and the probe's zero drift (m/K).
+
+    The names are those of the FixtureMechanics and SensorsDAQ parameters, whose
+    modelDescription.xml says where each value comes from (handbook, estimate, or calibrated
+    to the paper's FEM part results).
+    """
+
+    alpha_cast_iron: float
+    alpha_steel: float
+    alpha_bearing_steel: float
+    h_heel_block: float
+    h_bearing_block: float
+    r_spindle: float
+    t_bearing_rings: float
+    l_t_plate: float
+    l_detecting_frame: float
+    l_pole_heel: float
+    l_pole_base: float
+    l_pole_lower: float
+    l_clamp: float
+    probe_zero_drift: float
+
+    @classmethod
+    def from_parameters(cls, values: Mapping[str, float], *, source: str = "errormodel") -> ThermalGeometry:
+        missing = [f.name for f in fields(cls) if f.name not in values]
+        if missing:
+            raise ConfigError(f"missing geometry value(s): {', '.join(missing)}", source=source)
+        return cls(**{f.name: float(values[f.name]) for f in fields(cls)})
+
+
+def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[str, dict[str, np.ndarray]]:
+    """Body error parameters (``p_dz``) of the thermal factor from temperature rises (K).
+
+    ``rises`` holds one array per measuring point (keys of :data:`DEFAULT_TEMPERATURES`).
+    Unmeasured parts take the nearest sensor: the spindle the bearing's, the pole inside the
+    heel block and the base those bodies', the clamp the lower pole's, the probe body the
+    detecting frame's (it is fixed on it).
+    """
+    r = rises
+    return {
+        # branch 1: heel + bearing block lift the spindle axis (up = -Z)
+        "bearing_block": {
+            "p_dz": -g.alpha_cast_iron
+            * (g.h_heel_block * r["heel_block"] + g.h_bearing_block * r["bearing_block"])
+        },
+        "testing_spindle": {"p_dz": g.alpha_steel * g.r_spindle * r["bearing"]},
+        "spherical_plain_bearing": {"p_dz": g.alpha_bearing_steel * g.t_bearing_rings * r["bearing"]},
+        "t_plate": {"p_dz": g.alpha_steel * g.l_t_plate * r["t_plate"]},
+        # branch 2: the frame hangs from the base and grows down
+        "detecting_frame": {"p_dz": g.alpha_steel * g.l_detecting_frame * r["detecting_frame"]},
+        # the probe's zero drift raises the reading by k*dT, as if its body had moved up
+        "displacement_sensor": {"p_dz": -g.probe_zero_drift * r["detecting_frame"]},
+        # clamp and pole grow down from the pole's top: the contact face goes down
+        "contacting_clamp": {"p_dz": -g.alpha_steel * g.l_clamp * r["long_pole"]},
+        "long_pole": {
+            "p_dz": -g.alpha_steel
+            * (g.l_pole_heel * r["heel_block"] + g.l_pole_base * r["base"] + g.l_pole_lower * r["long_pole"])
+        },
+    }

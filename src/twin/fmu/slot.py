@@ -1,0 +1,188 @@
+"""One instantiated FMU for the master: a thin FMI 2.0 co-simulation binding.
+
+The life cycle (instantiate, setup, initialization, terminate, free) goes through fmpy's
+:class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs,
+FMU state) use the raw ctypes functions fmpy loaded, with value-reference and value buffers
+allocated once, because fmpy's convenience wrappers allocate per call. Every status other
+than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the instance, the FMI
+call and the simulation time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import shutil
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from twin.errors import FMUError
+
+_STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
+
+
+class RealPort:
+    """A fixed set of Real variables read or written in one FMI call through shared buffers."""
+
+    def __init__(self, vrs: Sequence[int]) -> None:
+        self.n = len(vrs)
+        self.vr = (ctypes.c_uint * max(self.n, 1))(*vrs)
+        self.values = np.zeros(max(self.n, 1), dtype=np.float64)
+        self.ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+class FMUSlot:
+    """An FMU instance with name-based setup and buffer-based stepping.
+
+    ``messages`` collects what the FMU logged (its reasons for errors end up in FMUError).
+    """
+
+    def __init__(self, fmu_path: Path, instance_name: str, *, unzipdir: str | None = None) -> None:
+        self.name = instance_name
+        self.md = read_model_description(str(fmu_path))
+        self._own_unzipdir = unzipdir is None
+        self.unzipdir = unzipdir or extract(
+            str(fmu_path), unzipdir=tempfile.mkdtemp(prefix=f"twin-{instance_name}-")
+        )
+        self.variables: dict[str, Any] = {v.name: v for v in self.md.modelVariables}
+        self.messages: list[str] = []
+        self.time = 0.0
+        self._slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzipdir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=instance_name,
+        )
+        self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=False)
+        f = self._slave._functions  # raw ctypes functions with argtypes set by fmpy
+        self._set_real = f["fmi2SetReal"]
+        self._get_real = f["fmi2GetReal"]
+        self._do_step = f["fmi2DoStep"]
+        self._c = self._slave.component
+        self._state = ctypes.c_void_p()
+
+    # -- logging: keep the FMU's messages so an error can say why ---------------------------
+
+    def _make_callbacks(self) -> Any:
+        # our own logger that collects instead of printing; fmpy's C proxy formats the
+        # printf-style message before it reaches Python (kept alive on self)
+        from fmpy.fmi2 import (
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+            self.messages.append(message.decode(errors="replace") if message else "")
+            del self.messages[:-20]
+
+        from fmpy import calloc, free
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(ctypes.byref(callbacks))
+        self._callbacks = callbacks
+        return callbacks
+
+    def _fail(self, call: str, status: int) -> FMUError:
+        why = (
+            self.messages[-1] if self.messages else f"status fmi2{_STATUS[status] if status < 6 else status}"
+        )
+        return FMUError(self.name, call, self.time, why)
+
+    # -- set-up ------------------------------------------------------------------------------
+
+    def vr(self, name: str) -> int:
+        return int(self.variables[name].valueReference)
+
+    def setup(self, start_time: float = 0.0) -> None:
+        self.time = start_time
+        self._call("fmi2SetupExperiment", lambda: self._slave.setupExperiment(startTime=start_time))
+
+    def enter_initialization(self) -> None:
+        self._call("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
+
+    def exit_initialization(self) -> None:
+        self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+
+    def set_value(self, name: str, value: float | int | bool) -> None:
+        v = self.variables[name]
+        if v.type == "Boolean":
+            self._call("fmi2SetBoolean", lambda: self._slave.setBoolean([v.valueReference], [bool(value)]))
+        elif v.type == "Integer":
+            self._call("fmi2SetInteger", lambda: self._slave.setInteger([v.valueReference], [int(value)]))
+        else:
+            self._call("fmi2SetReal", lambda: self._slave.setReal([v.valueReference], [float(value)]))
+
+    def get_reals(self, names: Sequence[str]) -> list[float]:
+        return self._call("fmi2GetReal", lambda: self._slave.getReal([self.vr(n) for n in names]))
+
+    def _call(self, call: str, fn: Any) -> Any:
+        from fmpy.fmi1 import FMICallException
+
+        try:
+            return fn()
+        except FMICallException as exc:
+            raise self._fail(call, exc.status) from None
+
+    # -- the hot path: preallocated buffers, raw calls ------------------------------------------
+
+    def port(self, names: Sequence[str]) -> RealPort:
+        return RealPort([self.vr(n) for n in names])
+
+    def write(self, port: RealPort) -> None:
+        if port.n:
+            status = self._set_real(self._c, port.vr, port.n, port.ptr)
+            if status > 1:
+                raise self._fail("fmi2SetReal", status)
+
+    def read(self, port: RealPort) -> None:
+        if port.n:
+            status = self._get_real(self._c, port.vr, port.n, port.ptr)
+            if status > 1:
+                raise self._fail("fmi2GetReal", status)
+
+    def do_step(self, t: float, h: float) -> None:
+        self.time = t
+        status = self._do_step(self._c, t, h, 1)
+        if status > 1:
+            raise self._fail("fmi2DoStep", status)
+        self.time = t + h
+
+    # -- FMU state -------------------------------------------------------------------------------
+
+    def save_state(self) -> bytes:
+        """The FMU's serialized state (for whole-twin checkpoints)."""
+        state = self._call("fmi2GetFMUstate", self._slave.getFMUstate)
+        try:
+            return bytes(self._call("fmi2SerializeFMUstate", lambda: self._slave.serializeFMUstate(state)))
+        finally:
+            self._slave.freeFMUstate(state)
+
+    def restore_state(self, data: bytes) -> None:
+        state = self._call("fmi2DeSerializeFMUstate", lambda: self._slave.deSerializeFMUstate(data))
+        try:
+            self._call("fmi2SetFMUstate", lambda: self._slave.setFMUstate(state))
+        finally:
+            self._slave.freeFMUstate(state)
+
+    # -- end -------------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Terminate (if possible) and free the instance; never raises."""
+        with contextlib.suppress(Exception):
+            self._slave.terminate()
+        with contextlib.suppress(Exception):
+            self._slave.freeInstance()
+        if self._own_unzipdir:
+            shutil.rmtree(self.unzipdir, ignore_errors=True)

@@ -1,0 +1,147 @@
+"""One run from scenario to files: co-simulate, evaluate the error model, write the outputs.
+
+A run folder holds ``signals.csv``, ``summary.json``, ``recording.rrd`` and
+``error_budget.png``. A run that fails part way still writes everything recorded so far and
+a summary with ``"status": "failed"`` and the reason.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from twin import __version__
+from twin.config.load import model_variables
+from twin.config.spec import NS_PER_S, Scenario
+from twin.cosim.master import Master, RunResult
+from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate
+from twin.errormodel.sources import DEFAULT_READING, DEFAULT_TEMPERATURES, ThermalGeometry
+from twin.errors import ConfigError, RunError
+from twin.outputs import write_signals_csv, write_summary
+from twin.reference import DRIFT_M, TEMPERATURE_RISE_K
+
+_GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
+
+
+def evaluation_config(scenario: Scenario) -> EvaluationConfig:
+    """Error-model configuration of a scenario.
+
+    Geometry and the probe's zero drift default to the values the scenario gives its
+    FixtureMechanics and SensorsDAQ instances (the instrument's data sheet and the fixture's
+    drawings, in a lab); ``[errormodel]`` may override any of them, the temperature columns
+    (``temperatures = { point = "column" }``), the reading and the true-wear column.
+    """
+    values: dict[str, float] = {}
+    for spec in scenario.fmus:
+        if spec.model in _GEOMETRY_FROM:
+            for name, v in model_variables(spec.model).items():
+                if v.causality == "parameter" and v.type == "Real" and v.start is not None:
+                    values[name] = float(v.start)
+            values.update({k: float(p.value) for k, p in spec.parameters.items()})
+    em = {k: p.value for k, p in scenario.errormodel.items()}
+    temperatures = dict(DEFAULT_TEMPERATURES)
+    if "temperatures" in em:
+        if not isinstance(em["temperatures"], dict):
+            raise ConfigError(
+                "expected a table point = column", source=scenario.source_path, key="errormodel.temperatures"
+            )
+        temperatures.update(em.pop("temperatures"))
+    reading = em.pop("reading", DEFAULT_READING)
+    true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
+    geometry_overrides = em.pop("geometry", {})
+    if em:
+        raise ConfigError(f"unknown key(s) {sorted(em)}", source=scenario.source_path, key="errormodel")
+    values.update(geometry_overrides)
+    return EvaluationConfig(
+        geometry=ThermalGeometry.from_parameters(values, source=scenario.source_path),
+        temperatures=temperatures,
+        reading=str(reading),
+        true_wear=str(true_wear) if true_wear else None,
+        window_s=scenario.drift_window_ns / NS_PER_S,
+    )
+
+
+def run(
+    scenario: Scenario,
+    out_dir: Path,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    process_start: float | None = None,
+) -> dict[str, Any]:
+    """Run and write the run folder; returns the summary. Raises only before the run starts."""
+    process_start = process_start or time.perf_counter()
+    cfg = evaluation_config(scenario)  # checked before anything runs
+    out_dir.mkdir(parents=True, exist_ok=True)
+    result: RunResult = Master(scenario, progress=progress).run()
+    table = result.table
+    summary: dict[str, Any] = {
+        "scenario": scenario.name,
+        "scenario_file": scenario.source_path,
+        "status": result.status,
+        "seed": scenario.seed,
+    }
+    if result.error is not None:
+        summary["error"] = str(result.error)
+    summary["sim_end_s"] = result.end_ns / NS_PER_S
+    evaluated = None
+    if len(table) >= 2:
+        try:
+            evaluated = evaluate(table, cfg)
+        except ConfigError as exc:
+            summary["errormodel_error"] = str(exc)
+    if evaluated is not None:
+        summary.update(evaluated.summary)
+        summary["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
+        summary["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
+    write_signals_csv(table, out_dir / "signals.csv")
+    if len(table) >= 1:
+        _write_views(table, out_dir, scenario, evaluated is not None)
+    summary["timing"] = {
+        "cosim_s": result.cosim_s,
+        "total_s": time.perf_counter() - process_start,
+        "macro_steps": result.macro_steps,
+        "fmu_steps": result.fmu_steps,
+        "realtime_factor": (result.end_ns / NS_PER_S) / result.cosim_s if result.cosim_s > 0 else None,
+    }
+    summary["wall_s"] = summary["timing"]["total_s"]
+    summary["versions"] = {"twin": __version__, "python": platform.python_version()}
+    write_summary(out_dir / "summary.json", summary)
+    if result.error is not None:
+        raise RunError(f"{result.error} (everything recorded up to it is in {out_dir})")
+    return summary
+
+
+def _write_views(table: Any, out_dir: Path, scenario: Scenario, evaluated: bool) -> None:
+    from twin.outputs import error_budget_png, write_recording
+
+    budget = (
+        ["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"]
+        if evaluated
+        else None
+    )
+    write_recording(table, out_dir / "recording.rrd", recording_name=scenario.name, budget_columns=budget)
+    if evaluated:
+        temps = [c for c in DEFAULT_TEMPERATURES.values() if c in table]
+        error_budget_png(
+            table,
+            out_dir / "error_budget.png",
+            reading=DEFAULT_READING,
+            predicted="errormodel.e_z",
+            parts={p: f"errormodel.e_{p}" for p in PARTS},
+            temperatures=temps,
+            title=f"{scenario.name}: predicted error and its parts",
+        )
+
+
+def summary_line(summary: Mapping[str, Any]) -> str:
+    """A short human line for the terminal."""
+    d = summary.get("drift_mm", {})
+    if "predicted" in d:
+        return (
+            f"{summary['scenario']}: {summary['status']}; drift predicted {d['predicted']:+.4f} mm, "
+            f"probe {d['probe']:+.4f} mm (paper {d.get('paper_measured', float('nan')):+.3f} mm)"
+        )
+    return f"{summary['scenario']}: {summary['status']}"
