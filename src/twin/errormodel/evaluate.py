@@ -53,7 +53,7 @@ def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, flo
     def fit(mask: np.ndarray, at: float) -> float:
         if mask.sum() < 2:
             return float(y[mask][0]) if mask.any() else float("nan")
-        slope, icpt = np.polyfit(t[mask] - at, y[mask], 1)
+        _slope, icpt = np.polyfit(t[mask] - at, y[mask], 1)
         return float(icpt)
 
     return fit(t <= t[0] + window_s, float(t[0])), fit(t >= t[-1] - window_s, float(t[-1]))
