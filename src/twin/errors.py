@@ -70,3 +70,10 @@ class FMUError(RunError):
         self.detail = detail
         msg = f"FMU '{instance}' failed in {call} at t = {time_s:.6g} s"
         super().__init__(f"{msg}: {detail}" if detail else msg)
+        # keep the constructor's arguments, so copies made by schedulers (simpy re-raises a
+        # copy built from .args) carry the same information
+        self.args = (instance, call, time_s, detail)
+
+    def __str__(self) -> str:
+        msg = f"FMU '{self.instance}' failed in {self.call} at t = {self.time_s:.6g} s"
+        return f"{msg}: {self.detail}" if self.detail else msg

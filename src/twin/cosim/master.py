@@ -153,13 +153,14 @@ class Master:
             order.extend(ready)
         return order
 
-    def _write_inputs(self, inst: _Instance, t_s: float) -> None:
+    def _write_inputs(self, inst: _Instance, t_s: float, *, advance_delays: bool = True) -> None:
         vals = inst.in_port.values
         for k, src, idx in inst.links:
             vals[k] = self.instances[src].current[idx]
         for j, (k, src, idx, buffered) in enumerate(inst.delayed):
             vals[k] = buffered
-            inst.delayed[j] = (k, src, idx, float(self.instances[src].current[idx]))
+            if advance_delays:  # the next exchange gets the source's value of this one
+                inst.delayed[j] = (k, src, idx, float(self.instances[src].current[idx]))
         for k, fn in inst.driven.items():
             vals[k] = fn(t_s)
         inst.slot.write(inst.in_port)
@@ -168,7 +169,9 @@ class Master:
         for i in self._init_order():
             inst = self.instances[i]
             inst.slot.enter_initialization()
-            self._write_inputs(inst, 0.0)
+            # a delayed input starts from its declared initial value (its source may not be
+            # initialized yet: that is what the delay is for)
+            self._write_inputs(inst, 0.0, advance_delays=False)
             inst.slot.exit_initialization()
             inst.slot.read(inst.out_port)
             inst.raw[:] = inst.out_port.values[: len(inst.outputs)]
@@ -300,27 +303,30 @@ class Master:
             | {n_ticks}
         )
 
+        failure: list[RunError] = []
+
         def process(env: simpy.Environment) -> Any:
             k = 0
-            for mark in marks:
-                if mark <= k:
-                    continue
-                run_ticks(k, mark)
-                yield env.timeout((mark - k) * sc.step_ns)
-                k = mark
-                if self.progress:
-                    self.progress(env.now, sc.duration_ns)
-            final_tick()
+            try:
+                for mark in marks:
+                    if mark <= k:
+                        continue
+                    run_ticks(k, mark)
+                    yield env.timeout((mark - k) * sc.step_ns)
+                    k = mark
+                    if self.progress:
+                        self.progress(env.now, sc.duration_ns)
+                final_tick()
+            except RunError as exc:  # the run stops; what was recorded stays
+                failure.append(exc)
 
         env = simpy.Environment()
         env.process(process(env))
-        error: RunError | None = None
         try:
             env.run()
-        except RunError as exc:
-            error = exc
         finally:
             self.close()
+        error = failure[0] if failure else None
         rows = state["row"]
         table = SignalTable(times[:rows] / NS_PER_S)
         for c, (_, _, _, meta) in enumerate(cols):

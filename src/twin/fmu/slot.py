@@ -26,6 +26,42 @@ from twin.errors import FMUError
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
+#: the last messages each instance logged, by instance name (filled by the shared logger)
+_MESSAGES: dict[str, list[str]] = {}
+_CALLBACKS: Any = None
+
+
+def _callbacks() -> Any:
+    """One callbacks structure for every instance (fmpy's C logger proxy is process-global).
+
+    The logger files each message under the instance that logged it, so an error can say
+    why; fmpy's proxy formats the printf-style message before it reaches Python.
+    """
+    global _CALLBACKS
+    if _CALLBACKS is None:
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+            name = instance.decode(errors="replace") if instance else ""
+            box = _MESSAGES.setdefault(name, [])
+            box.append(message.decode(errors="replace") if message else "")
+            del box[:-20]
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(logger)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(ctypes.byref(cb))
+        _CALLBACKS = cb
+    return _CALLBACKS
+
 
 class RealPort:
     """A fixed set of Real variables read or written in one FMI call through shared buffers."""
@@ -70,29 +106,8 @@ class FMUSlot:
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
     def _make_callbacks(self) -> Any:
-        # our own logger that collects instead of printing; fmpy's C proxy formats the
-        # printf-style message before it reaches Python (kept alive on self)
-        from fmpy.fmi2 import (
-            fmi2CallbackAllocateMemoryTYPE,
-            fmi2CallbackFreeMemoryTYPE,
-            fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
-        )
-        from fmpy.logging import addLoggerProxy
-
-        def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
-            self.messages.append(message.decode(errors="replace") if message else "")
-            del self.messages[:-20]
-
-        from fmpy import calloc, free
-
-        callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(ctypes.byref(callbacks))
-        self._callbacks = callbacks
-        return callbacks
+        _MESSAGES[self.name] = self.messages
+        return _callbacks()
 
     def _fail(self, call: str, status: int) -> FMUError:
         why = (

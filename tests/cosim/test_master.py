@@ -1,0 +1,151 @@
+"""The master's semantics: integer clock, multi-rate zero-order hold, events, failures."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.config.load import load_scenario
+from twin.cosim.master import run_scenario
+
+ROOM = """
+[input.thermal.t_room]
+profile = "ramp"
+start = 293.15
+end = 303.15
+duration = "1 h"
+"""
+
+
+def scenario(
+    tmp_path: Path, body: str, *, duration: str = "1 h", step: str = "1 s", interval: str = "1 s"
+) -> Path:
+    text = f"""
+[scenario]
+name = "t"
+duration = "{duration}"
+step = "{step}"
+output_interval = "{interval}"
+seed = 3
+{body}
+"""
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return path
+
+
+def test_output_times_are_exact_multiples(tmp_path: Path) -> None:
+    path = scenario(
+        tmp_path,
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "0.1 s"\nparameters = { solver_step = 0.1 }\n'
+        + ROOM,
+        duration="10 min",
+        step="0.1 s",
+        interval="0.3 s",
+    )
+    result = run_scenario(load_scenario(path))
+    assert result.status == "completed"
+    k = np.arange(len(result.table))
+    # t_k = k * h computed from integers: no drift after 2000 rows (a summed float would drift)
+    assert np.array_equal(result.table.time, k * 300_000_000 / 1e9)
+    assert result.table.time[-1] == 600.0
+    assert result.macro_steps == 6000 and result.fmu_steps == 6000
+
+
+def test_slow_fmu_output_is_held_between_its_steps(tmp_path: Path) -> None:
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "60 s"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        "[connections]\n"
+        '"thermal.t_ambient" = "sensors.t_room"\n' + ROOM
+    )
+    result = run_scenario(load_scenario(scenario(tmp_path, body)))
+    t = result.table.time
+    ambient = result.table["thermal.t_ambient"]
+    # the slow FMU's output changes only at its own communication points; it is read after
+    # each step, which ran on the input held from the step's start (Jacobi): the pass-through
+    # output at t shows the room of the previous communication point
+    previous = np.maximum(60.0 * np.floor(t / 60.0) - 60.0, 0.0)
+    held = 293.15 + 10.0 * np.minimum(previous / 3600.0, 1.0)
+    np.testing.assert_allclose(ambient, held, rtol=0, atol=1e-9)
+    # ... while its input (recorded as driven) follows the ramp at every one of them
+    room = result.table["thermal.t_room"]
+    on_grid = t % 60.0 == 0.0
+    np.testing.assert_allclose(room[on_grid], 293.15 + 10.0 * np.minimum(t[on_grid] / 3600.0, 1.0), atol=1e-9)
+    assert result.fmu_steps == 60 + 3600
+
+
+def test_jacobi_exchange_uses_values_at_the_start_of_the_step(tmp_path: Path) -> None:
+    # sensors read thermal.t_ambient: a step change of the room at 30 min reaches the
+    # thermal output at the end of thermal's step (30:10), and the sensor's input from then on
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "10 s"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
+        '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
+        '[input.thermal.t_room]\nprofile = "constant"\nvalue = 293.15\n'
+        '[[event]]\nat = "30 min"\naction = "set"\ntarget = "thermal.t_room"\nvalue = 300.0\n'
+    )
+    result = run_scenario(load_scenario(scenario(tmp_path, body)))
+    t = result.table.time
+    ambient = result.table["thermal.t_ambient"]
+    assert np.all(ambient[t <= 1800.0] == 293.15)
+    assert np.all(ambient[t >= 1810.0] == 300.0)
+    meas = result.table["sensors.t_room_meas"]
+    # the sensor steps from 1810 s with the new input, so its output shows it from 1811 s
+    assert np.all(np.abs(meas[t <= 1810.0] - 293.15) < 1e-9)
+    assert np.all(np.abs(meas[t >= 1811.0] - 300.0) < 1e-9)
+    assert result.table["thermal.t_room"][t == 1800.0][0] == 300.0
+
+
+def test_ramp_and_bias_events(tmp_path: Path) -> None:
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
+        '[input.thermal.q_hydraulic]\nprofile = "constant"\nvalue = 100.0\n'
+        '[[event]]\nat = "10 min"\naction = "ramp"\ntarget = "thermal.q_hydraulic"\nvalue = 400.0\nduration = "10 min"\n'
+        '[[event]]\nat = "40 min"\naction = "bias"\ntarget = "thermal.t_base"\nvalue = 2.5\n'
+    )
+    result = run_scenario(load_scenario(scenario(tmp_path, body)))
+    t = result.table.time
+    q = result.table["thermal.q_hydraulic"]
+    expected = np.where(t < 600, 100.0, 100.0 + 300.0 * np.clip((t - 600.0) / 600.0, 0.0, 1.0))
+    np.testing.assert_allclose(q, expected, atol=1e-9)
+    base = result.table["thermal.t_base"]
+    jump = base[t == 2400.0][0] - base[t == 2399.0][0]
+    assert jump == pytest.approx(2.5, abs=1e-3)  # bias appears at the event, on top of a slow drift
+
+
+def test_an_fmu_failure_keeps_the_rows_recorded_before_it(tmp_path: Path) -> None:
+    # a hydraulic heat of -5 W is outside the input's range: the FMU refuses it at 20 min
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "10 s"\n'
+        '[input.thermal.q_hydraulic]\nprofile = "table"\npoints = [[0, 100.0], ["20 min", 100.0], ["21 min", -5.0]]\n'
+    )
+    result = run_scenario(load_scenario(scenario(tmp_path, body, interval="10 s")))
+    assert result.status == "failed"
+    assert result.error is not None
+    msg = str(result.error)
+    assert "thermal" in msg and "fmi2SetReal" in msg and "outside its range" in msg
+    t = result.table.time
+    assert len(t) > 100 and t[-1] < 21 * 60
+    assert np.all(np.isfinite(result.table["thermal.t_base"]))
+
+
+def test_delayed_connection_breaks_a_loop_with_its_initial_value(tmp_path: Path) -> None:
+    # sensors -> thermal -> sensors: allowed only through a delay; the first exchange of the
+    # delayed input sees the declared initial value
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
+        '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
+        '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
+    )
+    result = run_scenario(load_scenario(scenario(tmp_path, body, duration="1 min")))
+    assert result.status == "completed"
+    ambient = result.table["thermal.t_ambient"]
+    assert ambient[0] == 295.0  # initialization took the delay's initial value
+    assert math.isfinite(ambient[-1])

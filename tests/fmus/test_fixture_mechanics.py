@@ -1,0 +1,97 @@
+"""FixtureMechanics physics against hand calculations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.reference import FEM_PARTS_M
+
+from .fmi_driver import Driver
+
+T0 = 293.15
+TEMPS = (
+    "t_heel_block", "t_bearing_block", "t_spindle", "t_bearing", "t_t_plate",
+    "t_detecting_frame", "t_pole_heel", "t_pole_base", "t_pole_lower", "t_clamp",
+)  # fmt: skip
+# the paper's measured rises, applied where its FEM applied them (facts.md 2)
+PAPER_RISES = {
+    "t_heel_block": 5.8, "t_bearing_block": 6.5, "t_spindle": 3.2, "t_bearing": 3.2, "t_t_plate": 6.3,
+    "t_detecting_frame": 8.9, "t_pole_heel": 5.8, "t_pole_base": 6.0, "t_pole_lower": 9.6, "t_clamp": 9.6,
+}  # fmt: skip
+
+
+@pytest.fixture
+def mech(fmu_paths: dict[str, Path]) -> Driver:
+    d = Driver(fmu_paths["FixtureMechanics"])
+    d.init(inputs=dict.fromkeys(TEMPS, T0))
+    yield d
+    d.close()
+
+
+def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> None:
+    mech.set({k: T0 + v for k, v in PAPER_RISES.items()})
+    bb, sp, br, tp, fr, pole, cl = mech.get(
+        [
+            "dz_bearing_block",
+            "dz_spindle",
+            "dz_bearing",
+            "dz_t_plate",
+            "dz_detecting_frame",
+            "dz_long_pole",
+            "dz_clamp",
+        ]
+    )
+    assert bb == pytest.approx(FEM_PARTS_M["bearing_block"], abs=5e-9)
+    assert sp + br + tp == pytest.approx(FEM_PARTS_M["t_plate"], abs=5e-9)
+    assert fr == pytest.approx(FEM_PARTS_M["detecting_frame"], abs=5e-9)
+    assert pole + cl == pytest.approx(FEM_PARTS_M["long_pole"], abs=5e-9)
+    # and the probe sees the paper's FEM total: -0.016 mm
+    (probe,) = mech.get(["probe_true"])
+    assert probe - 4.805e-3 == pytest.approx(-0.016e-3, abs=5e-9)
+
+
+def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
+    mech.set({"t_detecting_frame": T0 + 1.0, "t_bearing_block": T0 + 2.0})
+    fr, bb = mech.get(["dz_detecting_frame", "dz_bearing_block"])
+    assert fr == pytest.approx(11.7e-6 * 0.3937 * 1.0, rel=1e-12)
+    assert bb == pytest.approx(-11e-6 * 0.1625 * 2.0, rel=1e-12)
+
+
+def test_wear_moves_the_probe_one_to_one(mech: Driver) -> None:
+    (p0,) = mech.get(["probe_true"])
+    mech.set({"wear_depth": 50e-6})
+    p1, z_t, force = mech.get(["probe_true", "z_t_plate", "contact_force"])
+    assert p1 - p0 == pytest.approx(50e-6, abs=1e-15)
+    assert z_t == pytest.approx(50e-6, abs=1e-15)
+    # the pole is pushed down: spring and head compress, the contact force grows
+    assert force == pytest.approx(20.0 + 0.9 - 0.65 * 9.80665 + (2000.0 + 60.0) * 50e-6, rel=1e-12)
+
+
+def test_lift_off_is_reported_not_hidden(fmu_paths: dict[str, Path]) -> None:
+    d = Driver(fmu_paths["FixtureMechanics"])
+    # a weak spring: the pole cannot follow a T-plate that rises by 1 mm
+    d.init(parameters={"f_spring0": 5.6, "k_spring": 100.0}, inputs=dict.fromkeys(TEMPS, T0))
+    d.set({"wear_depth": -1e-3})
+    gap, lift, force, top = d.get(["pole_gap", "lift_off", "contact_force", "z_pole_top"])
+    d.close()
+    f_free = 5.6 + 0.9 - 0.65 * 9.80665
+    assert force == 0.0 and lift == 1.0
+    assert top == pytest.approx(-f_free / 160.0, rel=1e-12)  # where spring + head balance gravity
+    assert gap == pytest.approx(top + 1e-3, rel=1e-12)
+
+
+def test_load_compliance_and_runout(fmu_paths: dict[str, Path]) -> None:
+    d = Driver(fmu_paths["FixtureMechanics"])
+    d.init(
+        parameters={"compliance_loading_chain": 2e-9, "spindle_runout": 3e-6, "runout_phase": 0.5},
+        inputs=dict.fromkeys(TEMPS, T0),
+    )
+    import math
+
+    d.set({"radial_load": 10_000.0, "angle": 0.4})
+    load, run = d.get(["dz_loading", "dz_runout"])
+    d.close()
+    assert load == pytest.approx(2e-5, rel=1e-12)
+    assert run == pytest.approx(3e-6 * (math.cos(0.4 - 0.5) - math.cos(0.5)), rel=1e-12)
