@@ -142,7 +142,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         return int(args.func(args))
     except TwinError as exc:
-        print(f"twin: {exc}", file=sys.stderr)
+        for line in str(exc).splitlines():  # several problems: one line each
+            print(f"twin: {line}", file=sys.stderr)
         return exc.exit_code
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import platform
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +55,27 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     geometry_overrides = em.pop("geometry", {})
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=scenario.source_path, key="errormodel")
+    if not isinstance(geometry_overrides, dict) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in geometry_overrides.values()
+    ):
+        raise ConfigError(
+            "expected a table of numbers", source=scenario.source_path, key="errormodel.geometry"
+        )
+    unknown = sorted(set(geometry_overrides) - {f.name for f in fields(ThermalGeometry)})
+    if unknown:
+        raise ConfigError(
+            f"unknown geometry value(s) {unknown}", source=scenario.source_path, key="errormodel.geometry"
+        )
+    if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
+        raise ConfigError(
+            "reading and true_wear must be column names", source=scenario.source_path, key="errormodel"
+        )
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in temperatures.items()):
+        raise ConfigError(
+            "temperatures must map point names to column names",
+            source=scenario.source_path,
+            key="errormodel.temperatures",
+        )
     values.update(geometry_overrides)
     return EvaluationConfig(
         geometry=ThermalGeometry.from_parameters(values, source=scenario.source_path),

@@ -119,19 +119,22 @@ def test_ramp_and_bias_events(tmp_path: Path) -> None:
 
 
 def test_an_fmu_failure_keeps_the_rows_recorded_before_it(tmp_path: Path) -> None:
-    # a hydraulic heat of -5 W is outside the input's range: the FMU refuses it at 20 min
+    # a sensor bias at 20 min pushes a connected value past the receiving input's range: the
+    # loader cannot foresee it, the FMU refuses it at run time
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "10 s"\n'
-        '[input.thermal.q_hydraulic]\nprofile = "table"\npoints = [[0, 100.0], ["20 min", 100.0], ["21 min", -5.0]]\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "10 s"\n'
+        '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "10 s"\n'
+        '[connections]\n"sensors.probe_meas" = "mechanics.wear_depth"\n'
+        '[[event]]\nat = "20 min"\naction = "bias"\ntarget = "sensors.probe_meas"\nvalue = 0.01\n'
     )
     result = run_scenario(load_scenario(scenario(tmp_path, body, interval="10 s")))
     assert result.status == "failed"
     assert result.error is not None
     msg = str(result.error)
-    assert "thermal" in msg and "fmi2SetReal" in msg and "outside its range" in msg
+    assert "mechanics" in msg and "fmi2SetReal" in msg and "outside its range" in msg and "t = 1200 s" in msg
     t = result.table.time
-    assert len(t) > 100 and t[-1] < 21 * 60
-    assert np.all(np.isfinite(result.table["thermal.t_base"]))
+    assert t[-1] == 1190.0 and len(t) == 120  # the failing exchange at 1200 s is not a row
+    assert np.all(np.isfinite(result.table["mechanics.probe_true"]))
 
 
 def test_delayed_connection_breaks_a_loop_with_its_initial_value(tmp_path: Path) -> None:

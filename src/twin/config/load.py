@@ -17,6 +17,7 @@ from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from functools import cache
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from twin.config.spec import (
@@ -89,6 +90,8 @@ def parse_duration(value: Any) -> int:
 
 def format_duration(ns: int) -> str:
     """Shortest exact text for a duration, for messages."""
+    if ns == 0:
+        return "0 s"
     for unit in ("d", "h", "min", "s", "ms", "us"):
         if ns % _UNITS_NS[unit] == 0:
             return f"{ns // _UNITS_NS[unit]} {unit}"
@@ -126,8 +129,8 @@ def _known_models() -> list[str]:
 # ----------------------------------------------------------------------------- --set overrides
 
 
-def _split_key(key: str) -> list[str]:
-    """Dotted key with optional quoted parts: ``input."thermal.t_room".rise``."""
+def _split_key(key: str, source: str = "--set") -> list[str]:
+    """Dotted key with optional quoted parts: ``connections."thermal.t_spindle"``."""
     parts, buf, quoted = [], "", False
     for ch in key:
         if ch == '"':
@@ -139,30 +142,44 @@ def _split_key(key: str) -> list[str]:
             buf += ch
     parts.append(buf)
     if quoted or any(not p for p in parts):
-        raise ConfigError(f"malformed key {key!r}", source="--set")
+        raise ConfigError(f"malformed key {key!r}", source=source)
     return parts
 
 
-def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> None:
-    """Apply ``KEY=VALUE`` overrides in place; VALUE is read as TOML (else as a plain string)."""
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str], source: str = "--set") -> None:
+    """Apply ``KEY=VALUE`` overrides in place; VALUE is read as TOML (else as a plain string).
+
+    ``source`` names the overrides in messages (``load_scenario`` adds the file name); every
+    bad override is reported at once.
+    """
+    problems: list[ConfigError] = []
     for item in overrides:
-        if "=" not in item:
-            raise ConfigError(f"expected KEY=VALUE, got {item!r}", source="--set")
-        key, raw = item.split("=", 1)
-        parts = _split_key(key.strip())
         try:
-            value = tomllib.loads(f"v = {raw}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = raw
-        node = data
-        for p in parts[:-1]:
-            child = node.get(p)
-            if child is None:
-                child = node[p] = {}
-            elif not isinstance(child, dict):
-                raise ConfigError(f"cannot set {key!r}: '{p}' is not a table", source="--set", key=key)
-            node = child
-        node[parts[-1]] = value
+            _apply_override(data, item, source)
+        except ConfigError as exc:
+            problems.append(exc)
+    if problems:
+        raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
+
+
+def _apply_override(data: dict[str, Any], item: str, source: str) -> None:
+    if "=" not in item:
+        raise ConfigError(f"expected KEY=VALUE, got {item!r}", source=source)
+    key, raw = item.split("=", 1)
+    parts = _split_key(key.strip(), source)
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    node = data
+    for p in parts[:-1]:
+        child = node.get(p)
+        if child is None:
+            child = node[p] = {}
+        elif not isinstance(child, dict):
+            raise ConfigError(f"cannot set {key!r}: '{p}' is not a table", source=source, key=key)
+        node = child
+    node[parts[-1]] = value
 
 
 # ----------------------------------------------------------------------------- the loader
@@ -174,8 +191,14 @@ class _Problems:
     def __init__(self, source: str) -> None:
         self.source = source
         self.items: list[ConfigError] = []
+        #: FMU instances declared but unusable: their problem is reported once, at the instance,
+        #: not again at every connection, profile and event naming them (all of them: no [fmu])
+        self.broken: set[str] = set()
+        self.no_fmus = False
 
     def add(self, key: str, message: str) -> None:
+        if any(e.key == key and e.message == message for e in self.items):
+            return  # one line per problem: a list connection repeats its source for each input
         self.items.append(ConfigError(message, source=self.source, key=key))
 
     def unknown_keys(self, table: Mapping[str, Any], allowed: set[str], prefix: str) -> None:
@@ -231,6 +254,14 @@ def _read_toml(path: Path, source: str) -> dict[str, Any]:
         raise ConfigError(f"TOML syntax error: {exc}", source=source) from None
 
 
+def _declared_range(var: Any) -> tuple[float, float]:
+    """[min, max] of an FMI variable, directly or through its declared type (unbounded if none)."""
+    declared = getattr(var, "declaredType", None)
+    lo = var.min if var.min is not None else (declared.min if declared is not None else None)
+    hi = var.max if var.max is not None else (declared.max if declared is not None else None)
+    return (float(lo) if lo is not None else -math.inf, float(hi) if hi is not None else math.inf)
+
+
 def _parameter_value(p: _Problems, model: str, var: Any, raw: Any, key: str) -> Parameter | None:
     source = ""
     if isinstance(raw, dict):
@@ -261,22 +292,7 @@ def _parameter_value(p: _Problems, model: str, var: Any, raw: Any, key: str) -> 
         if not math.isfinite(value):
             p.add(key, f"expected a finite number, got {raw!r}")
             return None
-    lo = (
-        float(var.min)
-        if var.min is not None
-        else (
-            float(var.declaredType.min)
-            if var.declaredType and var.declaredType.min is not None
-            else -math.inf
-        )
-    )
-    hi = (
-        float(var.max)
-        if var.max is not None
-        else (
-            float(var.declaredType.max) if var.declaredType and var.declaredType.max is not None else math.inf
-        )
-    )
+    lo, hi = _declared_range(var)
     if not lo <= value <= hi:
         unit = variable_unit(var)
         p.add(
@@ -293,19 +309,26 @@ def _load_fmus(p: _Problems, data: Mapping[str, Any], base_dir: Path, step_ns: i
     fmus_raw = _table(p, data, "fmu")
     if not fmus_raw:
         p.add("fmu", "at least one [fmu.<name>] table is needed")
+        p.no_fmus = True
     known = _known_models()
     out = []
     for name, raw in fmus_raw.items():
         prefix = f"fmu.{name}."
         if not isinstance(raw, dict):
             p.add(f"fmu.{name}", "expected a table")
+            p.broken.add(name)
             continue
         if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
             p.add(f"fmu.{name}", "instance names are lower_snake (letters, digits, _)")
         p.unknown_keys(raw, _FMU_KEYS, prefix)
         model = raw.get("model")
+        if "model" not in raw:
+            p.add(prefix + "model", f"missing (one of: {', '.join(known)})")
+            p.broken.add(name)
+            continue
         if model not in known:
             p.add(prefix + "model", f"unknown model {model!r} (known: {', '.join(known)})")
+            p.broken.add(name)
             continue
         period = p.duration(raw, "period", prefix)
         if period is not None:
@@ -327,13 +350,11 @@ def _load_fmus(p: _Problems, data: Mapping[str, Any], base_dir: Path, step_ns: i
             try:
                 fdata = _read_toml(fpath, str(fpath))
             except ConfigError as exc:
-                p.items.append(exc)
+                p.add(prefix + "parameter_files", str(exc))
                 continue
             params = fdata.get("parameters", {})
             if not isinstance(params, dict):
-                p.items.append(
-                    ConfigError("expected a [parameters] table", source=str(fpath), key="parameters")
-                )
+                p.add(prefix + "parameter_files", f"{fpath}: parameters: expected a [parameters] table")
                 continue
             for k, v in params.items():
                 merged[k] = (v, f"{fpath.name}: parameters.{k}")
@@ -353,7 +374,9 @@ def _load_fmus(p: _Problems, data: Mapping[str, Any], base_dir: Path, step_ns: i
             if param is not None:
                 params[k] = param
         if period is not None:
-            out.append(FMUSpec(name=name, model=model, period_ns=period, parameters=params))
+            out.append(FMUSpec(name=name, model=model, period_ns=period, parameters=MappingProxyType(params)))
+        else:
+            p.broken.add(name)
     return out
 
 
@@ -364,14 +387,16 @@ def _endpoint(p: _Problems, fmus: Mapping[str, FMUSpec], ref: Any, key: str, cau
     inst, var = ref.split(".")
     spec = fmus.get(inst)
     if spec is None:
-        p.add(key, f"unknown FMU instance '{inst}' in {ref!r} (known: {', '.join(sorted(fmus))})")
+        if not p.no_fmus and inst not in p.broken:
+            p.add(key, f"unknown FMU instance '{inst}' in {ref!r} (known: {', '.join(sorted(fmus))})")
         return None
     v = model_variables(spec.model).get(var)
     if v is None:
         p.add(key, f"{spec.model} has no variable '{var}' (in {ref!r})")
         return None
     if v.causality != causality:
-        p.add(key, f"{ref!r} is a {v.causality}, expected an {causality}")
+        a = "an" if v.causality[0] in "aeiou" else "a"
+        p.add(key, f"{ref!r} is {a} {v.causality}, expected an {causality}")
         return None
     if v.type != "Real":
         p.add(key, f"{ref!r} is {v.type}; only Real variables are exchanged")
@@ -386,6 +411,11 @@ def _load_connections(p: _Problems, data: Mapping[str, Any], fmus: Mapping[str, 
         key = f'connections."{src}"'
         if isinstance(dsts, str):
             dsts = [dsts]
+        if isinstance(dsts, dict):
+            p.add(
+                key, f'expected an input name or a list of them (quote the output: "{src}.<variable>" = ...)'
+            )
+            continue
         if not isinstance(dsts, list) or not all(isinstance(d, str) for d in dsts):
             p.add(key, "expected an input name or a list of them")
             continue
@@ -474,7 +504,10 @@ def _load_profiles(
             if target in fed:
                 p.add(key, f"input {target!r} is fed by a connection; it cannot also have a profile")
             kind = raw.get("profile")
-            if kind not in _PROFILE_PARAMS:
+            if kind is None:
+                p.add(key + ".profile", f"missing (one of: {', '.join(_PROFILE_PARAMS)})")
+                continue
+            if not isinstance(kind, str) or kind not in _PROFILE_PARAMS:
                 p.add(
                     key + ".profile",
                     f"unknown profile {kind!r} (expected one of: {', '.join(_PROFILE_PARAMS)})",
@@ -505,8 +538,11 @@ def _load_profiles(
                         p.add(f"{key}.points", str(exc))
                         continue
                     values = [q[1] for q in pts]
-                    if any(isinstance(v, bool) or not isinstance(v, int | float) for v in values):
-                        p.add(f"{key}.points", "values must be numbers")
+                    if any(
+                        isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
+                        for v in values
+                    ):
+                        p.add(f"{key}.points", "values must be finite numbers")
                         continue
                     if any(b <= a for a, b in itertools.pairwise(times)):
                         p.add(f"{key}.points", "times must increase strictly")
@@ -517,13 +553,49 @@ def _load_profiles(
                     if ns is not None:
                         if ns <= 0 and k != "delay":
                             p.add(f"{key}.{k}", "must be positive")
+                        elif ns < 0:
+                            p.add(f"{key}.{k}", "must not be negative")
                         params[k] = ns / NS_PER_S
                 else:
                     v = p.number(raw, k, key + ".")
                     if v is not None:
                         params[k] = v
-            out.append(Profile(target, kind, params, table, str(raw.get("source", ""))))
+            profile = Profile(target, kind, MappingProxyType(params), table, str(raw.get("source", "")))
+            if required <= set(params) | ({"points"} if table else set()):
+                _check_range(p, fmus, target, _profile_extremes(profile), key)
+            out.append(profile)
     return out
+
+
+def _profile_extremes(pr: Profile) -> list[float]:
+    """The values a profile can reach (its extremes), for the range check."""
+    q = pr.params
+    if pr.kind == "constant":
+        return [q["value"]]
+    if pr.kind == "ramp":
+        return [q["start"], q["end"]]
+    if pr.kind == "exponential":
+        scale = 1.0 / (1.0 - math.exp(-q["rise_at"] / q["time_constant"])) if "rise_at" in q else 1.0
+        return [q["start"], q["start"] + q["rise"] * scale]
+    if pr.kind == "sine":
+        return [q["mean"] - q["amplitude"], q["mean"] + q["amplitude"]]
+    return [v for _, v in pr.table]
+
+
+def _check_range(
+    p: _Problems, fmus: Mapping[str, FMUSpec], target: str, values: Sequence[float], key: str
+) -> None:
+    """Values driven into an input must lie in its declared range (the FMU would refuse them)."""
+    inst, var = target.split(".")
+    v = model_variables(fmus[inst].model)[var]
+    lo, hi = _declared_range(v)
+    bad = [x for x in values if not lo <= x <= hi]
+    if bad:
+        unit = variable_unit(v)
+        p.add(
+            key,
+            f"reaches {bad[0]!r} {unit}, outside the range [{lo!r}, {hi!r}] of {target}".replace("  ", " "),
+        )
 
 
 def _load_events(
@@ -547,7 +619,7 @@ def _load_events(
         p.unknown_keys(raw, _EVENT_KEYS, key + ".")
         at = p.duration(raw, "at", key + ".")
         action = raw.get("action")
-        if action not in _EVENT_ACTIONS:
+        if not isinstance(action, str) or action not in _EVENT_ACTIONS:
             p.add(
                 key + ".action",
                 f"unknown action {action!r} (expected one of: {', '.join(sorted(_EVENT_ACTIONS))})",
@@ -562,11 +634,14 @@ def _load_events(
             )
             target_ok = False
         value = p.number(raw, "value", key + ".")
-        dur = p.duration(raw, "duration", key + ".", required=action == "ramp") or 0
-        if action == "ramp" and dur <= 0:
+        dur = p.duration(raw, "duration", key + ".", required=action == "ramp")
+        if action == "ramp" and dur is not None and dur <= 0:
             p.add(key + ".duration", "a ramp needs a positive duration")
+        dur = dur or 0
         if at is not None and (at < 0 or (duration_ns is not None and at >= duration_ns)):
             p.add(key + ".at", "must lie within the scenario's duration")
+        if value is not None and target_ok and action != "bias":
+            _check_range(p, fmus, raw["target"], [value], key + ".value")
         if at is not None and value is not None and target_ok:
             out.append(Event(at, action, raw["target"], value, dur))
     return sorted(out, key=lambda e: e.at_ns)
@@ -590,6 +665,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     if step is not None and step <= 0:
         p.add("scenario.step", "must be positive")
         step = None
+    n_problems = len(p.items)
     if duration is not None:
         if duration <= 0:
             p.add("scenario.duration", "must be positive")
@@ -606,6 +682,9 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
             p.add(
                 "scenario.output_interval", f"{format_duration(interval)} is not a multiple of scenario.step"
             )
+    duration_ok = duration is not None and len(p.items) == n_problems
+    if duration_ok and interval and interval > 0 and interval > duration:
+        p.add("scenario.output_interval", "is longer than scenario.duration: nothing would be recorded")
     drift_window = p.duration(sc, "drift_window", "scenario.", required=False)
     if drift_window is not None and drift_window <= 0:
         p.add("scenario.drift_window", "must be positive")
@@ -620,7 +699,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
 
     fmus = _load_fmus(p, data, base_dir, step)
     for f in fmus:
-        if duration and duration > 0 and duration % f.period_ns:
+        if duration and duration > 0 and f.period_ns > 0 and duration % f.period_ns:
             p.add(f"fmu.{f.name}.period", f"{format_duration(f.period_ns)} does not divide scenario.duration")
     by_name = {f.name: f for f in fmus}
     connections = _load_connections(p, data, by_name)
@@ -644,7 +723,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         profiles=tuple(profiles),
         events=tuple(events),
         drift_window_ns=drift_window if drift_window is not None else 300 * NS_PER_S,
-        errormodel={k: Parameter(v) for k, v in errormodel.items()},
+        errormodel=MappingProxyType({k: Parameter(v) for k, v in errormodel.items()}),
     )
 
 
@@ -652,7 +731,7 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     """Read, override (``--set``) and check a scenario file."""
     path = Path(path)
     data = _read_toml(path, str(path))
-    apply_overrides(data, overrides)
+    apply_overrides(data, overrides, f"{path}: --set")
     return load_scenario_data(data, str(path), path.resolve().parent)
 
 

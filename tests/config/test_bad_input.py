@@ -1,0 +1,601 @@
+"""Bad input: a corpus of malformed scenarios, each a small mutation of the paper's scenario.
+
+Every case must give exit code 2, no traceback, and one line per problem of the form
+``twin: FILE: KEY: message`` naming the file, the dotted key and what is wrong.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from twin.cli import main
+
+from .scenario_toml import paper_data, paper_text, write
+
+Mutation = Callable[[dict[str, Any]], None]
+
+
+def _path(key: str | tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(key.split(".")) if isinstance(key, str) else key
+
+
+def setv(key: str | tuple[str, ...], value: Any) -> Mutation:
+    """Set a (dotted or tuple) key, creating tables on the way."""
+
+    def mutate(data: dict[str, Any]) -> None:
+        *parents, last = _path(key)
+        node = data
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[last] = value
+
+    return mutate
+
+
+def delv(key: str | tuple[str, ...]) -> Mutation:
+    def mutate(data: dict[str, Any]) -> None:
+        *parents, last = _path(key)
+        node = data
+        for p in parents:
+            node = node[p]
+        del node[last]
+
+    return mutate
+
+
+def both(*mutations: Mutation) -> Mutation:
+    def mutate(data: dict[str, Any]) -> None:
+        for m in mutations:
+            m(data)
+
+    return mutate
+
+
+def event(**fields: Any) -> Mutation:
+    """Add one [[event]] (a valid 'set' of the hydraulic heat, changed by ``fields``)."""
+    ev = {"at": "60 min", "action": "set", "target": "thermal.q_hydraulic", "value": 500.0, **fields}
+    return setv("event", [{k: v for k, v in ev.items() if v is not None}])
+
+
+def text(old: str, new: str) -> Callable[[], str]:
+    """The paper's file as text with one replacement (for syntax errors)."""
+
+    def make() -> str:
+        t = paper_text()
+        assert old in t, old
+        return t.replace(old, new, 1)
+
+    return make
+
+
+@dataclass(frozen=True)
+class Case:
+    id: str
+    key: str | None  # the dotted key the message names (None: a problem with the whole file)
+    word: str  # a distinctive word of the message
+    mutate: Mutation | None = None  # edit the paper's scenario ...
+    content: Callable[[], str | bytes] | None = None  # ... or give the file's content
+    sets: tuple[str, ...] = ()  # --set overrides
+    lines: int | None = 1  # expected number of problems (None: follow-on problems allowed)
+
+
+ROOM_FROM_SENSOR = (
+    delv("input.thermal.t_room"),
+    setv(("connections", "sensors.t_room_meas"), "thermal.t_room"),
+)
+
+CASES = [
+    # --- TOML syntax
+    Case("syntax-unclosed-string", None, "syntax", content=text('name = "li2017', 'name = "li2017\n')),
+    Case("syntax-missing-value", None, "syntax", content=text('step = "1 s"', "step =")),
+    Case("syntax-unquoted-duration", None, "syntax", content=text('step = "1 s"', "step = 1 s")),
+    Case("syntax-duplicate-key", None, "overwrite", content=text("seed = 2017", "seed = 2017\nseed = 1")),
+    Case(
+        "syntax-duplicate-table",
+        None,
+        "twice",
+        content=lambda: paper_text() + '\n[fmu.thermal]\nmodel = "X"\n',
+    ),
+    Case("syntax-unclosed-header", None, "syntax", content=text("[fmu.sensors]", "[fmu.sensors")),
+    Case(
+        "syntax-unclosed-array", None, "syntax", content=lambda: paper_text() + '\n[[delay]]\nfrom = ["a"\n'
+    ),
+    Case("syntax-bad-escape", None, "syntax", content=text('name = "li2017', 'name = "li\\q2017')),
+    # --- unreadable files (content built in the test)
+    Case("file-missing", None, "not found"),
+    Case("file-is-directory", None, "directory"),
+    Case(
+        "file-bad-utf8",
+        None,
+        "UnicodeDecodeError",
+        content=lambda: paper_text().encode() + b"\n# caf\xe9\xff\n",
+    ),
+    Case("file-empty", "scenario", "missing", content=lambda: "", lines=5),
+    # --- unknown keys
+    Case("unknown-top-level", "solver", "unknown", setv("solver.method", "rk4")),
+    Case("unknown-scenario-key", "scenario.stop_time", "unknown", setv("scenario.stop_time", "480 min")),
+    Case("unknown-fmu-key", "fmu.thermal.perid", "unknown", setv("fmu.thermal.perid", "10 s")),
+    Case(
+        "unknown-profile-key",
+        "input.thermal.q_hydraulic.amplitude",
+        "unknown",
+        setv("input.thermal.q_hydraulic.amplitude", 1.0),
+    ),
+    Case("unknown-event-key", "event[0].when", "unknown", event(when="now")),
+    Case(
+        "unknown-delay-key",
+        "delay[0].gain",
+        "unknown",
+        both(
+            *ROOM_FROM_SENSOR[:1],
+            setv(
+                "delay",
+                [{"from": "sensors.t_room_meas", "to": "thermal.t_room", "initial": 293.15, "gain": 1}],
+            ),
+        ),
+    ),
+    # --- wrong types
+    Case("seed-string", "scenario.seed", "integer", setv("scenario.seed", "2017")),
+    Case("seed-float", "scenario.seed", "integer", setv("scenario.seed", 20.17)),
+    Case("seed-too-big", "scenario.seed", "integer", setv("scenario.seed", 2**31)),
+    Case("name-number", "scenario.name", "string", setv("scenario.name", 5)),
+    Case("description-list", "scenario.description", "string", setv("scenario.description", ["a"])),
+    Case("duration-bool", "scenario.duration", "duration", setv("scenario.duration", True)),
+    Case("duration-date", "scenario.duration", "date", setv("scenario.duration", dt.date(2017, 1, 1))),
+    Case("duration-table", "scenario.duration", "dict", setv("scenario.duration", {"min": 480})),
+    Case("scenario-not-table", "scenario", "table", setv("scenario", 5), lines=4),
+    Case("model-number", "fmu.thermal.model", "unknown model", setv("fmu.thermal.model", 5)),
+    Case(
+        "parameter-files-table",
+        "fmu.thermal.parameter_files",
+        "list",
+        setv("fmu.thermal.parameter_files", {"a": "x.toml"}),
+    ),
+    Case("parameters-list", "fmu.thermal.parameters", "table", setv("fmu.thermal.parameters", [1, 2])),
+    Case("fmu-string", "fmu", "table", setv("fmu", "thermal"), lines=2),
+    Case("delay-table", "delay", "array", setv("delay", {"from": "a.b", "to": "c.d", "initial": 0.0})),
+    Case("event-table", "event", "array", setv("event", {"at": "1 min"})),
+    Case(
+        "profile-value-string",
+        "input.thermal.q_hydraulic.value",
+        "number",
+        setv("input.thermal.q_hydraulic.value", "300 W"),
+    ),
+    Case(
+        "profile-value-nan",
+        "input.thermal.q_hydraulic.value",
+        "finite",
+        setv("input.thermal.q_hydraulic.value", float("nan")),
+    ),
+    Case("profile-not-table", "input.thermal.q_hydraulic", "table", setv("input.thermal.q_hydraulic", 300.0)),
+    Case(
+        "profile-kind-list",
+        "input.thermal.q_hydraulic.profile",
+        "unknown profile",
+        setv("input.thermal.q_hydraulic.profile", ["constant"]),
+    ),
+    Case(
+        "connection-target-number",
+        'connections."thermal.t_spindle"',
+        "input name",
+        setv(("connections", "thermal.t_spindle"), 5),
+    ),
+    Case(
+        "connection-unquoted-output",
+        'connections."thermal"',
+        "quote",
+        both(
+            delv(("connections", "thermal.t_spindle")),
+            setv(("connections", "thermal", "t_spindle"), "mechanics.t_spindle"),
+        ),
+    ),
+    # --- missing values
+    Case("missing-duration", "scenario.duration", "missing", delv("scenario.duration")),
+    Case("missing-step", "scenario.step", "missing", delv("scenario.step")),
+    Case("missing-output-interval", "scenario.output_interval", "missing", delv("scenario.output_interval")),
+    Case("missing-model", "fmu.sensors.model", "missing", delv("fmu.sensors.model")),
+    Case("missing-period", "fmu.mechanics.period", "missing", delv("fmu.mechanics.period")),
+    Case(
+        "missing-profile-parameter",
+        "input.thermal.t_room.time_constant",
+        "missing",
+        delv("input.thermal.t_room.time_constant"),
+    ),
+    Case(
+        "missing-profile-kind",
+        "input.thermal.q_hydraulic.profile",
+        "missing",
+        delv("input.thermal.q_hydraulic.profile"),
+    ),
+    Case("missing-fmus", "fmu", "at least one", setv("fmu", {})),
+    Case(
+        "missing-delay-initial",
+        "delay[0].initial",
+        "missing",
+        both(ROOM_FROM_SENSOR[0], setv("delay", [{"from": "sensors.t_room_meas", "to": "thermal.t_room"}])),
+    ),
+    # --- times: zero, negative, not multiples, too short, too long, not whole nanoseconds
+    Case("step-zero", "scenario.step", "positive", setv("scenario.step", "0 s")),
+    Case("step-negative", "scenario.step", "positive", setv("scenario.step", -1)),
+    Case("step-unknown-unit", "scenario.step", "expected a duration", setv("scenario.step", "1 sec")),
+    Case("step-negative-string", "scenario.step", "expected a duration", setv("scenario.step", "-1 s")),
+    Case("step-sub-nanosecond", "scenario.step", "nanoseconds", setv("scenario.step", "0.5 ns")),
+    Case("period-zero", "fmu.thermal.period", "positive", setv("fmu.thermal.period", "0 s")),
+    Case("period-negative", "fmu.thermal.period", "positive", setv("fmu.thermal.period", -10)),
+    Case(
+        "period-not-multiple-of-step", "fmu.thermal.period", "multiple", setv("fmu.thermal.period", "1.5 s")
+    ),
+    Case("period-not-dividing-duration", "fmu.thermal.period", "divide", setv("fmu.thermal.period", "7 s")),
+    Case("output-interval-zero", "scenario.output_interval", "positive", setv("scenario.output_interval", 0)),
+    Case(
+        "output-interval-not-multiple",
+        "scenario.output_interval",
+        "multiple",
+        setv("scenario.output_interval", "2.5 s"),
+    ),
+    Case("duration-zero", "scenario.duration", "positive", setv("scenario.duration", "0 s")),
+    Case(
+        "duration-not-multiple-of-step",
+        "scenario.duration",
+        "multiple",
+        setv("scenario.duration", "28800.5 s"),
+        lines=4,
+    ),
+    Case("duration-too-short", "scenario.duration", "too short", setv("scenario.duration", "1 s"), lines=2),
+    Case("duration-absurdly-long", "scenario.duration", "absurdly", setv("scenario.duration", "367 d")),
+    Case("duration-absurdly-long-seconds", "scenario.duration", "absurdly", setv("scenario.duration", 1e12)),
+    Case("drift-window-zero", "scenario.drift_window", "positive", setv("scenario.drift_window", "0 min")),
+    # --- models and instances
+    Case("unknown-model", "fmu.thermal.model", "unknown model", setv("fmu.thermal.model", "ThermalNetwrk")),
+    Case(
+        "instance-name-not-snake",
+        "fmu.Extra",
+        "lower_snake",
+        setv("fmu.Extra", {"model": "SensorsDAQ", "period": "1 s"}),
+    ),
+    # --- connections
+    Case(
+        "connection-unknown-instance",
+        'connections."thermo.t_spindle"',
+        "unknown FMU instance",
+        both(
+            delv(("connections", "thermal.t_spindle")),
+            setv(("connections", "thermo.t_spindle"), "mechanics.t_spindle"),
+        ),
+    ),
+    Case(
+        "connection-unknown-variable",
+        'connections."thermal.t_spindel"',
+        "no variable",
+        both(
+            delv(("connections", "thermal.t_spindle")),
+            setv(("connections", "thermal.t_spindel"), "mechanics.t_spindle"),
+        ),
+    ),
+    Case(
+        "connection-not-instance-dot-variable",
+        'connections."thermal"',
+        "instance.variable",
+        both(
+            delv(("connections", "thermal.t_spindle")),
+            setv(("connections", "thermal"), "mechanics.t_spindle"),
+        ),
+    ),
+    Case(
+        "connection-output-to-output",
+        'connections."thermal.t_oil"',
+        "expected an input",
+        setv(("connections", "thermal.t_oil"), "mechanics.dz_spindle"),
+    ),
+    Case(
+        "connection-input-to-input",
+        'connections."thermal.t_room"',
+        "expected an output",
+        both(
+            delv(("connections", "thermal.t_spindle")),
+            setv(("connections", "thermal.t_room"), "mechanics.t_spindle"),
+        ),
+    ),
+    Case(
+        "connection-unit-mismatch",
+        'connections."thermal.t_oil"',
+        "unit mismatch",
+        both(
+            delv(("connections", "mechanics.probe_true")),
+            setv(("connections", "thermal.t_oil"), "sensors.probe_true"),
+        ),
+    ),
+    Case(
+        "connection-input-fed-twice",
+        'connections."thermal.t_oil"',
+        "already fed",
+        setv(("connections", "thermal.t_oil"), "mechanics.t_spindle"),
+    ),
+    Case(
+        "connection-and-profile",
+        "input.mechanics.t_spindle",
+        "cannot also have a profile",
+        setv("input.mechanics.t_spindle", {"profile": "constant", "value": 293.15}),
+    ),
+    Case("algebraic-loop", "connections", "algebraic loop", both(*ROOM_FROM_SENSOR)),
+    # --- parameters
+    Case(
+        "parameter-negative-capacity",
+        "fmu.thermal.parameters.c_base",
+        "physical range",
+        setv("fmu.thermal.parameters.c_base", -1),
+    ),
+    Case(
+        "parameter-share-above-one",
+        "fmu.thermal.parameters.hyd_share_base",
+        "physical range",
+        setv("fmu.thermal.parameters.hyd_share_base", 1.5),
+    ),
+    Case(
+        "parameter-unknown",
+        "fmu.thermal.parameters.c_foo",
+        "no parameter",
+        setv("fmu.thermal.parameters.c_foo", 1.0),
+    ),
+    Case(
+        "parameter-is-an-input",
+        "fmu.thermal.parameters.t_room",
+        "no parameter",
+        setv("fmu.thermal.parameters.t_room", 293.15),
+    ),
+    Case(
+        "parameter-boolean-given-number",
+        "fmu.thermal.parameters.start_at_room",
+        "true or false",
+        setv("fmu.thermal.parameters.start_at_room", 1),
+    ),
+    Case(
+        "parameter-integer-given-float",
+        "fmu.sensors.parameters.seed",
+        "integer",
+        setv("fmu.sensors.parameters.seed", 1.5),
+    ),
+    Case(
+        "parameter-real-given-string",
+        "fmu.mechanics.parameters.l_clamp",
+        "number",
+        setv("fmu.mechanics.parameters.l_clamp", "5 cm"),
+    ),
+    Case(
+        "parameter-table-extra-key",
+        "fmu.thermal.parameters.c_base",
+        "unknown key",
+        setv("fmu.thermal.parameters.c_base", {"value": 1.0, "unit": "J/K"}),
+    ),
+    Case(
+        "parameter-table-without-value",
+        "fmu.thermal.parameters.c_base",
+        "missing 'value'",
+        setv("fmu.thermal.parameters.c_base", {"source": "handbook"}),
+    ),
+    Case(
+        "parameter-file-missing",
+        "fmu.thermal.parameter_files",
+        "not found",
+        setv("fmu.thermal.parameter_files", ["no-such-parameters.toml"]),
+    ),
+    # --- events
+    Case("event-at-end", "event[0].at", "within", event(at="480 min")),
+    Case("event-after-end", "event[0].at", "within", event(at="9 h")),
+    Case("event-unknown-action", "event[0].action", "unknown action", event(action="jump")),
+    Case("event-action-list", "event[0].action", "unknown action", event(action=["set"])),
+    Case("event-ramp-without-duration", "event[0].duration", "missing", event(action="ramp")),
+    Case("event-ramp-zero-duration", "event[0].duration", "positive", event(action="ramp", duration="0 s")),
+    Case("event-missing-value", "event[0].value", "missing", event(value=None)),
+    Case(
+        "event-set-on-fed-input",
+        "event[0].target",
+        "fed by a connection",
+        event(target="mechanics.t_spindle"),
+    ),
+    Case("event-bias-on-input", "event[0].target", "expected an output", event(action="bias")),
+    # --- profiles
+    Case(
+        "profile-unknown-kind",
+        "input.thermal.q_hydraulic.profile",
+        "unknown profile",
+        setv("input.thermal.q_hydraulic.profile", "square"),
+    ),
+    Case(
+        "profile-ramp-zero-duration",
+        "input.mechanics.angle.duration",
+        "positive",
+        setv("input.mechanics.angle", {"profile": "ramp", "start": 0.0, "end": 1.0, "duration": "0 s"}),
+    ),
+    Case(
+        "profile-ramp-negative-delay",
+        "input.mechanics.angle.delay",
+        "negative",
+        setv(
+            "input.mechanics.angle",
+            {"profile": "ramp", "start": 0.0, "end": 1.0, "duration": "1 h", "delay": -60},
+        ),
+    ),
+    Case(
+        "profile-table-not-increasing",
+        "input.thermal.q_friction.points",
+        "increase",
+        setv(
+            "input.thermal.q_friction", {"profile": "table", "points": [[0, 0.0], ["2 h", 1.0], ["1 h", 2.0]]}
+        ),
+    ),
+    Case(
+        "profile-table-repeated-time",
+        "input.thermal.q_friction.points",
+        "increase",
+        setv(
+            "input.thermal.q_friction", {"profile": "table", "points": [[0, 0.0], ["1 h", 1.0], [3600, 2.0]]}
+        ),
+    ),
+    Case(
+        "profile-table-one-point",
+        "input.thermal.q_friction.points",
+        "two points",
+        setv("input.thermal.q_friction", {"profile": "table", "points": [[0, 0.0]]}),
+    ),
+    Case(
+        "profile-table-nan-value",
+        "input.thermal.q_friction.points",
+        "finite",
+        setv("input.thermal.q_friction", {"profile": "table", "points": [[0, 0.0], ["1 h", float("nan")]]}),
+    ),
+    Case(
+        "profile-on-unknown-instance",
+        "input.hydraulics.q",
+        "unknown FMU instance",
+        setv("input.hydraulics.q", {"profile": "constant", "value": 1.0}),
+    ),
+    Case(
+        "profile-on-output",
+        "input.thermal.t_oil",
+        "expected an input",
+        setv("input.thermal.t_oil", {"profile": "constant", "value": 300.0}),
+    ),
+    # --- error model
+    Case("errormodel-unknown-key", "errormodel", "unknown", setv("errormodel.gain", 2.0)),
+    # --- --set
+    Case("set-without-equals", "--set", "KEY=VALUE", sets=("scenario.step",)),
+    Case("set-into-non-table", "--set: scenario.step.x", "not a table", sets=("scenario.step.x=1",)),
+    Case("set-malformed-key", "--set", "malformed", sets=('connections."thermal.t_oil=1',)),
+    Case("set-empty-key-part", "--set", "malformed", sets=("scenario..step=1",)),
+    Case("set-makes-step-zero", "scenario.step", "positive", sets=('scenario.step="0 s"',)),
+    Case("set-makes-duration-absurd", "scenario.duration", "absurdly", sets=("scenario.duration=400 d",)),
+    Case("set-unknown-key", "scenario.stop", "unknown", sets=("scenario.stop=1",)),
+    Case(
+        "set-quoted-key-feeds-twice",
+        'connections."thermal.t_oil"',
+        "already fed",
+        sets=('connections."thermal.t_oil"="mechanics.t_spindle"',),
+    ),
+    Case("set-replaces-table-with-number", "fmu.thermal", "expected a table", sets=("fmu.thermal=3",)),
+]
+
+
+def build(case: Case, tmp_path: Path) -> Path:
+    path = tmp_path / f"{case.id}.toml"
+    if case.id == "file-missing":
+        return path
+    if case.id == "file-is-directory":
+        path.mkdir()
+        return path
+    if case.content is not None:
+        return write(path, case.content())
+    data = paper_data()
+    if case.mutate is not None:
+        case.mutate(data)
+    return write(path, data)
+
+
+def check_report(stderr: str, path: Path, key: str | None, word: str, lines: int | None) -> list[str]:
+    """The contract: one line per problem, each ``twin: FILE: ...``; one names ``key`` and says ``word``."""
+    assert "Traceback" not in stderr
+    out = stderr.strip().splitlines()
+    assert out, "nothing on stderr"
+    for line in out:
+        assert line.startswith("twin: "), line
+        assert path.name in line, line
+    hits = [ln for ln in out if (key is None or f"{key}: " in ln) and word.lower() in ln.lower()]
+    assert hits, f"no line names {key!r} with {word!r}:\n{stderr}"
+    if lines is not None:
+        assert len(out) == lines, stderr
+    return out
+
+
+def test_corpus_is_large_and_ids_unique() -> None:
+    assert len(CASES) >= 40
+    assert len({c.id for c in CASES}) == len(CASES)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_scenario_is_rejected_with_one_line_per_problem(case: Case, tmp_path: Path, capsys) -> None:
+    path = build(case, tmp_path)
+    argv = ["validate", str(path)]
+    for s in case.sets:
+        argv += ["--set", s]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    check_report(captured.err, path, case.key, case.word, case.lines)
+
+
+def test_the_unmutated_paper_scenario_passes(tmp_path: Path, capsys) -> None:
+    """The corpus's base is valid: each case fails for its mutation only."""
+    path = write(tmp_path / "paper.toml", paper_data())
+    assert main(["validate", str(path)]) == 0, capsys.readouterr().err
+
+
+def test_the_same_loop_with_a_delay_is_accepted(tmp_path: Path, capsys) -> None:
+    data = paper_data()
+    del data["input"]["thermal"]["t_room"]
+    data["delay"] = [{"from": "sensors.t_room_meas", "to": "thermal.t_room", "initial": 293.15}]
+    path = write(tmp_path / "delayed-loop.toml", data)
+    assert main(["validate", str(path)]) == 0, capsys.readouterr().err
+    assert "ok" in capsys.readouterr().out
+
+
+def test_three_independent_problems_are_reported_at_once(tmp_path: Path, capsys) -> None:
+    data = paper_data()
+    data["scenario"]["step"] = "0 s"
+    data["fmu"]["thermal"]["parameters"] = {"c_base": -1}
+    data["input"]["thermal"]["q_hydraulic"]["profile"] = "square"
+    path = write(tmp_path / "three.toml", data)
+    assert main(["validate", str(path)]) == 2
+    out = check_report(capsys.readouterr().err, path, "scenario.step", "positive", 3)
+    assert any("fmu.thermal.parameters.c_base: " in ln and "range" in ln for ln in out)
+    assert any("input.thermal.q_hydraulic.profile: " in ln and "square" in ln for ln in out)
+
+
+def test_every_bad_set_is_reported_at_once(tmp_path: Path, capsys) -> None:
+    path = write(tmp_path / "sets.toml", paper_data())
+    assert main(["validate", str(path), "--set", "nothing", "--set", "scenario.step.x=1"]) == 2
+    out = check_report(capsys.readouterr().err, path, "--set", "KEY=VALUE", 2)
+    assert "not a table" in out[1]
+
+
+# ----------------------------------------------------------------------------- the real entry point
+
+SUBPROCESS_CASES = ["syntax-unquoted-duration", "connection-unit-mismatch", "parameter-negative-capacity"]
+
+
+def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "twin.cli", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        check=False,
+        timeout=120,
+    )
+
+
+@pytest.mark.parametrize("case_id", SUBPROCESS_CASES)
+def test_validate_from_the_command_line_exits_2(case_id: str, tmp_path: Path) -> None:
+    case = next(c for c in CASES if c.id == case_id)
+    path = build(case, tmp_path)
+    proc = _run(["validate", str(path)], tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    check_report(proc.stderr, path, case.key, case.word, case.lines)
+
+
+def test_run_fails_at_validation_and_writes_nothing(tmp_path: Path) -> None:
+    case = next(c for c in CASES if c.id == "step-zero")
+    path = build(case, tmp_path)
+    out = tmp_path / "out"
+    proc = _run(["run", str(path), "--quiet", "--out", str(out)], tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    check_report(proc.stderr, path, case.key, case.word, case.lines)
+    assert proc.stdout == ""
+    assert not out.exists()
