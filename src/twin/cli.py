@@ -42,9 +42,13 @@ def _progress_bar(quiet: bool):
     """A progress bar on a terminal (tqdm), nothing with --quiet or without a tty."""
     if quiet or not sys.stderr.isatty():
         return None, lambda: None
+    import shutil
+
     from tqdm import tqdm
 
-    bar = tqdm(total=100, unit="%", desc="simulating", leave=False, file=sys.stderr)
+    # a pseudo-terminal may report 0 columns, which makes tqdm draw nothing
+    width = shutil.get_terminal_size((80, 24)).columns or 80
+    bar = tqdm(total=100, unit="%", desc="simulating", leave=False, file=sys.stderr, ncols=width)
 
     def update(now_ns: int, total_ns: int) -> None:
         bar.n = round(100 * now_ns / total_ns)
