@@ -5,8 +5,9 @@
 #define FM_TEMPS 10
 
 typedef struct {
-    double t_ref[FM_TEMPS]; /* temperatures of zero thermal displacement, K */
-    double z_tplate0;       /* reserved for the wear state of the loading/oscillation models */
+    double t_ref[FM_TEMPS];   /* temperatures of zero thermal displacement, K */
+    double wear;              /* liner wear depth (Archard state), m */
+    double sliding_distance;  /* accumulated sliding distance in the liner, m */
 } ModelState;
 
 #define INTERNAL_STEP_VR VR_solver_step

@@ -7,7 +7,9 @@
  * The spring keeps the long pole's top on the T-plate's bottom; the clamp on the pole
  * presses the probe's head; the probe reads the clamp's Z position relative to the sensor.
  * All displacements are small (micrometres), so each body's thermal term is linear:
- * alpha * L * (T - T_ref).
+ * alpha * L * (T - T_ref). The liner's wear is the one state: an Archard-type rate
+ * dh/ds = k(s) p with a running-in phase k(s) = k (1 + f exp(-s/s0)), integrated exactly in
+ * the sliding distance s over each internal step (inputs held over the step).
  */
 #include <math.h>
 #include <stdio.h>
@@ -35,14 +37,19 @@ fmi2Status model_initialize(ModelInstance *comp) {
     int i;
     for (i = 0; i < FM_TEMPS; i++)
         comp->v.m.t_ref[i] = comp->v.b[VR_reference_at_start] ? comp->v.r[VR_TEMPS[i]] : comp->v.r[VR_t_reference];
-    comp->v.m.z_tplate0 = 0.0;
+    comp->v.m.wear = 0.0;
+    comp->v.m.sliding_distance = 0.0;
     return fmi2OK;
 }
 
 fmi2Status model_step(ModelInstance *comp, double h) {
-    /* purely algebraic for now: nothing to integrate between communication points */
-    (void)comp;
-    (void)h;
+    const double *r = comp->v.r;
+    ModelState *m = &comp->v.m;
+    double ds = r[VR_sliding_speed] * h, s0 = r[VR_running_in_distance];
+    /* exact integral of k(s) p ds over [s, s + ds] */
+    double running_in = r[VR_running_in_factor] * s0 * (exp(-m->sliding_distance / s0) - exp(-(m->sliding_distance + ds) / s0));
+    m->wear += r[VR_wear_rate] * r[VR_contact_pressure] * (ds + running_in);
+    m->sliding_distance += ds;
     return fmi2OK;
 }
 
@@ -51,8 +58,9 @@ void model_outputs(ModelInstance *comp) {
     const double *tref = comp->v.m.t_ref;
     double dt[FM_TEMPS];
     double a_ci = r[VR_alpha_cast_iron], a_st = r[VR_alpha_steel], a_b = r[VR_alpha_bearing_steel];
-    double dz_bb, dz_sp, dz_br, dz_tp, dz_load, dz_run, z_t, dz_fr, dz_pole, dz_cl;
-    double f_free, k_total, z_top, gap, force, z_clamp, z_sensor;
+    double dz_bb, dz_sp, dz_br, dz_tp, dz_load, dz_run, dz_vib, wear, z_t, dz_fr, dz_pole, dz_cl;
+    double f_free, k_total, z_top, gap, force, z_clamp, z_sensor, rotation, relative, measured;
+    double s0 = r[VR_running_in_distance];
     int i;
 
     for (i = 0; i < FM_TEMPS; i++) dt[i] = r[VR_TEMPS[i]] - tref[i];
@@ -63,9 +71,13 @@ void model_outputs(ModelInstance *comp) {
     dz_sp = a_st * r[VR_r_spindle] * dt[SPINDLE];
     dz_br = a_b * r[VR_t_bearing_rings] * dt[BEARING];
     dz_tp = a_st * r[VR_l_t_plate] * dt[TPLATE];
-    dz_load = r[VR_compliance_loading_chain] * r[VR_radial_load];
+    /* the load compresses the liner (thickness * pressure / modulus) and bends the structure */
+    dz_load = (r[VR_liner_thickness] / (r[VR_liner_modulus] * r[VR_contact_area]) + r[VR_compliance_structure]) *
+              r[VR_radial_load];
     dz_run = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
-    z_t = dz_bb + dz_sp + dz_br + dz_tp + dz_load + dz_run + r[VR_wear_depth];
+    dz_vib = r[VR_vibration_z];
+    wear = comp->v.m.wear + r[VR_wear_offset];
+    z_t = dz_bb + dz_sp + dz_br + dz_tp + dz_load + dz_run + dz_vib + wear;
 
     /* branch 2: the frame hangs from the base and grows down; the pole grows down from its
      * top (held on the T-plate) to the clamp, and the clamp down to the head's contact face */
@@ -99,12 +111,22 @@ void model_outputs(ModelInstance *comp) {
     }
     z_clamp = z_top + dz_pole + dz_cl;
 
+    /* positioning: the friction torque turns the T-plate, and with it pole and clamp, by a
+     * small angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi.
+     * Its axis tilted from Z reads the relative motion times cos(tilt). */
+    rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
+    relative = z_clamp - z_sensor;
+    measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt]);
+
     r[VR_dz_bearing_block] = dz_bb;
     r[VR_dz_spindle] = dz_sp;
     r[VR_dz_bearing] = dz_br;
     r[VR_dz_t_plate] = dz_tp;
     r[VR_dz_loading] = dz_load;
     r[VR_dz_runout] = dz_run;
+    r[VR_dz_vibration] = dz_vib;
+    r[VR_tplate_rotation] = rotation;
+    r[VR_dz_positioning] = measured - relative;
     r[VR_z_t_plate] = z_t;
     r[VR_dz_detecting_frame] = dz_fr;
     r[VR_dz_long_pole] = dz_pole;
@@ -115,6 +137,8 @@ void model_outputs(ModelInstance *comp) {
     r[VR_lift_off] = gap > 0.0 ? 1.0 : 0.0;
     r[VR_z_clamp] = z_clamp;
     r[VR_z_sensor] = z_sensor;
-    r[VR_probe_true] = r[VR_probe_preload] + z_clamp - z_sensor;
-    r[VR_wear_depth_true] = r[VR_wear_depth];
+    r[VR_probe_true] = r[VR_probe_preload] + measured;
+    r[VR_wear_depth_true] = wear;
+    r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
+                          (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / s0));
 }

@@ -285,7 +285,7 @@ def test_paper_profiles_are_what_the_file_says(paper, raw) -> None:
     room = by_target["thermal.t_room"]
     assert dict(room.params) == {"start": 293.15, "rise": 8.9, "time_constant": 7200.0, "rise_at": 28800.0}
     assert dict(by_target["thermal.q_hydraulic"].params) == {"value": 300.0}
-    for target in ("thermal.q_friction", "mechanics.radial_load", "mechanics.angle", "mechanics.wear_depth"):
+    for target in ("thermal.q_friction", "mechanics.radial_load", "mechanics.angle"):
         assert dict(by_target[target].params) == {"value": 0.0}
 
 

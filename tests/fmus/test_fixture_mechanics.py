@@ -61,7 +61,7 @@ def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
 
 def test_wear_moves_the_probe_one_to_one(mech: Driver) -> None:
     (p0,) = mech.get(["probe_true"])
-    mech.set({"wear_depth": 50e-6})
+    mech.set({"wear_offset": 50e-6})
     p1, z_t, force = mech.get(["probe_true", "z_t_plate", "contact_force"])
     assert p1 - p0 == pytest.approx(50e-6, abs=1e-15)
     assert z_t == pytest.approx(50e-6, abs=1e-15)
@@ -73,7 +73,7 @@ def test_lift_off_is_reported_not_hidden(fmu_paths: dict[str, Path]) -> None:
     d = Driver(fmu_paths["FixtureMechanics"])
     # a weak spring: the pole cannot follow a T-plate that rises by 1 mm
     d.init(parameters={"f_spring0": 5.6, "k_spring": 100.0}, inputs=dict.fromkeys(TEMPS, T0))
-    d.set({"wear_depth": -1e-3})
+    d.set({"wear_offset": -1e-3})
     gap, lift, force, top = d.get(["pole_gap", "lift_off", "contact_force", "z_pole_top"])
     d.close()
     f_free = 5.6 + 0.9 - 0.65 * 9.80665
@@ -83,15 +83,50 @@ def test_lift_off_is_reported_not_hidden(fmu_paths: dict[str, Path]) -> None:
 
 
 def test_load_compliance_and_runout(fmu_paths: dict[str, Path]) -> None:
-    d = Driver(fmu_paths["FixtureMechanics"])
-    d.init(
-        parameters={"compliance_loading_chain": 2e-9, "spindle_runout": 3e-6, "runout_phase": 0.5},
-        inputs=dict.fromkeys(TEMPS, T0),
-    )
     import math
 
-    d.set({"radial_load": 10_000.0, "angle": 0.4})
+    d = Driver(fmu_paths["FixtureMechanics"])
+    d.init(parameters={"spindle_runout": 3e-6, "runout_phase": 0.5}, inputs=dict.fromkeys(TEMPS, T0))
+    d.set({"radial_load": 200e3, "angle": 0.4})
     load, run = d.get(["dz_loading", "dz_runout"])
     d.close()
-    assert load == pytest.approx(2e-5, rel=1e-12)
+    # liner: 0.4 mm x p / 3.1 GPa with p = F / 8.8 cm2; structure 0.5e-10 m/N
+    assert load == pytest.approx(0.4e-3 * (200e3 / 8.8e-4) / 3.1e9 + 0.5e-10 * 200e3, rel=1e-12)
     assert run == pytest.approx(3e-6 * (math.cos(0.4 - 0.5) - math.cos(0.5)), rel=1e-12)
+
+
+def test_archard_wear_with_running_in_matches_the_closed_form(fmu_paths: dict[str, Path]) -> None:
+    import math
+
+    d = Driver(fmu_paths["FixtureMechanics"])
+    d.init(inputs=dict.fromkeys(TEMPS, T0))
+    v, p = 5.8e-3, 250e6
+    d.set({"sliding_speed": v, "contact_pressure": p})
+    for k in range(3600):
+        d.slave.doStep(currentCommunicationPoint=float(k), communicationStepSize=1.0)
+    (wear,) = d.get(["wear_depth_true"])
+    d.close()
+    s, k_ss, f, s0 = v * 3600.0, 4e-16, 4.0, 50.0
+    expected = k_ss * p * (s + f * s0 * (1.0 - math.exp(-s / s0)))
+    assert wear == pytest.approx(expected, rel=1e-9)
+    # and the wear moves the T-plate: it is in the true probe displacement
+    assert 1e-6 < wear < 1e-4
+
+
+def test_positioning_cosine_and_abbe_terms(fmu_paths: dict[str, Path]) -> None:
+    import math
+
+    d = Driver(fmu_paths["FixtureMechanics"])
+    tilt, offset, c_rot = 0.02, 0.03, 2e-7
+    d.init(
+        parameters={"sensor_tilt": tilt, "abbe_offset": offset, "tplate_rotation_compliance": c_rot},
+        inputs=dict.fromkeys(TEMPS, T0),
+    )
+    d.set({"wear_offset": 100e-6, "friction_torque": 50.0})
+    pos, probe, rot = d.get(["dz_positioning", "probe_true", "tplate_rotation"])
+    d.close()
+    assert rot == pytest.approx(c_rot * 50.0, rel=1e-12)
+    relative = 100e-6
+    measured = (relative + offset * rot) * math.cos(tilt)
+    assert pos == pytest.approx(measured - relative, rel=1e-9)
+    assert probe == pytest.approx(4.805e-3 + measured, rel=1e-12)
