@@ -19,7 +19,12 @@ from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Master, RunResult
 from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate
-from twin.errormodel.sources import DEFAULT_READING, DEFAULT_TEMPERATURES, ThermalGeometry
+from twin.errormodel.sources import (
+    DEFAULT_READING,
+    DEFAULT_TEMPERATURES,
+    MechanicalCoefficients,
+    ThermalGeometry,
+)
 from twin.errors import ConfigError, RunError
 from twin.outputs import write_signals_csv, write_summary
 from twin.reference import DRIFT_M, TEMPERATURE_RISE_K
@@ -52,6 +57,7 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
         temperatures.update(em.pop("temperatures"))
     reading = em.pop("reading", DEFAULT_READING)
     true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
+    columns = {k: em.pop(k) for k in ("load", "torque", "angle", "vibration") if k in em}
     geometry_overrides = em.pop("geometry", {})
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=scenario.source_path, key="errormodel")
@@ -61,10 +67,17 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
         raise ConfigError(
             "expected a table of numbers", source=scenario.source_path, key="errormodel.geometry"
         )
-    unknown = sorted(set(geometry_overrides) - {f.name for f in fields(ThermalGeometry)})
+    known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
+    unknown = sorted(set(geometry_overrides) - known)
     if unknown:
         raise ConfigError(
             f"unknown geometry value(s) {unknown}", source=scenario.source_path, key="errormodel.geometry"
+        )
+    if not all(isinstance(v, str) for v in columns.values()):
+        raise ConfigError(
+            "load, torque, angle, vibration must be column names",
+            source=scenario.source_path,
+            key="errormodel",
         )
     if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
         raise ConfigError(
@@ -77,8 +90,13 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
             key="errormodel.temperatures",
         )
     values.update(geometry_overrides)
+    mechanics = None
+    if all(f.name in values for f in fields(MechanicalCoefficients)):
+        mechanics = MechanicalCoefficients.from_parameters(values, source=scenario.source_path)
     return EvaluationConfig(
         geometry=ThermalGeometry.from_parameters(values, source=scenario.source_path),
+        mechanics=mechanics,
+        **columns,
         temperatures=temperatures,
         reading=str(reading),
         true_wear=str(true_wear) if true_wear else None,

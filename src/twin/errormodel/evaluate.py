@@ -1,14 +1,18 @@
 """Evaluate the comprehensive error model on measured streams, end to end.
 
-Input: a signal table with the temperature sensors' readings and the displacement probe's
-reading (a twin run or a lab's CSV). Output, per time sample: the predicted error e_z, its
-five parts (thermal, loading, fluctuating, positioning, interference), the thermal part body
-by body, the change of the reading, and the compensated wear = reading change - predicted
-error; with a true wear column (a twin run) also the residual against it.
+Input: a signal table with the virtual (or a lab's real) sensor readings: eight temperatures,
+the displacement probe, and where present the load cell, torque sensor, angle encoder and
+vibration pickup. Output, per time sample: the predicted error e_z and its five parts
+(thermal, loading, fluctuating, positioning, interference), the thermal part body by body,
+the change of the reading, and the compensated wear = reading change - predicted error;
+with a true wear column (a twin run) the residual against it and the credibility indexes of
+the on-line wear curve before and after compensation.
 
-Start and end values of drifts are read off a least-squares line through the first and the
-last ``window`` seconds of samples, evaluated at the first and last time: that averages the
-sensors' noise out without the lag a plain mean over a window would add.
+Every quantity is taken relative to its start value. Start and end values are read off a
+least-squares line through the first and last ``window`` seconds of samples, evaluated at the
+first and last time: that averages the sensors' noise (and a fast oscillation) out without
+the lag a plain mean over a window would add. A factor whose sensor is absent from the table
+contributes zero.
 """
 
 from __future__ import annotations
@@ -19,7 +23,22 @@ from typing import Any
 
 import numpy as np
 
-from twin.errormodel.sources import DEFAULT_READING, DEFAULT_TEMPERATURES, ThermalGeometry, thermal_errors
+from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
+from twin.errormodel.sources import (
+    DEFAULT_ANGLE,
+    DEFAULT_LOAD,
+    DEFAULT_READING,
+    DEFAULT_TEMPERATURES,
+    DEFAULT_TORQUE,
+    DEFAULT_VIBRATION,
+    MechanicalCoefficients,
+    ThermalGeometry,
+    fluctuating_errors,
+    hampel,
+    loading_errors,
+    positioning_errors,
+    thermal_errors,
+)
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError
 from twin.signals.table import Signal, SignalTable
@@ -35,16 +54,28 @@ FEM_GROUPS: dict[str, tuple[str, ...]] = {
     "displacement_sensor": ("displacement_sensor",),
 }
 
+#: the Frechet distance is computed on at most this many points per curve (evenly decimated)
+FRECHET_POINTS = 1500
+
 
 @dataclass(frozen=True)
 class EvaluationConfig:
-    """Which columns hold what, and the tester's geometry."""
+    """Which columns hold what, and what is known of the tester."""
 
     geometry: ThermalGeometry
+    mechanics: MechanicalCoefficients | None = None
     temperatures: Mapping[str, str] = field(default_factory=lambda: dict(DEFAULT_TEMPERATURES))
     reading: str = DEFAULT_READING
+    load: str = DEFAULT_LOAD
+    torque: str = DEFAULT_TORQUE
+    angle: str = DEFAULT_ANGLE
+    vibration: str = DEFAULT_VIBRATION
     true_wear: str | None = "mechanics.wear_depth_true"
     window_s: float = 300.0
+    spike_half_window: int = 10
+    spike_sigmas: float = 5.0
+    spike_min: float = 1e-6
+    ra_window_s: float = 1800.0
 
 
 def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, float]:
@@ -77,64 +108,125 @@ def _column(table: SignalTable, name: str, what: str) -> np.ndarray:
     return table[name]
 
 
+def _sum_parts(model: Any, errors: dict[str, dict[str, np.ndarray]], n: int) -> np.ndarray:
+    if not errors:
+        return np.zeros(n)
+    return np.asarray(model.e_z(errors), dtype=float) * np.ones(n)
+
+
 def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
     """Run the error model over the table; adds ``errormodel.*`` columns to it."""
     t = table.time
-    if len(t) < 2:
+    n = len(t)
+    if n < 2:
         raise ConfigError("the error model needs at least two samples", source="errormodel")
+
+    def rel(y: np.ndarray) -> np.ndarray:
+        return y - endpoints(t, y, cfg.window_s)[0]
+
+    def drift(y: np.ndarray) -> float:
+        a, b = endpoints(t, y, cfg.window_s)
+        return b - a
+
+    # interference first: the robust filter separates the spikes from the reading
+    reading = _column(table, cfg.reading, "probe reading")
+    cleaned, spikes = hampel(reading, cfg.spike_half_window, cfg.spike_sigmas, cfg.spike_min)
+    r0 = endpoints(t, cleaned, cfg.window_s)[0]
+    change = cleaned - r0
+    raw_change = reading - r0
+
     rises: dict[str, np.ndarray] = {}
     temperature_rise: dict[str, float] = {}
     for point, col in cfg.temperatures.items():
         y = _column(table, col, f"temperature at '{point}'")
-        start, end = endpoints(t, y, cfg.window_s)
-        rises[point] = y - start
-        temperature_rise[point] = end - start
-    reading = _column(table, cfg.reading, "probe reading")
-    r0, r1 = endpoints(t, reading, cfg.window_s)
+        rises[point] = rel(y)
+        temperature_rise[point] = drift(y)
 
     model = tester_model()
     by_body = model.e_z_by_body(thermal_errors(rises, cfg.geometry))
     thermal = np.sum(np.array(list(by_body.values())), axis=0)
-    zeros = np.zeros_like(t)
-    # the other four factors enter with the loading/oscillation models; without their causes
-    # (no load, no motion, aligned sensor, no interference) they are zero
+
+    c = cfg.mechanics
+    present = {k: getattr(cfg, k) in table for k in ("load", "torque", "angle", "vibration")}
+    loading = fluctuating = positioning = np.zeros(n)
+    if c is not None:
+        if present["load"]:
+            loading = _sum_parts(model, loading_errors(rel(table[cfg.load]), c), n)
+        angle = table[cfg.angle] if present["angle"] else None
+        vibration = rel(table[cfg.vibration]) if present["vibration"] else None
+        fl = fluctuating_errors(angle, float(angle[0]) if angle is not None else 0.0, vibration, c)
+        fluctuating = rel(_sum_parts(model, fl, n))
+        torque = rel(table[cfg.torque]) if present["torque"] else None
+        positioning = rel(_sum_parts(model, positioning_errors(change, torque, c), n))
+    interference = reading - cleaned
     parts = {
         "thermal": thermal,
-        "loading": zeros,
-        "fluctuating": zeros,
-        "positioning": zeros,
-        "interference": zeros,
+        "loading": loading,
+        "fluctuating": fluctuating,
+        "positioning": positioning,
+        "interference": interference,
     }
     e_z = np.sum(np.array(list(parts.values())), axis=0)
-    change = reading - r0
-    compensated = change - e_z
+    compensated = raw_change - e_z
 
-    def add(name: str, values: np.ndarray, description: str) -> None:
-        table.add(Signal(f"errormodel.{name}", "m", "errormodel", description), values)
+    def add(name: str, values: np.ndarray, description: str, unit: str = "m") -> None:
+        table.add(Signal(f"errormodel.{name}", unit, "errormodel", description), values)
 
     add("e_z", e_z, "predicted detecting error e_z (comprehensive error model)")
     for name, values in parts.items():
         add(f"e_{name}", values, f"{name} part of e_z")
     for body, values in by_body.items():
         add(f"thermal.{body}", values, f"thermal e_z contribution of body '{body}'")
-    add("reading_change", change, "probe reading minus its start value")
+    add("reading_change", raw_change, "probe reading minus its start value")
     add("wear_compensated", compensated, "compensated wear: reading change minus predicted error")
-
-    def drift(y: np.ndarray) -> float:
-        a, b = endpoints(t, y, cfg.window_s)
-        return b - a
+    add("spike", spikes.astype(float), "1 where the robust filter found an interference spike", "1")
 
     summary: dict[str, Any] = {
-        "drift_mm": {"predicted": drift(e_z) * 1e3, "probe": (r1 - r0) * 1e3},
+        "drift_mm": {"predicted": drift(e_z) * 1e3, "probe": drift(reading) * 1e3},
         "temperature_rise_C": temperature_rise,
         "error_parts_mm": {**{k: drift(v) * 1e3 for k, v in parts.items()}, "total": drift(e_z) * 1e3},
+        "error_parts_rms_um": {k: float(np.sqrt(np.mean(v**2))) * 1e6 for k, v in parts.items()},
         "thermal_parts_mm": {
-            group: sum(drift(by_body[b]) for b in bodies) * 1e3 for group, bodies in FEM_GROUPS.items()
+            g: sum(drift(by_body[b]) for b in bodies) * 1e3 for g, bodies in FEM_GROUPS.items()
         },
+        "interference_spikes": int(spikes.sum()),
+        "sensors_used": {k: v for k, v in present.items()},
     }
     if cfg.true_wear and cfg.true_wear in table:
         wear = table[cfg.true_wear] - table[cfg.true_wear][0]
-        residual = compensated - wear
-        add("residual", residual, "compensated wear minus true wear")
+        before, after = raw_change - wear, compensated - wear
+        add("residual", after, "compensated wear minus true wear")
         summary["wear_mm"] = {"true": float(wear[-1]) * 1e3, "compensated": float(compensated[-1]) * 1e3}
-    return Evaluation(e_z, parts, by_body, change, compensated, summary)
+        summary["compensation"] = {
+            "residual_rms_um": {"before": _rms(before) * 1e6, "after": _rms(after) * 1e6},
+            "residual_max_um": {"before": _absmax(before) * 1e6, "after": _absmax(after) * 1e6},
+        }
+        summary["credibility"] = {
+            "frechet_um": {
+                "before": _frechet_um(t, raw_change, wear),
+                "after": _frechet_um(t, compensated, wear),
+            },
+            "ra_um": {
+                "before": ra_fluctuation(t, raw_change, cfg.ra_window_s) * 1e6,
+                "after": ra_fluctuation(t, compensated, cfg.ra_window_s) * 1e6,
+            },
+        }
+    return Evaluation(e_z, parts, by_body, raw_change, compensated, summary)
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2)))
+
+
+def _absmax(x: np.ndarray) -> float:
+    return float(np.max(np.abs(x)))
+
+
+def _frechet_um(t: np.ndarray, online: np.ndarray, true: np.ndarray) -> float:
+    """Frechet distance between the curves (t in hours, z in um), decimated evenly."""
+    step = max(1, int(np.ceil(len(t) / FRECHET_POINTS)))
+    idx = np.unique(np.r_[np.arange(0, len(t), step), len(t) - 1])
+    th = t[idx] / 3600.0
+    p = np.column_stack([th, online[idx] * 1e6])
+    q = np.column_stack([th, true[idx] * 1e6])
+    return discrete_frechet(p, q)

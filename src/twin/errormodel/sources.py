@@ -100,3 +100,98 @@ def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[
             * (g.l_pole_heel * r["heel_block"] + g.l_pole_base * r["base"] + g.l_pole_lower * r["long_pole"])
         },
     }
+
+
+# ----------------------------------------------------------------------------- the other factors
+
+DEFAULT_LOAD = "sensors.load_meas"
+DEFAULT_TORQUE = "sensors.torque_meas"
+DEFAULT_ANGLE = "sensors.angle_meas"
+DEFAULT_VIBRATION = "sensors.vibration_meas"
+
+
+@dataclass(frozen=True)
+class MechanicalCoefficients:
+    """What a lab identifies once on its tester (static load test, runout and alignment check).
+
+    Names as the FixtureMechanics parameters.
+    """
+
+    liner_thickness: float
+    liner_modulus: float
+    contact_area: float
+    compliance_structure: float
+    spindle_runout: float
+    runout_phase: float
+    sensor_tilt: float
+    abbe_offset: float
+    tplate_rotation_compliance: float
+
+    @classmethod
+    def from_parameters(
+        cls, values: Mapping[str, float], *, source: str = "errormodel"
+    ) -> MechanicalCoefficients:
+        missing = [f.name for f in fields(cls) if f.name not in values]
+        if missing:
+            raise ConfigError(f"missing coefficient(s): {', '.join(missing)}", source=source)
+        return cls(**{f.name: float(values[f.name]) for f in fields(cls)})
+
+    @property
+    def load_compliance(self) -> float:
+        """m/N: liner compression (thickness / (modulus * area)) plus the structure."""
+        return self.liner_thickness / (self.liner_modulus * self.contact_area) + self.compliance_structure
+
+
+def loading_errors(load_change: np.ndarray, c: MechanicalCoefficients) -> dict[str, dict[str, np.ndarray]]:
+    """Loading dE_F: the measured load change compresses liner and structure (T-plate down)."""
+    return {"spherical_plain_bearing": {"p_dz": c.load_compliance * load_change}}
+
+
+def fluctuating_errors(
+    angle: np.ndarray | None, angle0: float, vibration: np.ndarray | None, c: MechanicalCoefficients
+) -> dict[str, dict[str, np.ndarray]]:
+    """Fluctuating dE_V: spindle runout against the encoder's angle (a kinematic error of the
+    spindle), and the fixture's vibration as the vibration pickup measures it."""
+    out: dict[str, dict[str, np.ndarray]] = {}
+    if angle is not None:
+        phase = c.runout_phase
+        runout = c.spindle_runout * (np.cos(angle - phase) - np.cos(angle0 - phase))
+        out["testing_spindle"] = {"s_dz": runout}
+    if vibration is not None:
+        out["t_plate"] = {"s_dz": vibration}
+    return out
+
+
+def positioning_errors(
+    reading_change: np.ndarray, torque_change: np.ndarray | None, c: MechanicalCoefficients
+) -> dict[str, dict[str, np.ndarray]]:
+    """Positioning dE_G: the probe's axis tilted from Z reads motion times cos(tilt) (cosine
+    error, second order in the tilt, so it is given explicitly rather than left to the
+    first-order MBS form), and the T-plate's rotation by the friction torque moves the clamp
+    by the Abbe offset times the angle. Both act at the sensor (body 7, branch 2: sign -1)."""
+    cosine = -(1.0 - np.cos(c.sensor_tilt)) / np.cos(c.sensor_tilt) * reading_change
+    abbe = (
+        0.0
+        if torque_change is None
+        else c.abbe_offset * c.tplate_rotation_compliance * torque_change * np.cos(c.sensor_tilt)
+    )
+    return {"displacement_sensor": {"p_dz": -(cosine + abbe)}}
+
+
+def hampel(
+    x: np.ndarray, half_window: int = 10, n_sigmas: float = 5.0, min_deviation: float = 1e-6
+) -> tuple[np.ndarray, np.ndarray]:
+    """Robust spike filter (Hampel): samples further from the moving median than ``n_sigmas``
+    robust deviations (1.4826 MAD), and at least ``min_deviation``, are replaced by the median.
+
+    The floor keeps a quantized, nearly noise-free stretch (MAD = 0) from being flagged sample
+    by sample. Returns (cleaned, is_spike).
+    """
+    from scipy.ndimage import median_filter
+
+    size = 2 * half_window + 1
+    med = median_filter(x, size=size, mode="nearest")
+    mad = median_filter(np.abs(x - med), size=size, mode="nearest")
+    threshold = np.maximum(n_sigmas * 1.4826 * mad, min_deviation)
+    spikes = np.abs(x - med) > threshold
+    return np.where(spikes, med, x), spikes
