@@ -2,15 +2,14 @@
 #ifndef SENSORS_DAQ_CONFIG_H
 #define SENSORS_DAQ_CONFIG_H
 
-#include <stdint.h>
+#include "rng.h"
 
 #define SD_TEMPS 8 /* the paper's eight temperature measuring points */
 
 typedef struct {
-    /* deterministic noise generator: xoshiro256** seeded by splitmix64, Gaussian by Box-Muller */
-    uint64_t rng[4];
-    double gauss_spare; /* second Box-Muller value, used by the next draw */
-    int has_spare;
+    /* deterministic noise generator (fmus/common/rng.h): xoshiro256** seeded by splitmix64,
+     * Gaussian by Box-Muller; a plain struct, so it is part of the FMU state */
+    Rng rng;
     /* discretisation of the lags for the step they were made for (exact: 1 - exp(-h/tau)) */
     double step_h;
     double a_temp;

@@ -12,16 +12,17 @@
  *                           in_range = [range_min <= r0 <= range_max]
  *
  * The exact discretisation of the first-order lags is stable for any step. The noise n is
- * drawn once per channel per step from a PRNG whose state lives in ModelState, so FMU
- * get/set/serialize reproduce the noise bit for bit. The outputs are the last sample: they
- * depend on the states only (no direct feedthrough), so setting an input between steps
- * changes nothing until the next doStep.
+ * drawn once per channel per step from the shared generator (fmus/common/rng.c) whose state
+ * lives in ModelState, so FMU get/set/serialize reproduce the noise bit for bit. The outputs
+ * are the last sample: they depend on the states only (no direct feedthrough), so setting an
+ * input between steps changes nothing until the next doStep.
  */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "model.h"
+#include "rng.h"
 
 #define TWO_PI 6.283185307179586476925286766559
 
@@ -31,59 +32,6 @@ static const int VR_TRUE[SD_TEMPS] = {VR_t_bearing_block, VR_t_heel_block, VR_t_
 static const int VR_MEAS[SD_TEMPS] = {VR_t_bearing_block_meas, VR_t_heel_block_meas, VR_t_bearing_meas,
                                       VR_t_t_plate_meas, VR_t_base_meas, VR_t_long_pole_meas,
                                       VR_t_detecting_frame_meas, VR_t_room_meas};
-
-/* ------------------------------------------------------------------ noise generator */
-
-static uint64_t splitmix64(uint64_t *x) {
-    uint64_t z = (*x += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-}
-
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-
-/* xoshiro256** (Blackman and Vigna 2018) */
-static uint64_t next_u64(uint64_t s[4]) {
-    const uint64_t result = rotl(s[1] * 5, 7) * 9;
-    const uint64_t t = s[1] << 17;
-    s[2] ^= s[0];
-    s[3] ^= s[1];
-    s[1] ^= s[2];
-    s[0] ^= s[3];
-    s[2] ^= t;
-    s[3] = rotl(s[3], 45);
-    return result;
-}
-
-static void seed_rng(ModelState *m, int seed) {
-    uint64_t x = (uint64_t)(uint32_t)seed;
-    int k;
-    /* splitmix64 never yields an all-zero xoshiro state from consecutive outputs */
-    for (k = 0; k < 4; k++) m->rng[k] = splitmix64(&x);
-    m->has_spare = 0;
-    m->gauss_spare = 0.0;
-}
-
-/* uniform in (0, 1]: never 0, so log() below is finite */
-static double uniform_open0(uint64_t s[4]) {
-    return ((double)(next_u64(s) >> 11) + 1.0) * (1.0 / 9007199254740992.0); /* 2^-53 */
-}
-
-/* standard normal by Box-Muller; the second value of each pair is kept for the next call */
-static double gauss(ModelState *m) {
-    double u1, u2, r;
-    if (m->has_spare) {
-        m->has_spare = 0;
-        return m->gauss_spare;
-    }
-    u1 = uniform_open0(m->rng);
-    u2 = uniform_open0(m->rng);
-    r = sqrt(-2.0 * log(u1));
-    m->gauss_spare = r * sin(TWO_PI * u2);
-    m->has_spare = 1;
-    return r * cos(TWO_PI * u2);
-}
 
 /* ------------------------------------------------------------------ helpers */
 
@@ -106,9 +54,9 @@ static void take_sample(ModelInstance *comp) {
     double lo = r[VR_probe_range_min], hi = r[VR_probe_range_max];
     double r0, y;
     int i;
-    for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * gauss(m), q_t);
+    for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * rng_gauss(&m->rng), q_t);
     r0 = m->probe_filt + r[VR_probe_zero_drift] * (r[VR_t_probe_body] - m->t_probe_body0);
-    y = quantize(r0 + r[VR_probe_noise] * gauss(m), r[VR_probe_resolution]);
+    y = quantize(r0 + r[VR_probe_noise] * rng_gauss(&m->rng), r[VR_probe_resolution]);
     m->probe_sample = y < lo ? lo : (y > hi ? hi : y);
     m->probe_in_range = (r0 >= lo && r0 <= hi) ? 1.0 : 0.0;
 }
@@ -128,7 +76,7 @@ int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
 fmi2Status model_initialize(ModelInstance *comp) {
     ModelState *m = &comp->v.m;
     int i;
-    seed_rng(m, comp->v.i[VR_seed]);
+    rng_seed(&m->rng, (uint64_t)(uint32_t)comp->v.i[VR_seed]);
     make_gains(comp, comp->v.r[VR_solver_step]);
     /* every sensor starts in equilibrium with what it measures */
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] = comp->v.r[VR_TRUE[i]];

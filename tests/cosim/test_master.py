@@ -124,7 +124,7 @@ def test_an_fmu_failure_keeps_the_rows_recorded_before_it(tmp_path: Path) -> Non
     body = (
         '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "10 s"\n'
         '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "10 s"\n'
-        '[connections]\n"sensors.probe_meas" = "mechanics.wear_depth"\n'
+        '[connections]\n"sensors.probe_meas" = "mechanics.wear_offset"\n'
         '[[event]]\nat = "20 min"\naction = "bias"\ntarget = "sensors.probe_meas"\nvalue = 0.01\n'
     )
     result = run_scenario(load_scenario(scenario(tmp_path, body, interval="10 s")))

@@ -1,0 +1,59 @@
+/*
+ * rng.c -- splitmix64 -> xoshiro256** generator with uniform and Box-Muller normal draws
+ * (see rng.h). Moved unchanged from SensorsDAQ, whose noise stays bit-identical.
+ */
+#include "rng.h"
+
+#include <math.h>
+
+#define RNG_TWO_PI 6.283185307179586476925286766559
+
+static uint64_t splitmix64(uint64_t *x) {
+    uint64_t z = (*x += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+}
+
+static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+
+void rng_seed(Rng *r, uint64_t seed) {
+    uint64_t x = seed;
+    int k;
+    /* splitmix64 never yields an all-zero xoshiro state from consecutive outputs */
+    for (k = 0; k < 4; k++) r->s[k] = splitmix64(&x);
+    r->has_spare = 0;
+    r->gauss_spare = 0.0;
+}
+
+/* xoshiro256** (Blackman and Vigna 2018) */
+uint64_t rng_next_u64(Rng *r) {
+    uint64_t *s = r->s;
+    const uint64_t result = rotl(s[1] * 5, 7) * 9;
+    const uint64_t t = s[1] << 17;
+    s[2] ^= s[0];
+    s[3] ^= s[1];
+    s[1] ^= s[2];
+    s[0] ^= s[3];
+    s[2] ^= t;
+    s[3] = rotl(s[3], 45);
+    return result;
+}
+
+double rng_uniform(Rng *r) {
+    return ((double)(rng_next_u64(r) >> 11) + 1.0) * (1.0 / 9007199254740992.0); /* 2^-53 */
+}
+
+double rng_gauss(Rng *r) {
+    double u1, u2, rad;
+    if (r->has_spare) {
+        r->has_spare = 0;
+        return r->gauss_spare;
+    }
+    u1 = rng_uniform(r);
+    u2 = rng_uniform(r);
+    rad = sqrt(-2.0 * log(u1));
+    r->gauss_spare = rad * sin(RNG_TWO_PI * u2);
+    r->has_spare = 1;
+    return rad * cos(RNG_TWO_PI * u2);
+}

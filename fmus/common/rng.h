@@ -1,0 +1,34 @@
+/*
+ * rng.h -- the deterministic random generator the models share.
+ *
+ * xoshiro256** (Blackman and Vigna 2018) seeded through splitmix64; uniforms in (0, 1];
+ * standard normals by Box-Muller (the second value of each pair is kept for the next draw).
+ *
+ * The whole generator is one plain struct (no pointers, no globals): a model keeps it inside
+ * its ModelState, so FMU get/set/serialize state reproduce the random stream bit for bit and
+ * the same seed always gives the same numbers.
+ */
+#ifndef TWIN_RNG_H
+#define TWIN_RNG_H
+
+#include <stdint.h>
+
+typedef struct {
+    uint64_t s[4];      /* xoshiro256** state (never all zero after rng_seed) */
+    double gauss_spare; /* second Box-Muller value, returned by the next rng_gauss */
+    int has_spare;
+} Rng;
+
+/* Expand a seed into the 256-bit state by splitmix64 and drop any spare normal. */
+void rng_seed(Rng *r, uint64_t seed);
+
+/* Next raw 64-bit output of xoshiro256**. */
+uint64_t rng_next_u64(Rng *r);
+
+/* Uniform in (0, 1]: ((x >> 11) + 1) * 2^-53, never 0 (so log() of it is finite). */
+double rng_uniform(Rng *r);
+
+/* Standard normal N(0, 1) by Box-Muller; each pair costs two uniforms. */
+double rng_gauss(Rng *r);
+
+#endif
