@@ -60,6 +60,6 @@ def ra_fluctuation(t: np.ndarray, z: np.ndarray, window_s: float) -> float:
     dt = float(np.median(np.diff(t)))
     half = max(1, round(window_s / dt / 2))
     kernel = np.ones(2 * half + 1)
-    padded = np.pad(z, half, mode="reflect")
+    padded = np.pad(z, half, mode="reflect", reflect_type="odd")  # odd: a linear trend continues
     mean_line = np.convolve(padded, kernel / kernel.size, mode="valid")
     return float(np.mean(np.abs(z - mean_line)))

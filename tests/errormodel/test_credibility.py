@@ -1,0 +1,73 @@
+"""Credibility indexes and the interference filter against hand-made cases."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
+from twin.errormodel.sources import hampel
+
+
+def frechet_reference(p: np.ndarray, q: np.ndarray) -> float:
+    """Eiter and Mannila's recursion, cell by cell."""
+    n, m = len(p), len(q)
+    ca = np.zeros((n, m))
+    for i, j in itertools.product(range(n), range(m)):
+        d = float(np.linalg.norm(p[i] - q[j]))
+        if i == 0 and j == 0:
+            ca[i, j] = d
+        elif i == 0:
+            ca[i, j] = max(ca[i, j - 1], d)
+        elif j == 0:
+            ca[i, j] = max(ca[i - 1, j], d)
+        else:
+            ca[i, j] = max(min(ca[i - 1, j], ca[i - 1, j - 1], ca[i, j - 1]), d)
+    return float(ca[-1, -1])
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(1, 25),
+    m=st.integers(1, 25),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_frechet_equals_the_cell_by_cell_recursion(n: int, m: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    p, q = rng.normal(size=(n, 2)), rng.normal(size=(m, 2))
+    assert discrete_frechet(p, q) == pytest.approx(frechet_reference(p, q), rel=1e-12)
+
+
+def test_frechet_of_hand_cases() -> None:
+    a = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    assert discrete_frechet(a, a) == 0.0
+    assert discrete_frechet(a, a + np.array([0.0, 3.0])) == pytest.approx(3.0)
+    # a repeated point: the coupling may wait on it, so the distance stays 0
+    assert discrete_frechet(np.array([0.0, 1.0, 2.0, 3.0]), np.array([0.0, 0.0, 1.0, 2.0, 3.0])) == 0.0
+
+
+def test_ra_of_a_sine_around_a_trend() -> None:
+    t = np.arange(0.0, 36000.0, 1.0)
+    z = 1e-6 * t / 3600.0 + 2.0 * np.sin(2 * np.pi * t / 60.0)
+    # mean |A sin| = 2A/pi; the 30 min mean line follows the trend and averages the sine out
+    assert ra_fluctuation(t, z, 1800.0) == pytest.approx(4.0 / np.pi, rel=2e-3)
+    assert ra_fluctuation(t, 1e-6 * t, 1800.0) < 1e-12
+
+
+def test_hampel_removes_spikes_and_keeps_the_signal() -> None:
+    rng = np.random.default_rng(0)
+    t = np.arange(5000) * 0.1
+    signal = 10e-6 * np.sin(2 * np.pi * t / 60.0) + rng.normal(0, 0.05e-6, t.size)
+    spiky = signal.copy()
+    where = rng.choice(t.size, 12, replace=False)
+    spiky[where] += rng.choice([-1, 1], 12) * rng.uniform(5e-6, 50e-6, 12)
+    cleaned, flags = hampel(spiky)
+    assert set(np.flatnonzero(flags)) == set(where)
+    assert np.max(np.abs(cleaned - signal)) < 0.5e-6
+    # nothing to remove: nothing removed
+    _, none = hampel(signal)
+    assert not none.any()
