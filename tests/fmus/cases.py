@@ -24,6 +24,21 @@ CASES: dict[str, Case] = {
         stop=4 * 3600.0,
         parameters={"t_start_bearing": 295.0},
     ),
+    "HydraulicLoader": Case(
+        # a fast trapezoid (2.5 s period) with a small bias, default servo and pump ripple
+        inputs={"load_offset": 5e3, "station_on": 1.0},
+        step=0.01,
+        stop=5.0,
+        parameters={
+            "profile": 2,
+            "load_low": 20e3,
+            "load_high": 200e3,
+            "t_ramp_up": 0.5,
+            "t_dwell_high": 1.0,
+            "t_ramp_down": 0.5,
+            "t_dwell_low": 0.5,
+        },
+    ),
     "SensorsDAQ": Case(
         # the paper's thermal experiment, part way through: the eight points a few K above a
         # 20 degC start, the probe at its 4.805 mm start reading
@@ -42,6 +57,14 @@ CASES: dict[str, Case] = {
         step=0.1,
         stop=30.0,
         parameters={"temp_tau": 20.0},
+    ),
+    "OscillationDrive": Case(
+        # the MIL-spec swing (+-25 deg, 10 cycles/min) under a 100 kN radial load on a warm
+        # bearing; 5 s spans the first two reversals (1.5 s, 4.5 s) and their ringing
+        inputs={"radial_load": 100e3, "t_bearing": 300.0, "drive_on": 1.0},
+        step=0.01,
+        stop=5.0,
+        parameters={"q_avg_window": 0.05},
     ),
     "FixtureMechanics": Case(
         # the paper's measured rises on a 293.15 K start (inputs are held; the model is algebraic)
