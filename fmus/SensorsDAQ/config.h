@@ -6,22 +6,39 @@
 
 #define SD_TEMPS 8 /* the paper's eight temperature measuring points */
 
+/* The second noise stream is seeded with seed ^ SD_STREAM2_KEY: its high bits are set, so it never
+ * coincides with the first stream of any seed (0 .. 2^31-1). */
+#define SD_STREAM2_KEY 0xD1B54A32D192ED03ULL
+
 typedef struct {
-    /* deterministic noise generator (fmus/common/rng.h): xoshiro256** seeded by splitmix64,
-     * Gaussian by Box-Muller; a plain struct, so it is part of the FMU state */
+    /* deterministic noise generators (fmus/common/rng.h): xoshiro256** seeded by splitmix64,
+     * Gaussian by Box-Muller; plain structs, so they are part of the FMU state.
+     * rng:  temperatures and probe noise (unchanged since the first version of this FMU);
+     * rng2: load, torque and vibration noise and the interference spikes */
     Rng rng;
-    /* discretisation of the lags for the step they were made for (exact: 1 - exp(-h/tau)) */
+    Rng rng2;
+    /* discretisation for the step it was made for */
     double step_h;
-    double a_temp;
-    double a_probe;
+    double a_temp;      /* 1 - exp(-h/temp_tau) */
+    double a_probe;     /* 1 - exp(-2 pi f_c h) */
+    double spike_p;     /* probability that a spike starts in one step: 1 - exp(-spike_rate h) */
+    int spike_steps;    /* samples a spike lasts: max(1, round(spike_duration / h)) */
     /* filter states */
     double temp_lag[SD_TEMPS]; /* K: the sensing elements' temperatures */
     double probe_filt;         /* m: the probe's low-passed head position */
     double t_probe_body0;      /* K: probe body temperature at initialization (zero-drift reference) */
+    /* interference on the probe */
+    int spike_left;     /* samples the current spike still covers, this one included (0 = none) */
+    double spike_value; /* m: signed size of the current spike */
     /* the last DAQ sample: what the outputs show until the next internal step */
     double temp_sample[SD_TEMPS];
     double probe_sample;
     double probe_in_range;
+    double load_sample;
+    double torque_sample;
+    double angle_sample;
+    double vibration_sample;
+    double spike_sample;
 } ModelState;
 
 #define INTERNAL_STEP_VR VR_solver_step

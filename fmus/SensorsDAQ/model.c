@@ -8,14 +8,25 @@
  *                           y_i  = Q(x_i + sigma_T n_i, temp_resolution)
  *   displacement probe:     x_p += a_p (z - x_p),          a_p = 1 - exp(-2 pi f_c h)
  *                           r0   = x_p + k_d (T_body - T_body(0))
- *                           y_p  = clip(Q(r0 + sigma_p n_p, probe_resolution), range)
+ *                           y_p  = clip(Q(r0 + sigma_p n_p + s, probe_resolution), range)
  *                           in_range = [range_min <= r0 <= range_max]
+ *   interference spike s:   while none is on, one starts with probability 1 - exp(-spike_rate h);
+ *                           it keeps a random sign and an Exp(spike_size) magnitude for
+ *                           max(1, round(spike_duration / h)) samples; s = 0 otherwise
+ *   load cell:              y_F = Q(F + sigma_F n_F, load_resolution)
+ *   torque sensor:          y_M = Q(M + sigma_M n_M, torque_resolution)
+ *   angle encoder:          y_a = Q(angle, encoder_resolution)
+ *   vibration pickup:       y_v = v + sigma_v n_v
  *
  * The exact discretisation of the first-order lags is stable for any step. The noise n is
- * drawn once per channel per step from the shared generator (fmus/common/rng.c) whose state
- * lives in ModelState, so FMU get/set/serialize reproduce the noise bit for bit. The outputs
- * are the last sample: they depend on the states only (no direct feedthrough), so setting an
- * input between steps changes nothing until the next doStep.
+ * drawn once per channel per step, always in the same order, from two generators
+ * (fmus/common/rng.c) whose states live in ModelState: the first (seed) feeds the temperatures
+ * and the probe exactly as before the load/torque/angle/vibration channels and the spikes were
+ * added; the second (seed ^ SD_STREAM2_KEY) feeds everything new, with a fixed number of draws
+ * per step. So the old outputs stay bit-identical whenever no spike is on, and a parameter of one
+ * channel never changes another channel's noise. FMU get/set/serialize reproduce both streams bit
+ * for bit. The outputs are the last sample: they depend on the states only (no direct
+ * feedthrough), so setting an input between steps changes nothing until the next doStep.
  */
 #include <math.h>
 #include <stdio.h>
@@ -39,10 +50,30 @@ static double quantize(double x, double q) { return q > 0.0 ? q * round(x / q) :
 
 static void make_gains(ModelInstance *comp, double h) {
     ModelState *m = &comp->v.m;
+    double n_d = round(comp->v.r[VR_spike_duration] / h);
     /* -expm1(-x) = 1 - exp(-x) without cancellation for small h/tau */
     m->a_temp = -expm1(-h / comp->v.r[VR_temp_tau]);
     m->a_probe = -expm1(-TWO_PI * comp->v.r[VR_probe_bandwidth] * h);
+    /* P(at least one arrival of a Poisson process of rate lambda in h); exactly 0 for lambda = 0 */
+    m->spike_p = -expm1(-comp->v.r[VR_spike_rate] * h);
+    /* bounded by the parameter ranges: spike_duration / solver_step <= 60 / 1e-4 */
+    m->spike_steps = n_d < 1.0 ? 1 : (int)n_d;
     m->step_h = h;
+}
+
+/* Advance the interference process by one step. Three uniforms are drawn every step, whatever
+ * the parameters and whether or not a spike is on, so the draws that follow never shift. */
+static void update_spike(ModelInstance *comp) {
+    ModelState *m = &comp->v.m;
+    double u_start = rng_uniform(&m->rng2);
+    double u_size = rng_uniform(&m->rng2); /* in (0, 1]: -log is finite */
+    double u_sign = rng_uniform(&m->rng2);
+    if (m->spike_left > 0) m->spike_left--; /* the previous sample used one */
+    if (m->spike_left == 0 && u_start <= m->spike_p) {
+        double size = -comp->v.r[VR_spike_size] * log(u_size); /* exponential, mean spike_size */
+        m->spike_value = u_sign <= 0.5 ? size : -size;
+        m->spike_left = m->spike_steps;
+    }
 }
 
 /* One DAQ sample from the current filter states: draws one noise value per channel, always
@@ -52,13 +83,24 @@ static void take_sample(ModelInstance *comp) {
     const double *r = comp->v.r;
     double sigma_t = r[VR_temp_noise], q_t = r[VR_temp_resolution];
     double lo = r[VR_probe_range_min], hi = r[VR_probe_range_max];
-    double r0, y;
+    double r0, x, y;
     int i;
+    /* first stream: the temperatures, then the probe (the order of the first version) */
     for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * rng_gauss(&m->rng), q_t);
     r0 = m->probe_filt + r[VR_probe_zero_drift] * (r[VR_t_probe_body] - m->t_probe_body0);
-    y = quantize(r0 + r[VR_probe_noise] * rng_gauss(&m->rng), r[VR_probe_resolution]);
+    x = r0 + r[VR_probe_noise] * rng_gauss(&m->rng);
+    /* the spike after filtering and zero drift, before quantization and clipping; added only
+     * while one is on, so without a spike x keeps its bits (even a -0.0) */
+    if (m->spike_left > 0) x += m->spike_value;
+    y = quantize(x, r[VR_probe_resolution]);
     m->probe_sample = y < lo ? lo : (y > hi ? hi : y);
     m->probe_in_range = (r0 >= lo && r0 <= hi) ? 1.0 : 0.0;
+    m->spike_sample = m->spike_left > 0 ? 1.0 : 0.0;
+    /* second stream: load, torque, vibration */
+    m->load_sample = quantize(r[VR_load_true] + r[VR_load_noise] * rng_gauss(&m->rng2), r[VR_load_resolution]);
+    m->torque_sample = quantize(r[VR_torque_true] + r[VR_torque_noise] * rng_gauss(&m->rng2), r[VR_torque_resolution]);
+    m->vibration_sample = r[VR_vibration_true] + r[VR_vibration_noise] * rng_gauss(&m->rng2);
+    m->angle_sample = quantize(r[VR_angle_true], r[VR_encoder_resolution]); /* no noise */
 }
 
 /* ------------------------------------------------------------------ model contract */
@@ -75,13 +117,17 @@ int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
 
 fmi2Status model_initialize(ModelInstance *comp) {
     ModelState *m = &comp->v.m;
+    uint64_t seed = (uint64_t)(uint32_t)comp->v.i[VR_seed];
     int i;
-    rng_seed(&m->rng, (uint64_t)(uint32_t)comp->v.i[VR_seed]);
+    rng_seed(&m->rng, seed);
+    rng_seed(&m->rng2, seed ^ SD_STREAM2_KEY);
     make_gains(comp, comp->v.r[VR_solver_step]);
-    /* every sensor starts in equilibrium with what it measures */
+    /* every sensor starts in equilibrium with what it measures, and no spike is on */
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] = comp->v.r[VR_TRUE[i]];
     m->probe_filt = comp->v.r[VR_probe_true];
     m->t_probe_body0 = comp->v.r[VR_t_probe_body];
+    m->spike_left = 0;
+    m->spike_value = 0.0;
     take_sample(comp); /* the sample at the start time */
     return fmi2OK;
 }
@@ -92,14 +138,21 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     if (h != m->step_h) make_gains(comp, h);
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] += m->a_temp * (comp->v.r[VR_TRUE[i]] - m->temp_lag[i]);
     m->probe_filt += m->a_probe * (comp->v.r[VR_probe_true] - m->probe_filt);
+    update_spike(comp);
     take_sample(comp);
     return fmi2OK;
 }
 
 void model_outputs(ModelInstance *comp) {
     const ModelState *m = &comp->v.m;
+    double *r = comp->v.r;
     int i;
-    for (i = 0; i < SD_TEMPS; i++) comp->v.r[VR_MEAS[i]] = m->temp_sample[i];
-    comp->v.r[VR_probe_meas] = m->probe_sample;
-    comp->v.r[VR_probe_in_range] = m->probe_in_range;
+    for (i = 0; i < SD_TEMPS; i++) r[VR_MEAS[i]] = m->temp_sample[i];
+    r[VR_probe_meas] = m->probe_sample;
+    r[VR_probe_in_range] = m->probe_in_range;
+    r[VR_load_meas] = m->load_sample;
+    r[VR_torque_meas] = m->torque_sample;
+    r[VR_angle_meas] = m->angle_sample;
+    r[VR_vibration_meas] = m->vibration_sample;
+    r[VR_spike] = m->spike_sample;
 }

@@ -180,10 +180,10 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None) -
     The scenario's own parameter files of the thermal instance are left out, so the fit always
     starts from the estimates and a rerun reproduces the file.
     """
-    from twin.config.load import _read_toml, default_scenario_path, load_scenario_data
+    from twin.config.load import default_scenario_path, load_scenario_data, read_scenario_data
 
     path = scenario_path or default_scenario_path()
-    data = _read_toml(path, str(path))
+    data = read_scenario_data(path)
     fmus = data.get("fmu", {})
     thermal = [n for n, f in fmus.items() if isinstance(f, dict) and f.get("model") == "ThermalNetwork"]
     if len(thermal) != 1:

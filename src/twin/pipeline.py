@@ -58,6 +58,11 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     reading = em.pop("reading", DEFAULT_READING)
     true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
     columns = {k: em.pop(k) for k in ("load", "torque", "angle", "vibration") if k in em}
+    factors = em.pop("factors", list(PARTS))
+    if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
+        raise ConfigError(
+            f"expected a list from {list(PARTS)}", source=scenario.source_path, key="errormodel.factors"
+        )
     geometry_overrides = em.pop("geometry", {})
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=scenario.source_path, key="errormodel")
@@ -96,6 +101,7 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     return EvaluationConfig(
         geometry=ThermalGeometry.from_parameters(values, source=scenario.source_path),
         mechanics=mechanics,
+        factors=tuple(factors),
         **columns,
         temperatures=temperatures,
         reading=str(reading),

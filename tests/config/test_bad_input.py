@@ -184,17 +184,17 @@ CASES = [
     ),
     Case(
         "connection-target-number",
-        'connections."thermal.t_spindle"',
+        'connections."thermal.t_clamp"',
         "input name",
-        setv(("connections", "thermal.t_spindle"), 5),
+        setv(("connections", "thermal.t_clamp"), 5),
     ),
     Case(
         "connection-unquoted-output",
         'connections."thermal"',
         "quote",
         both(
-            delv(("connections", "thermal.t_spindle")),
-            setv(("connections", "thermal", "t_spindle"), "mechanics.t_spindle"),
+            delv(("connections", "thermal.t_clamp")),
+            setv(("connections", "thermal", "t_clamp"), "mechanics.t_clamp"),
         ),
     ),
     # --- missing values
@@ -264,20 +264,20 @@ CASES = [
     # --- connections
     Case(
         "connection-unknown-instance",
-        'connections."thermo.t_spindle"',
+        'connections."thermo.t_clamp"',
         "unknown FMU instance",
         both(
-            delv(("connections", "thermal.t_spindle")),
-            setv(("connections", "thermo.t_spindle"), "mechanics.t_spindle"),
+            delv(("connections", "thermal.t_clamp")),
+            setv(("connections", "thermo.t_clamp"), "mechanics.t_clamp"),
         ),
     ),
     Case(
         "connection-unknown-variable",
-        'connections."thermal.t_spindel"',
+        'connections."thermal.t_clampp"',
         "no variable",
         both(
-            delv(("connections", "thermal.t_spindle")),
-            setv(("connections", "thermal.t_spindel"), "mechanics.t_spindle"),
+            delv(("connections", "thermal.t_clamp")),
+            setv(("connections", "thermal.t_clampp"), "mechanics.t_clamp"),
         ),
     ),
     Case(
@@ -285,8 +285,8 @@ CASES = [
         'connections."thermal"',
         "instance.variable",
         both(
-            delv(("connections", "thermal.t_spindle")),
-            setv(("connections", "thermal"), "mechanics.t_spindle"),
+            delv(("connections", "thermal.t_clamp")),
+            setv(("connections", "thermal"), "mechanics.t_clamp"),
         ),
     ),
     Case(
@@ -300,8 +300,8 @@ CASES = [
         'connections."thermal.t_room"',
         "expected an output",
         both(
-            delv(("connections", "thermal.t_spindle")),
-            setv(("connections", "thermal.t_room"), "mechanics.t_spindle"),
+            delv(("connections", "thermal.t_clamp")),
+            setv(("connections", "thermal.t_room"), "mechanics.t_clamp"),
         ),
     ),
     Case(
@@ -317,13 +317,13 @@ CASES = [
         "connection-input-fed-twice",
         'connections."thermal.t_oil"',
         "already fed",
-        setv(("connections", "thermal.t_oil"), "mechanics.t_spindle"),
+        setv(("connections", "thermal.t_oil"), "mechanics.t_clamp"),
     ),
     Case(
         "connection-and-profile",
-        "input.mechanics.t_spindle",
+        "input.mechanics.t_clamp",
         "cannot also have a profile",
-        setv("input.mechanics.t_spindle", {"profile": "constant", "value": 293.15}),
+        setv("input.mechanics.t_clamp", {"profile": "constant", "value": 293.15}),
     ),
     Case("algebraic-loop", "connections", "algebraic loop", both(*ROOM_FROM_SENSOR)),
     # --- parameters
@@ -399,7 +399,7 @@ CASES = [
         "event-set-on-fed-input",
         "event[0].target",
         "fed by a connection",
-        event(target="mechanics.t_spindle"),
+        event(target="mechanics.t_clamp"),
     ),
     Case("event-bias-on-input", "event[0].target", "expected an output", event(action="bias")),
     # --- profiles
@@ -478,7 +478,7 @@ CASES = [
         "set-quoted-key-feeds-twice",
         'connections."thermal.t_oil"',
         "already fed",
-        sets=('connections."thermal.t_oil"="mechanics.t_spindle"',),
+        sets=('connections."thermal.t_oil"="mechanics.t_clamp"',),
     ),
     Case("set-replaces-table-with-number", "fmu.thermal", "expected a table", sets=("fmu.thermal=3",)),
 ]

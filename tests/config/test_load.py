@@ -134,7 +134,7 @@ def test_format_duration_round_trips(ns: int) -> None:
     [
         ("scenario.seed", ["scenario", "seed"]),
         ("seed", ["seed"]),
-        ('connections."thermal.t_spindle"', ["connections", "thermal.t_spindle"]),
+        ('connections."thermal.t_clamp"', ["connections", "thermal.t_clamp"]),
         ('input."thermal".t_room.rise', ["input", "thermal", "t_room", "rise"]),
         ('input.thermal."t_room"', ["input", "thermal", "t_room"]),
         ('"scenario"."seed"', ["scenario", "seed"]),
@@ -145,7 +145,7 @@ def test_split_key(key: str, parts: list[str]) -> None:
     assert _split_key(key) == parts
 
 
-@pytest.mark.parametrize("key", ['connections."thermal.t_spindle', "a..b", ".a", "a.", "", '""', 'a.""'])
+@pytest.mark.parametrize("key", ['connections."thermal.t_clamp', "a..b", ".a", "a.", "", '""', 'a.""'])
 def test_split_key_rejects(key: str) -> None:
     with pytest.raises(ConfigError, match="malformed key") as info:
         _split_key(key)
@@ -180,12 +180,12 @@ def test_overrides_with_quoted_dotted_keys() -> None:
     apply_overrides(
         data,
         [
-            'connections."thermal.t_spindle"=["mechanics.t_spindle", "sensors.t_base"]',
+            'connections."thermal.t_clamp"=["mechanics.t_clamp", "sensors.t_base"]',
             'input."thermal".t_room.rise=9.5',
             'input.thermal."q_hydraulic".value=250',
         ],
     )
-    assert data["connections"]["thermal.t_spindle"] == ["mechanics.t_spindle", "sensors.t_base"]
+    assert data["connections"]["thermal.t_clamp"] == ["mechanics.t_clamp", "sensors.t_base"]
     assert data["input"]["thermal"]["t_room"]["rise"] == 9.5
     assert data["input"]["thermal"]["q_hydraulic"]["value"] == 250
 
@@ -303,10 +303,10 @@ def test_scenario_is_frozen(paper) -> None:
 def test_overrides_reach_the_scenario() -> None:
     s = load_scenario(
         default_scenario_path(),
-        ["scenario.seed=7", 'scenario.duration="30 min"', 'connections."thermal.t_spindle"=[]'],
+        ["scenario.seed=7", 'scenario.duration="30 min"', 'connections."thermal.t_clamp"=[]'],
     )
     assert s.seed == 7 and s.duration_ns == 30 * 60 * NS_PER_S
-    assert not any(c.src == "thermal.t_spindle" for c in s.connections)
+    assert not any(c.src == "thermal.t_clamp" for c in s.connections)
     assert len(s.connections) == 19
 
 
@@ -381,7 +381,7 @@ def test_scenario_parameters_override_the_parameter_file(tmp_path: Path) -> None
 def test_problems_carry_source_and_key(tmp_path: Path) -> None:
     data = paper_data()
     data["scenario"]["step"] = "0 s"
-    data["connections"]["thermal.t_oil"] = "mechanics.t_spindle"
+    data["connections"]["thermal.t_oil"] = "mechanics.t_clamp"
     with pytest.raises(ConfigErrors) as info:
         load_scenario_data(data, "here.toml", tmp_path)
     assert [(e.source, e.key) for e in info.value.problems] == [

@@ -41,7 +41,9 @@ CASES: dict[str, Case] = {
     ),
     "SensorsDAQ": Case(
         # the paper's thermal experiment, part way through: the eight points a few K above a
-        # 20 degC start, the probe at its 4.805 mm start reading
+        # 20 degC start, the probe at its 4.805 mm start reading; plus a 120 kN load, a friction
+        # torque, a swing angle and a fixture vibration, and frequent long interference spikes
+        # (0.2 s > the 0.1 s communication step, so every spike shows in the outputs)
         inputs={
             "t_bearing_block": 297.5,
             "t_heel_block": 297.0,
@@ -53,10 +55,14 @@ CASES: dict[str, Case] = {
             "t_room": 298.9,
             "t_probe_body": 298.0,
             "probe_true": 4.805e-3,
+            "load_true": 120e3,
+            "torque_true": 85.0,
+            "angle_true": 0.3,
+            "vibration_true": 0.4e-6,
         },
         step=0.1,
         stop=30.0,
-        parameters={"temp_tau": 20.0},
+        parameters={"temp_tau": 20.0, "spike_rate": 1.0, "spike_duration": 0.2},
     ),
     "OscillationDrive": Case(
         # the MIL-spec swing (+-25 deg, 10 cycles/min) under a 100 kN radial load on a warm

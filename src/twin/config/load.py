@@ -727,10 +727,49 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     )
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
-    """Read, override (``--set``) and check a scenario file."""
-    path = Path(path)
+def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """``over`` on top of ``base``: tables merge key by key, anything else is replaced.
+
+    An input's profile table is replaced whole: a sine does not inherit a constant's value.
+    """
+    out = dict(base)
+    for k, v in over.items():
+        mergeable = isinstance(v, dict) and isinstance(out.get(k), dict) and "profile" not in v
+        out[k] = _merge(out[k], v) if mergeable else v
+    return out
+
+
+def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A scenario file's data with its ``extends`` chain resolved.
+
+    ``extends = "base/tester-system.toml"`` (relative to the file) takes that file as the
+    starting point; the file's own tables merge over it key by key. A base's
+    ``parameter_files`` stay relative to the base.
+    """
     data = _read_toml(path, str(path))
+    parent = data.pop("extends", None)
+    if parent is None:
+        return data
+    if not isinstance(parent, str):
+        raise ConfigError(f"expected a file name, got {parent!r}", source=str(path), key="extends")
+    base_path = (path.resolve().parent / parent).resolve()
+    if base_path in _seen or base_path == path.resolve():
+        raise ConfigError(f"circular extends through {base_path.name}", source=str(path), key="extends")
+    base = read_scenario_data(base_path, (*_seen, path.resolve()))
+    # a base's parameter files are named relative to the base's folder
+    for spec in base.get("fmu", {}).values():
+        if isinstance(spec, dict) and isinstance(spec.get("parameter_files"), list):
+            spec["parameter_files"] = [
+                str((base_path.parent / f).resolve()) if isinstance(f, str) else f
+                for f in spec["parameter_files"]
+            ]
+    return _merge(base, data)
+
+
+def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
+    """Read (resolving ``extends``), override (``--set``) and check a scenario file."""
+    path = Path(path)
+    data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
     return load_scenario_data(data, str(path), path.resolve().parent)
 

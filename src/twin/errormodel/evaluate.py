@@ -76,6 +76,9 @@ class EvaluationConfig:
     spike_sigmas: float = 5.0
     spike_min: float = 1e-6
     ra_window_s: float = 1800.0
+    #: the factors the model evaluates; the paper's thermal experiment leaves out loading and
+    #: fluctuating (no load, no motion: its Eq. 10), so their sensors' noise does not enter
+    factors: tuple[str, ...] = PARTS
 
 
 def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, float]:
@@ -148,6 +151,13 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
 
     c = cfg.mechanics
     present = {k: getattr(cfg, k) in table for k in ("load", "torque", "angle", "vibration")}
+    if "loading" not in cfg.factors:
+        present["load"] = False
+    if "fluctuating" not in cfg.factors:
+        present["angle"] = present["vibration"] = False
+    if "thermal" not in cfg.factors:
+        by_body = {b: np.zeros(n) for b in by_body}
+        thermal = np.zeros(n)
     loading = fluctuating = positioning = np.zeros(n)
     if c is not None:
         if present["load"]:
@@ -157,8 +167,9 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
         fl = fluctuating_errors(angle, float(angle[0]) if angle is not None else 0.0, vibration, c)
         fluctuating = rel(_sum_parts(model, fl, n))
         torque = rel(table[cfg.torque]) if present["torque"] else None
-        positioning = rel(_sum_parts(model, positioning_errors(change, torque, c), n))
-    interference = reading - cleaned
+        if "positioning" in cfg.factors:
+            positioning = rel(_sum_parts(model, positioning_errors(change, torque, c), n))
+    interference = reading - cleaned if "interference" in cfg.factors else np.zeros(n)
     parts = {
         "thermal": thermal,
         "loading": loading,
