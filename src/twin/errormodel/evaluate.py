@@ -8,11 +8,12 @@ the change of the reading, and the compensated wear = reading change - predicted
 with a true wear column (a twin run) the residual against it and the credibility indexes of
 the on-line wear curve before and after compensation.
 
-Every quantity is taken relative to its start value. Start and end values are read off a
-least-squares line through the first and last ``window`` seconds of samples, evaluated at the
-first and last time: that averages the sensors' noise (and a fast oscillation) out without
-the lag a plain mean over a window would add. A factor whose sensor is absent from the table
-contributes zero.
+Every series is taken relative to its first sample (the probe is zeroed at the start of a
+test), which keeps the compensation exact for whatever happens early in a run (running-in
+wear, a load ramp). The drift numbers of the summary instead read start and end values off
+least-squares lines through the first and last ``window`` seconds, evaluated at the first
+and last time: that averages the sensors' noise out of a slow drift without the lag of a
+plain mean. A factor whose sensor is absent from the table contributes zero.
 """
 
 from __future__ import annotations
@@ -125,7 +126,7 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
         raise ConfigError("the error model needs at least two samples", source="errormodel")
 
     def rel(y: np.ndarray) -> np.ndarray:
-        return y - endpoints(t, y, cfg.window_s)[0]
+        return y - y[0]
 
     def drift(y: np.ndarray) -> float:
         a, b = endpoints(t, y, cfg.window_s)
@@ -134,7 +135,7 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
     # interference first: the robust filter separates the spikes from the reading
     reading = _column(table, cfg.reading, "probe reading")
     cleaned, spikes = hampel(reading, cfg.spike_half_window, cfg.spike_sigmas, cfg.spike_min)
-    r0 = endpoints(t, cleaned, cfg.window_s)[0]
+    r0 = cleaned[0]
     change = cleaned - r0
     raw_change = reading - r0
 

@@ -1,0 +1,136 @@
+"""Each of the five error parts appears alone when only its cause is switched on.
+
+All runs start from the tester system with every cause switched off: constant room, no
+station or friction heat, constant load without ripple, drive stopped, an aligned probe,
+no interference and noise-free sensors. Then one cause at a time is switched on.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.config.load import load_scenario, scenarios_dir
+from twin.errormodel.evaluate import PARTS
+from twin.outputs import read_signals_csv
+from twin.pipeline import run
+
+pytestmark = pytest.mark.slow
+
+QUIET = [
+    'scenario.duration="10 min"',
+    'scenario.output_interval="0.5 s"',
+    "fmu.hydraulic.parameters.q_idle=0.0",
+    "fmu.hydraulic.parameters.k_heat_load=0.0",
+    "fmu.hydraulic.parameters.ripple_fraction=0.0",
+    "fmu.hydraulic.parameters.load_mean=0.0",
+    "input.oscillation.drive_on.value=0.0",
+    "fmu.mechanics.parameters.sensor_tilt=0.0",
+    "fmu.mechanics.parameters.abbe_offset=0.0",
+    "fmu.mechanics.parameters.spindle_runout=0.0",
+    "fmu.oscillation.parameters.vibration_amplitude=0.0",
+    "fmu.oscillation.parameters.vibration_noise=0.0",
+    "fmu.sensors.parameters.spike_rate=0.0",
+    "fmu.sensors.parameters.temp_noise=0.0",
+    "fmu.sensors.parameters.temp_resolution=0.0",
+    "fmu.sensors.parameters.probe_noise=0.0",
+    "fmu.sensors.parameters.probe_resolution=0.0",
+    "fmu.sensors.parameters.load_noise=0.0",
+    "fmu.sensors.parameters.load_resolution=0.0",
+    "fmu.sensors.parameters.torque_noise=0.0",
+    "fmu.sensors.parameters.vibration_noise=0.0",
+]
+
+
+def parts_of(tmp_path: Path, *switch_on: str) -> tuple[dict[str, np.ndarray], object]:
+    sc = load_scenario(scenarios_dir() / "base" / "tester-system.toml", [*QUIET, *switch_on])
+    run(sc, tmp_path)
+    table = read_signals_csv(tmp_path / "errormodel.csv") if (tmp_path / "errormodel.csv").exists() else None
+    table = table or read_signals_csv(tmp_path / "signals.csv")
+    return {p: table[f"errormodel.e_{p}"] for p in PARTS}, table
+
+
+#: numerical zero: the start values come from least-squares lines (rounding ~1e-19 m)
+ZERO = 1e-13
+
+
+def assert_alone(parts: dict[str, np.ndarray], active: str) -> None:
+    for p, values in parts.items():
+        if p == active:
+            assert np.max(np.abs(values)) > 1e-8, f"{active} part did not appear"
+        else:
+            assert np.max(np.abs(values)) < ZERO, f"{p} part is not zero: max {np.max(np.abs(values)):.3g} m"
+
+
+def test_everything_off_gives_no_error(tmp_path: Path) -> None:
+    parts, table = parts_of(tmp_path)
+    for p, values in parts.items():
+        assert np.max(np.abs(values)) < ZERO, p
+    assert np.max(np.abs(table["errormodel.reading_change"])) < ZERO
+
+
+def test_loading_alone_follows_the_load(tmp_path: Path) -> None:
+    parts, table = parts_of(
+        tmp_path,
+        "fmu.hydraulic.parameters.profile=1",
+        "fmu.hydraulic.parameters.load_mean=150e3",
+        "fmu.hydraulic.parameters.load_amplitude=50e3",
+        "fmu.hydraulic.parameters.load_frequency=0.005",
+    )
+    assert_alone(parts, "loading")
+    load = table["sensors.load_meas"]
+    compliance = 0.4e-3 / (3.1e9 * 8.8e-4) + 0.5e-10
+    loading = parts["loading"]
+    np.testing.assert_allclose(loading - loading[0], compliance * (load - load[0]), rtol=0, atol=1e-12)
+    # and it explains the reading: the compensated wear stays at the true (zero) wear
+    assert np.max(np.abs(table["errormodel.wear_compensated"])) < 0.05e-6
+
+
+def test_thermal_alone_follows_the_room(tmp_path: Path) -> None:
+    parts, _ = parts_of(
+        tmp_path,
+        'input.thermal.t_room={profile = "ramp", start = 293.15, end = 298.15, duration = "10 min"}',
+    )
+    assert_alone(parts, "thermal")
+
+
+def test_fluctuating_alone_from_runout_and_vibration(tmp_path: Path) -> None:
+    parts, table = parts_of(
+        tmp_path,
+        "input.oscillation.drive_on.value=1.0",
+        "fmu.mechanics.parameters.spindle_runout=3e-6",
+        "fmu.oscillation.parameters.vibration_amplitude=0.5e-6",
+    )
+    assert_alone(parts, "fluctuating")
+    # the runout follows the encoder's angle: cos(angle - phase) - cos(angle0 - phase)
+    # 3 um x (cos(angle - 0.3) - cos(0.3)) over +-25 deg spans 0.78 um, plus the vibration
+    assert np.ptp(parts["fluctuating"]) > 0.7e-6
+    assert np.max(np.abs(table["errormodel.wear_compensated"])) < 0.2e-6
+
+
+def test_positioning_alone_from_a_tilted_probe(tmp_path: Path) -> None:
+    parts, table = parts_of(
+        tmp_path,
+        "fmu.mechanics.parameters.sensor_tilt=0.05",
+        'event=[{at = "1 min", action = "ramp", target = "mechanics.wear_offset", value = 50e-6, duration = "5 min"}]',
+    )
+    assert_alone(parts, "positioning")
+    # cosine error: the probe reads the 50 um as 50 cos(0.05) um
+    assert parts["positioning"][-1] == pytest.approx(-50e-6 * (1 - np.cos(0.05)), rel=1e-6)
+    assert table["errormodel.wear_compensated"][-1] == pytest.approx(50e-6, rel=1e-9)
+
+
+def test_interference_alone_from_spikes(tmp_path: Path) -> None:
+    parts, table = parts_of(
+        tmp_path,
+        'scenario.output_interval="0.1 s"',  # every DAQ sample, so every spike is recorded
+        "fmu.sensors.parameters.spike_rate=0.02",
+        "fmu.sensors.parameters.spike_duration=0.1",
+    )
+    assert_alone(parts, "interference")
+    spikes = table["sensors.spike"] > 0
+    assert spikes.sum() > 5
+    # the filter found exactly the spikes
+    np.testing.assert_array_equal(parts["interference"] != 0.0, spikes)
