@@ -152,3 +152,34 @@ def test_delayed_connection_breaks_a_loop_with_its_initial_value(tmp_path: Path)
     ambient = result.table["thermal.t_ambient"]
     assert ambient[0] == 295.0  # initialization took the delay's initial value
     assert math.isfinite(ambient[-1])
+
+
+@pytest.mark.parametrize(
+    "scenario_file, overrides",
+    [
+        ("li2017-thermal-experiment.toml", ['scenario.duration="20 min"']),
+        (
+            "base/tester-system.toml",
+            [
+                'scenario.duration="3 min"',
+                'scenario.output_interval="0.5 s"',
+                'event=[{at = "1 min", action = "bias", target = "sensors.load_meas", value = 500.0},'
+                ' {at = "90 s", action = "ramp", target = "oscillation.drive_on", value = 0.0, duration = "20 s"}]',
+            ],
+        ),
+    ],
+)
+def test_fast_loop_and_reference_loop_give_identical_signals(
+    scenario_file: str, overrides: list[str]
+) -> None:
+    from twin.config.load import scenarios_dir
+
+    sc = load_scenario(scenarios_dir() / scenario_file, overrides)
+    fast = run_scenario(sc, loop="fast")
+    ref = run_scenario(sc, loop="reference")
+    assert fast.status == ref.status == "completed"
+    assert (fast.macro_steps, fast.fmu_steps) == (ref.macro_steps, ref.fmu_steps)
+    assert fast.table.names() == ref.table.names()
+    assert fast.table.time.tobytes() == ref.table.time.tobytes()
+    for name in fast.table.names():
+        assert fast.table[name].tobytes() == ref.table[name].tobytes(), name
