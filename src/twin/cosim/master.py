@@ -332,7 +332,7 @@ class Master:
                 for inst, s in zip(self.instances, self._slots, strict=True)
                 if k % s.period_ticks == 0
             ]
-            for inst, s in due:
+            for inst, _s in due:
                 vals = inst.in_port.values
                 for j in range(len(inst.in_names)):
                     kind, src = inst.in_kind[j], inst.in_src[j]
