@@ -47,8 +47,11 @@ QUIET = [
 def parts_of(tmp_path: Path, *switch_on: str) -> tuple[dict[str, np.ndarray], object]:
     sc = load_scenario(scenarios_dir() / "base" / "tester-system.toml", [*QUIET, *switch_on])
     run(sc, tmp_path)
-    table = read_signals_csv(tmp_path / "errormodel.csv") if (tmp_path / "errormodel.csv").exists() else None
-    table = table or read_signals_csv(tmp_path / "signals.csv")
+    table = read_signals_csv(tmp_path / "signals.csv")
+    model = read_signals_csv(tmp_path / "errormodel.csv")
+    assert np.array_equal(model.time, table.time)
+    for name in model.names():
+        table.add(model.meta[name], model[name])
     return {p: table[f"errormodel.e_{p}"] for p in PARTS}, table
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from twin import __version__
 from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Scenario
-from twin.cosim.master import Master, RunResult
+from twin.cosim.master import Loop, Master, RunResult
 from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate
 from twin.errormodel.sources import (
     DEFAULT_READING,
@@ -28,6 +28,8 @@ from twin.errormodel.sources import (
 from twin.errors import ConfigError, RunError
 from twin.outputs import write_signals_csv, write_summary
 from twin.reference import DRIFT_M, TEMPERATURE_RISE_K
+from twin.signals.recorder import RunFolderRecorder
+from twin.signals.table import SignalTable
 
 _GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
 
@@ -110,47 +112,79 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     )
 
 
+def _kept_columns(cfg: EvaluationConfig) -> set[str]:
+    """The columns the error model and the plot read: the only ones a run keeps in memory."""
+    names = {*cfg.temperatures.values(), cfg.reading, cfg.load, cfg.torque, cfg.angle, cfg.vibration}
+    if cfg.true_wear:
+        names.add(cfg.true_wear)
+    return names
+
+
 def run(
     scenario: Scenario,
     out_dir: Path,
     *,
     progress: Callable[[int, int], None] | None = None,
     process_start: float | None = None,
+    loop: Loop = "fast",
 ) -> dict[str, Any]:
-    """Run and write the run folder; returns the summary. Raises only before the run starts."""
+    """Run and write the run folder; returns the summary. Raises only before the run starts,
+    or :class:`RunError` after writing everything recorded up to a failure."""
+    from twin.errormodel.evaluate import evaluation_signals
+
     process_start = process_start or time.perf_counter()
     cfg = evaluation_config(scenario)  # checked before anything runs
     out_dir.mkdir(parents=True, exist_ok=True)
-    result: RunResult = Master(scenario, progress=progress).run()
-    table = result.table
-    summary: dict[str, Any] = {
-        "scenario": scenario.name,
-        "scenario_file": scenario.source_path,
-        "status": result.status,
-        "seed": scenario.seed,
-    }
-    if result.error is not None:
-        summary["error"] = str(result.error)
-    summary["sim_end_s"] = result.end_ns / NS_PER_S
-    evaluated = None
-    if len(table) >= 2:
-        try:
-            evaluated = evaluate(table, cfg)
-        except ConfigError as exc:
-            summary["errormodel_error"] = str(exc)
-    if evaluated is not None:
-        summary.update(evaluated.summary)
-        summary["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
-        summary["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
-    write_signals_csv(table, out_dir / "signals.csv")
-    if len(table) >= 1:
-        _write_views(table, out_dir, scenario, evaluated is not None)
+    em_signals = evaluation_signals(with_true_wear=bool(cfg.true_wear))
+    budget = ["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"]
+    kept = _kept_columns(cfg)
+    recorder = RunFolderRecorder(
+        out_dir,
+        keep=kept.__contains__,
+        recording_name=scenario.name,
+        extra_signals=em_signals,
+        budget_columns=budget,
+    )
+    try:
+        result: RunResult = Master(scenario, progress=progress, loop=loop, recorder=recorder).run()
+        table = recorder.table()
+        summary: dict[str, Any] = {
+            "scenario": scenario.name,
+            "scenario_file": scenario.source_path,
+            "status": result.status,
+            "seed": scenario.seed,
+        }
+        if result.error is not None:
+            summary["error"] = str(result.error)
+        summary["sim_end_s"] = result.end_ns / NS_PER_S
+        evaluated = None
+        if len(table) >= 2:
+            try:
+                evaluated = evaluate(table, cfg)
+            except ConfigError as exc:
+                summary["errormodel_error"] = str(exc)
+        if evaluated is not None:
+            summary.update(evaluated.summary)
+            summary["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
+            summary["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
+            names = [s.name for s in em_signals if s.name in table]
+            recorder.append_extra(table, names)
+            em_table = SignalTable(table.time)
+            for n in names:
+                em_table.add(table.meta[n], table[n])
+            write_signals_csv(em_table, out_dir / "errormodel.csv")
+            _plot(table, out_dir, scenario)
+    finally:
+        recorder.finish()
+    # the co-simulation loop alone: the time spent writing the files is reported apart
+    cosim_s = result.cosim_s - recorder.write_s
     summary["timing"] = {
-        "cosim_s": result.cosim_s,
+        "cosim_s": cosim_s,
+        "write_s": recorder.write_s,
         "total_s": time.perf_counter() - process_start,
         "macro_steps": result.macro_steps,
         "fmu_steps": result.fmu_steps,
-        "realtime_factor": (result.end_ns / NS_PER_S) / result.cosim_s if result.cosim_s > 0 else None,
+        "realtime_factor": (result.end_ns / NS_PER_S) / cosim_s if cosim_s > 0 else None,
     }
     summary["wall_s"] = summary["timing"]["total_s"]
     summary["versions"] = {"twin": __version__, "python": platform.python_version()}
@@ -160,26 +194,18 @@ def run(
     return summary
 
 
-def _write_views(table: Any, out_dir: Path, scenario: Scenario, evaluated: bool) -> None:
-    from twin.outputs import error_budget_png, write_recording
+def _plot(table: SignalTable, out_dir: Path, scenario: Scenario) -> None:
+    from twin.outputs import error_budget_png
 
-    budget = (
-        ["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"]
-        if evaluated
-        else None
+    error_budget_png(
+        table,
+        out_dir / "error_budget.png",
+        reading=DEFAULT_READING,
+        predicted="errormodel.e_z",
+        parts={p: f"errormodel.e_{p}" for p in PARTS},
+        temperatures=[c for c in DEFAULT_TEMPERATURES.values() if c in table],
+        title=f"{scenario.name}: predicted error and its parts",
     )
-    write_recording(table, out_dir / "recording.rrd", recording_name=scenario.name, budget_columns=budget)
-    if evaluated:
-        temps = [c for c in DEFAULT_TEMPERATURES.values() if c in table]
-        error_budget_png(
-            table,
-            out_dir / "error_budget.png",
-            reading=DEFAULT_READING,
-            predicted="errormodel.e_z",
-            parts={p: f"errormodel.e_{p}" for p in PARTS},
-            temperatures=temps,
-            title=f"{scenario.name}: predicted error and its parts",
-        )
 
 
 def summary_line(summary: Mapping[str, Any]) -> str:

@@ -82,6 +82,25 @@ class EvaluationConfig:
     factors: tuple[str, ...] = PARTS
 
 
+def evaluation_signals(*, with_true_wear: bool) -> list[Signal]:
+    """Metadata of every column :func:`evaluate` adds, known before any data exists."""
+
+    def sig(name: str, description: str, unit: str = "m") -> Signal:
+        return Signal(f"errormodel.{name}", unit, "errormodel", description)
+
+    out = [sig("e_z", "predicted detecting error e_z (comprehensive error model)")]
+    out += [sig(f"e_{p}", f"{p} part of e_z") for p in PARTS]
+    out += [sig(f"thermal.{b}", f"thermal e_z contribution of body '{b}'") for b in tester_model().bodies]
+    out += [
+        sig("reading_change", "probe reading minus its start value"),
+        sig("wear_compensated", "compensated wear: reading change minus predicted error"),
+        sig("spike", "1 where the robust filter found an interference spike", "1"),
+    ]
+    if with_true_wear:
+        out.append(sig("residual", "compensated wear minus true wear"))
+    return out
+
+
 def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, float]:
     """Start and end value of ``y`` from lines through the first and last ``window_s``."""
 
@@ -181,17 +200,20 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
     e_z = np.sum(np.array(list(parts.values())), axis=0)
     compensated = raw_change - e_z
 
-    def add(name: str, values: np.ndarray, description: str, unit: str = "m") -> None:
-        table.add(Signal(f"errormodel.{name}", unit, "errormodel", description), values)
+    has_wear = bool(cfg.true_wear and cfg.true_wear in table)
+    meta = {m.name: m for m in evaluation_signals(with_true_wear=has_wear)}
 
-    add("e_z", e_z, "predicted detecting error e_z (comprehensive error model)")
+    def add(name: str, values: np.ndarray) -> None:
+        table.add(meta[f"errormodel.{name}"], values)
+
+    add("e_z", e_z)
     for name, values in parts.items():
-        add(f"e_{name}", values, f"{name} part of e_z")
+        add(f"e_{name}", values)
     for body, values in by_body.items():
-        add(f"thermal.{body}", values, f"thermal e_z contribution of body '{body}'")
-    add("reading_change", raw_change, "probe reading minus its start value")
-    add("wear_compensated", compensated, "compensated wear: reading change minus predicted error")
-    add("spike", spikes.astype(float), "1 where the robust filter found an interference spike", "1")
+        add(f"thermal.{body}", values)
+    add("reading_change", raw_change)
+    add("wear_compensated", compensated)
+    add("spike", spikes.astype(float))
 
     summary: dict[str, Any] = {
         "drift_mm": {"predicted": drift(e_z) * 1e3, "probe": drift(reading) * 1e3},
@@ -204,10 +226,10 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
         "interference_spikes": int(spikes.sum()),
         "sensors_used": {k: v for k, v in present.items()},
     }
-    if cfg.true_wear and cfg.true_wear in table:
+    if has_wear:
         wear = table[cfg.true_wear] - table[cfg.true_wear][0]
         before, after = raw_change - wear, compensated - wear
-        add("residual", after, "compensated wear minus true wear")
+        add("residual", after)
         summary["wear_mm"] = {"true": float(wear[-1]) * 1e3, "compensated": float(compensated[-1]) * 1e3}
         summary["compensation"] = {
             "residual_rms_um": {"before": _rms(before) * 1e6, "after": _rms(after) * 1e6},

@@ -40,6 +40,7 @@ def _callbacks() -> Any:
     global _CALLBACKS
     if _CALLBACKS is None:
         from fmpy import calloc, free
+        from fmpy.fmi1 import printLogMessage
         from fmpy.fmi2 import (
             fmi2CallbackAllocateMemoryTYPE,
             fmi2CallbackFreeMemoryTYPE,
@@ -50,7 +51,12 @@ def _callbacks() -> Any:
 
         def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
             name = instance.decode(errors="replace") if instance else ""
-            box = _MESSAGES.setdefault(name, [])
+            box = _MESSAGES.get(name)
+            if box is None:
+                # fmpy's proxy is process-global: messages of instances that are not ours
+                # go where fmpy's default logger would send them
+                printLogMessage(env, instance, status, category, message)
+                return
             box.append(message.decode(errors="replace") if message else "")
             del box[:-20]
 
@@ -199,5 +205,6 @@ class FMUSlot:
             self._slave.terminate()
         with contextlib.suppress(Exception):
             self._slave.freeInstance()
+        _MESSAGES.pop(self.name, None)
         if self._own_unzipdir:
             shutil.rmtree(self.unzipdir, ignore_errors=True)

@@ -139,27 +139,39 @@ class RecordingWriter:
                 strict=True,
             )
 
-    def append(self, time_chunk: np.ndarray, columns_chunk: Mapping[str, np.ndarray]) -> None:
-        """Send one chunk: ``time_chunk`` (s) and one array per signal name."""
+    def append(
+        self, time_chunk: np.ndarray, columns_chunk: Mapping[str, np.ndarray], *, partial: bool = False
+    ) -> None:
+        """Send one chunk: ``time_chunk`` (s) and one array per signal name.
+
+        With ``partial``, the chunk may carry only some of the signals (e.g. the error model's
+        columns, computed after the run, sent on the same timeline).
+        """
         if self._rec is None:
             raise ValueError(f"{self.path} is closed")
         t = np.asarray(time_chunk, dtype=np.float64)
         if t.ndim != 1:
             raise ValueError(f"time chunk must be 1-D, got shape {t.shape}")
-        missing = [n for n in self.paths if n not in columns_chunk]
+        missing = [] if partial else [n for n in self.paths if n not in columns_chunk]
         extra = [n for n in columns_chunk if n not in self.paths]
         if missing or extra:
             raise ValueError(f"chunk columns do not match the signals: missing {missing}, unexpected {extra}")
         if t.size == 0:
             return
         # Check every column before sending any, so a bad chunk leaves the recording untouched.
-        arrays = {name: np.asarray(columns_chunk[name], dtype=np.float64) for name in self.paths}
+        arrays = {
+            name: np.asarray(columns_chunk[name], dtype=np.float64)
+            for name in self.paths
+            if name in columns_chunk
+        }
         for name, values in arrays.items():
             if values.shape != t.shape:
                 raise ValueError(f"column '{name}' has shape {values.shape}, time has {t.shape}")
         # One time column shared by every entity of the chunk.
         index = [rr.TimeColumn(TIMELINE, duration=_to_duration(t))]
         for name, path_ in self.paths.items():
+            if name not in arrays:
+                continue
             self._rec.send_columns(
                 path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name]), strict=True
             )
