@@ -56,7 +56,7 @@ FEM_GROUPS: dict[str, tuple[str, ...]] = {
 }
 
 #: the Frechet distance is computed on at most this many points per curve (evenly decimated)
-FRECHET_POINTS = 1500
+FRECHET_POINTS = 800
 
 
 @dataclass(frozen=True)
