@@ -298,10 +298,28 @@ static int check_set_args(ModelInstance *comp, const char *fn, const fmi2ValueRe
     return 1;
 }
 
+/* In initialization mode the outputs are the initial unknowns: compute them from the current
+ * parameters and inputs (importers such as libcosim exchange them before the first step).
+ * model_initialize only sets states from parameters and inputs, so repeating it is harmless. */
+static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
+    char msg[MSG_SIZE] = "";
+    double h = comp->v.r[INTERNAL_STEP_VR];
+    if (comp->state != ST_INIT_MODE) return fmi2OK;
+    if (!(h > 0.0) || !isfinite(h) || model_check(comp, msg, sizeof msg) != 0) {
+        log_error(comp, "outputs cannot be computed in initialization mode: invalid parameters%s%s", msg[0] ? ": " : "",
+                  msg);
+        return fmi2Error;
+    }
+    if (model_initialize(comp) != fmi2OK) return fmi2Error;
+    model_outputs(comp);
+    return fmi2OK;
+}
+
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     ModelInstance *comp = (ModelInstance *)c;
     size_t k;
     if (!check_get_args(comp, "fmi2GetReal", vr, nvr, value, N_REALS)) return fmi2Error;
+    if (outputs_in_init_mode(comp) != fmi2OK) return fmi2Error;
     for (k = 0; k < nvr; k++) value[k] = comp->v.r[vr[k]];
     return fmi2OK;
 }

@@ -179,3 +179,23 @@ def test_corrupt_or_truncated_serialized_state_is_rejected(model: str, fmu_paths
         assert exc.value.status == 3  # fmi2Error
     d.slave.freeFMUstate(state)
     d.close()
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_outputs_in_initialization_mode_are_the_initial_values(
+    model: str, fmu_paths: dict[str, Path]
+) -> None:
+    # importers (libcosim) read the outputs before exiting initialization mode
+    case = CASES[model]
+    d = Driver(fmu_paths[model])
+    d.slave.setupExperiment(startTime=0.0)
+    d.set(case.parameters)
+    d.set(case.inputs)
+    d.slave.enterInitializationMode()
+    outs = d.outputs()
+    during = d.get(outs)
+    d.slave.exitInitializationMode()
+    after = d.get(outs)
+    d.close()
+    assert during.tobytes() == after.tobytes()
+    assert np.all(np.isfinite(during))
