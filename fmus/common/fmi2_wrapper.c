@@ -585,6 +585,19 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                   communicationStepSize, VARS_REAL[INTERNAL_STEP_VR].name, h_int);
         return fmi2Error;
     }
+#ifdef VR_fault_inject
+    /* fault injection (reliability tests of masters): fail the way a broken model would */
+    if (comp->v.r[VR_fault_inject] >= 0.5 && comp->v.r[VR_fault_inject] < 1.5) {
+        log_error(comp, "injected fault: fmi2DoStep fails at t = %.9g s (fault_inject = 1)", t);
+        comp->state = ST_ERROR;
+        return fmi2Error;
+    }
+    if (comp->v.r[VR_fault_inject] >= 1.5 && comp->v.r[VR_fault_inject] < 2.5) {
+        log_error(comp, "injected fault: fmi2DoStep discards the step at t = %.9g s (fault_inject = 2)", t);
+        comp->state = ST_STEP_FAILED;
+        return fmi2Discard;
+    }
+#endif
     for (k = 0; k < n; k++) {
         if (model_step(comp, h_int) != fmi2OK) {
             comp->state = ST_ERROR;
@@ -597,6 +610,17 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         comp->state = ST_ERROR;
         return fmi2Error;
     }
+#ifdef VR_fault_inject
+    if (comp->v.r[VR_fault_inject] >= 2.5) { /* a model that reports success with a NaN output */
+        size_t j;
+        for (j = 0; j < N_REALS; j++) {
+            if (VARS_REAL[j].causality == CAUS_OUTPUT) {
+                comp->v.r[j] = NAN;
+                break;
+            }
+        }
+    }
+#endif
     return fmi2OK;
 }
 

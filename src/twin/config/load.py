@@ -57,8 +57,10 @@ _PROFILE_PARAMS: dict[str, tuple[set[str], set[str]]] = {
     "table": ({"points"}, set()),
 }
 _PROFILE_DURATIONS = {"duration", "delay", "time_constant", "rise_at", "period"}
-_EVENT_KEYS = {"at", "action", "target", "value", "duration"}
-_EVENT_ACTIONS = {"set", "ramp", "bias"}
+_EVENT_KEYS = {"at", "action", "target", "value", "duration", "fault"}
+_EVENT_ACTIONS = {"set", "ramp", "bias", "fault"}
+#: fault events: how the FMU fails (its fault_inject input)
+FAULTS = {"error": 1.0, "discard": 2.0, "nan": 3.0}
 
 
 def parse_duration(value: Any) -> int:
@@ -625,6 +627,28 @@ def _load_events(
                 f"unknown action {action!r} (expected one of: {', '.join(sorted(_EVENT_ACTIONS))})",
             )
             continue
+        if action == "fault":
+            # make an FMU fail at a given time: a set event on its fault_inject input
+            inst, fault = raw.get("target"), raw.get("fault")
+            if not isinstance(inst, str) or inst not in fmus:
+                p.add(
+                    key + ".target",
+                    f"a fault targets an FMU instance (one of: {', '.join(sorted(fmus))}), got {inst!r}",
+                )
+                continue
+            if fault not in FAULTS:
+                p.add(key + ".fault", f"expected one of {sorted(FAULTS)}, got {fault!r}")
+                continue
+            if "fault_inject" not in model_variables(fmus[inst].model):
+                p.add(key + ".target", f"model {fmus[inst].model} has no fault_inject input")
+                continue
+            if at is not None and (at < 0 or (duration_ns is not None and at >= duration_ns)):
+                p.add(key + ".at", "must lie within the scenario's duration")
+            elif at is not None:
+                out.append(Event(at, "set", f"{inst}.fault_inject", FAULTS[fault], 0))
+            continue
+        if "fault" in raw:
+            p.add(key + ".fault", "only a 'fault' action takes a fault")
         causality = "output" if action == "bias" else "input"
         target_ok = _endpoint(p, fmus, raw.get("target"), key + ".target", causality) is not None
         if target_ok and action != "bias" and raw["target"] in fed:

@@ -354,6 +354,10 @@ class Master:
             for inst, s in due:
                 inst.slot.do_step(t, inst.period_ns / NS_PER_S)
                 inst.slot.read(inst.out_port)
+                bad = np.flatnonzero(~np.isfinite(inst.out_port.values[: len(inst.outputs)]))
+                if bad.size:
+                    inst.slot.time = t
+                    raise self._non_finite(inst, int(bad[0]))
                 s.pending_at = k + s.period_ticks
                 counters.fmu_steps += 1
             counters.macro_steps += 1
@@ -361,7 +365,7 @@ class Master:
     def _ticks_fast(
         self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray, ccols: Any, counters: Any
     ) -> None:
-        from twin.cosim.native import CALLS, stepper
+        from twin.cosim.native import CALLS, NON_FINITE, stepper
 
         sc = self.scenario
         status = stepper().twin_run_ticks(
@@ -382,7 +386,19 @@ class Master:
         if status != 0:
             inst = self.instances[counters.fail_slot]
             inst.slot.time = counters.fail_tick * sc.step_ns / NS_PER_S
+            if counters.fail_call == NON_FINITE:
+                raise self._non_finite(inst, counters.fail_status)
             raise inst.slot._fail(CALLS.get(counters.fail_call, "?"), counters.fail_status)
+
+    @staticmethod
+    def _non_finite(inst: _Instance, j: int) -> FMUError:
+        value = inst.out_port.values[j]
+        return FMUError(
+            inst.name,
+            "fmi2GetReal",
+            inst.slot.time,
+            f"output '{inst.outputs[j]}' is {value} after fmi2DoStep returned fmi2OK",
+        )
 
     # ------------------------------------------------------------------ the run
 

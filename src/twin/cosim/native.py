@@ -69,7 +69,8 @@ class TwinCounters(ctypes.Structure):
     ]
 
 
-CALLS = {1: "fmi2SetReal", 2: "fmi2DoStep", 3: "fmi2GetReal"}
+CALLS = {1: "fmi2SetReal", 2: "fmi2DoStep", 3: "fmi2GetReal", 4: "fmi2GetReal"}
+NON_FINITE = 4
 
 
 def _digest() -> str:

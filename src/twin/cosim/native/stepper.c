@@ -12,6 +12,7 @@
  * Scenario events are applied by Python between batches. Time is t = k * step_ns / 1e9, from
  * integers, identical to Python's t_ns / 1_000_000_000.
  */
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -21,7 +22,7 @@ typedef int (*get_real_fn)(void *, const unsigned int *, size_t, double *);
 typedef int (*do_step_fn)(void *, double, double, int);
 
 enum { IN_CONNECTION = 0, IN_DELAYED = 1, IN_DRIVEN = 2 };
-enum { CALL_SET_REAL = 1, CALL_DO_STEP = 2, CALL_GET_REAL = 3 };
+enum { CALL_SET_REAL = 1, CALL_DO_STEP = 2, CALL_GET_REAL = 3, CALL_NON_FINITE = 4 };
 
 typedef struct {
     void *comp;
@@ -125,6 +126,13 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
             if (s->n_out && (status = s->get_real(s->comp, s->out_vr, (size_t)s->n_out, s->out_pending)) > 1) {
                 c->fail_slot = i, c->fail_call = CALL_GET_REAL, c->fail_tick = k, c->fail_status = status;
                 return -1;
+            }
+            /* an FMU that reports success with NaN/Inf must not poison the others */
+            for (j = 0; j < s->n_out; j++) {
+                if (!isfinite(s->out_pending[j])) {
+                    c->fail_slot = i, c->fail_call = CALL_NON_FINITE, c->fail_tick = k, c->fail_status = j;
+                    return -1;
+                }
             }
             s->pending_at = k + s->period_ticks;
             c->fmu_steps++;
