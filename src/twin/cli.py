@@ -57,23 +57,85 @@ def _progress_bar(quiet: bool):
     return update, bar.close
 
 
+_EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
+
+
+def _stop_on_signals():
+    """SIGINT/SIGTERM ask the run to stop at the next batch: it flushes everything recorded,
+    writes summary.json with "status": "interrupted" and the command exits with 130/143."""
+    import signal
+
+    caught: dict[str, str] = {}
+
+    def handler(signum: int, frame: object) -> None:
+        caught.setdefault("name", signal.Signals(signum).name)
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return lambda: caught.get("name")
+
+
+def _finish(summary: dict, out: Path, quiet: bool) -> int:
+    from twin.pipeline import summary_line
+
+    if not quiet:
+        print(summary_line(summary))
+        print(f"outputs: {out}")
+    if summary["status"] == "interrupted":
+        why = summary.get("error", "")
+        print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
+        return _EXIT_ON_SIGNAL.get(why.rsplit(" ", 1)[-1], 130)
+    return 0
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     import time
 
-    from twin.pipeline import run, summary_line
+    from twin.config.load import parse_duration
+    from twin.pipeline import run
 
     start = time.perf_counter()
     scenario = _load(args)
     out = Path(args.out) if args.out else Path("runs") / scenario.name
+    every = None
+    if args.checkpoint_every is not None:
+        try:
+            every = parse_duration(args.checkpoint_every)
+        except ValueError as exc:
+            raise ConfigError(str(exc), source="--checkpoint-every") from None
+        if every <= 0 or every % scenario.step_ns:
+            raise ConfigError("must be a positive multiple of scenario.step", source="--checkpoint-every")
+    stop = _stop_on_signals()
     update, done = _progress_bar(args.quiet)
     try:
-        summary = run(scenario, out, progress=update, process_start=args.process_start or start)
+        summary = run(
+            scenario,
+            out,
+            progress=update,
+            process_start=args.process_start or start,
+            overrides=args.set or [],
+            stop=stop,
+            checkpoint_every_ns=every,
+        )
     finally:
         done()
-    if not args.quiet:
-        print(summary_line(summary))
-        print(f"outputs: {out}")
-    return 0
+    return _finish(summary, out, args.quiet)
+
+
+def _cmd_resume(args: argparse.Namespace) -> int:
+    import time
+
+    from twin.pipeline import resume_run
+
+    start = time.perf_counter()
+    out = Path(args.run_dir)
+    stop = _stop_on_signals()
+    update, done = _progress_bar(args.quiet)
+    try:
+        summary = resume_run(out, progress=update, stop=stop, process_start=start)
+    finally:
+        done()
+    return _finish(summary, out, args.quiet)
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -117,7 +179,17 @@ def make_parser() -> argparse.ArgumentParser:
         "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    p.add_argument(
+        "--checkpoint-every",
+        metavar="DURATION",
+        help="save the whole twin every DURATION of simulated time (e.g. '1 h')",
+    )
     p.set_defaults(func=_cmd_run, process_start=None)
+
+    p = sub.add_parser("resume", help="continue a killed or interrupted run from its last checkpoint")
+    p.add_argument("run_dir", help="the run folder (holds run.json and checkpoint.pkl)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    p.set_defaults(func=_cmd_resume)
 
     p = sub.add_parser("validate", help="check a scenario without running it")
     p.add_argument("scenario", help="scenario TOML file")

@@ -7,9 +7,12 @@ a summary with ``"status": "failed"`` and the reason.
 
 from __future__ import annotations
 
+import json
+import os
+import pickle
 import platform
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -27,6 +30,7 @@ from twin.errormodel.sources import (
 )
 from twin.errors import ConfigError, RunError
 from twin.outputs import write_signals_csv, write_summary
+from twin.outputs.summary import write_json_atomic
 from twin.reference import DRIFT_M, TEMPERATURE_RISE_K
 from twin.signals.recorder import RunFolderRecorder
 from twin.signals.table import SignalTable
@@ -120,6 +124,10 @@ def _kept_columns(cfg: EvaluationConfig) -> set[str]:
     return names
 
 
+RUN_FILE = "run.json"
+CHECKPOINT_FILE = "checkpoint.pkl"
+
+
 def run(
     scenario: Scenario,
     out_dir: Path,
@@ -127,14 +135,37 @@ def run(
     progress: Callable[[int, int], None] | None = None,
     process_start: float | None = None,
     loop: Loop = "fast",
+    overrides: Sequence[str] = (),
+    stop: Callable[[], str | None] | None = None,
+    checkpoint_every_ns: int | None = None,
+    resume: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run and write the run folder; returns the summary. Raises only before the run starts,
-    or :class:`RunError` after writing everything recorded up to a failure."""
+    or :class:`RunError` after writing everything recorded up to a failure.
+
+    ``stop`` is polled between batches (a signal name ends the run as "interrupted", with
+    every row recorded so far on disk). With ``checkpoint_every_ns`` the whole twin is saved
+    to ``checkpoint.pkl`` at that interval; ``resume`` continues from such a checkpoint.
+    """
     from twin.errormodel.evaluate import evaluation_signals
 
     process_start = process_start or time.perf_counter()
     cfg = evaluation_config(scenario)  # checked before anything runs
     out_dir.mkdir(parents=True, exist_ok=True)
+    if resume is None:
+        (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
+        write_json_atomic(
+            out_dir / RUN_FILE,
+            json.dumps(
+                {
+                    "scenario": str(Path(scenario.source_path).resolve()),
+                    "overrides": list(overrides),
+                    "loop": loop,
+                    "checkpoint_every_ns": checkpoint_every_ns,
+                },
+                indent=2,
+            ),
+        )
     em_signals = evaluation_signals(with_true_wear=bool(cfg.true_wear))
     budget = ["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"]
     kept = _kept_columns(cfg)
@@ -144,9 +175,30 @@ def run(
         recording_name=scenario.name,
         extra_signals=em_signals,
         budget_columns=budget,
+        resume=resume["recorder"] if resume else None,
     )
+
+    def save_checkpoint(snapshot: dict[str, Any]) -> None:
+        data = {"master": snapshot, "recorder": recorder.checkpoint(), "scenario": scenario.name}
+        tmp = out_dir / (CHECKPOINT_FILE + ".tmp")
+        with open(tmp, "wb") as f:
+            pickle.dump(data, f, protocol=5)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, out_dir / CHECKPOINT_FILE)  # atomic: a kill never leaves half a checkpoint
+
     try:
-        result: RunResult = Master(scenario, progress=progress, loop=loop, recorder=recorder).run()
+        master = Master(
+            scenario,
+            progress=progress,
+            loop=loop,
+            recorder=recorder,
+            stop=stop,
+            checkpoint_every_ns=checkpoint_every_ns,
+            on_checkpoint=save_checkpoint if checkpoint_every_ns else None,
+            resume=resume["master"] if resume else None,
+        )
+        result: RunResult = master.run()
         table = recorder.table()
         summary: dict[str, Any] = {
             "scenario": scenario.name,
@@ -156,6 +208,8 @@ def run(
         }
         if result.error is not None:
             summary["error"] = str(result.error)
+        if result.status == "interrupted":
+            summary["error"] = f"interrupted by {result.info.get('interrupted_by')}"
         summary["sim_end_s"] = result.end_ns / NS_PER_S
         evaluated = None
         if len(table) >= 2:
@@ -192,6 +246,42 @@ def run(
     if result.error is not None:
         raise RunError(f"{result.error} (everything recorded up to it is in {out_dir})")
     return summary
+
+
+def resume_run(
+    run_dir: Path,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
+    process_start: float | None = None,
+) -> dict[str, Any]:
+    """Continue a killed or interrupted run from its last checkpoint."""
+    from twin.config.load import load_scenario
+
+    meta_path, ckpt_path = run_dir / RUN_FILE, run_dir / CHECKPOINT_FILE
+    if not meta_path.is_file():
+        raise ConfigError(f"no {RUN_FILE}: not a run folder", source=str(run_dir))
+    if not ckpt_path.is_file():
+        raise ConfigError(
+            f"no {CHECKPOINT_FILE}: the run saved no checkpoint (use --checkpoint-every)", source=str(run_dir)
+        )
+    meta = json.loads(meta_path.read_text())
+    scenario = load_scenario(meta["scenario"], meta.get("overrides", []))
+    with open(ckpt_path, "rb") as f:
+        checkpoint = pickle.load(f)
+    if checkpoint.get("scenario") != scenario.name:
+        raise ConfigError("the checkpoint belongs to another scenario", source=str(ckpt_path))
+    return run(
+        scenario,
+        run_dir,
+        progress=progress,
+        process_start=process_start,
+        loop=meta.get("loop", "fast"),
+        overrides=meta.get("overrides", []),
+        stop=stop,
+        checkpoint_every_ns=meta.get("checkpoint_every_ns"),
+        resume=checkpoint,
+    )
 
 
 def _plot(table: SignalTable, out_dir: Path, scenario: Scenario) -> None:

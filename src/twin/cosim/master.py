@@ -132,13 +132,22 @@ class Master:
         progress: ProgressFn | None = None,
         loop: Loop = "fast",
         recorder: Recorder | None = None,
+        stop: Callable[[], str | None] | None = None,
+        checkpoint_every_ns: int | None = None,
+        on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
+        resume: dict[str, Any] | None = None,
     ) -> None:
         self.scenario = scenario
         self.progress = progress
         self.loop = loop
         self.recorder = recorder if recorder is not None else MemoryRecorder()
+        self.stop = stop  # polled between batches: a signal name when the run must stop
+        self.checkpoint_every_ns = checkpoint_every_ns
+        self.on_checkpoint = on_checkpoint
+        self.resume = resume
         self.instances: list[_Instance] = []
         self.driven: list[Signal] = []  # one function of time per driven input column
+        self.driven_spec: list[tuple[Any, ...]] = []  # how to rebuild each (checkpoints)
         self._slots: Any = None  # ctypes array of TwinSlot
 
     # ------------------------------------------------------------------ set-up
@@ -188,6 +197,7 @@ class Master:
                 inst.in_port.values[k] = float(start) if start is not None else 0.0
                 inst.in_src[k] = len(self.driven)
                 self.driven.append(constant(inst.in_port.values[k]))
+                self.driven_spec.append(("constant", float(inst.in_port.values[k])))
             self.instances.append(inst)
             slot.setup(0.0)
             params = dict(spec.parameters)
@@ -205,10 +215,64 @@ class Master:
             dst.in_idx[k] = self.instances[index[si]].outputs.index(sv)
             if c.delay:
                 dst.delay_buf[k] = float(c.initial or 0.0)
-        for p in sc.profiles:
+        for n, p in enumerate(sc.profiles):
             inst = self.instances[index[p.target.split(".")[0]]]
             k = inst.in_names.index(p.target.split(".")[1])
             self.driven[int(inst.in_src[k])] = profile_function(p)
+            self.driven_spec[int(inst.in_src[k])] = ("profile", n)
+
+    def _set_driven(self, column: int, spec: tuple[Any, ...]) -> None:
+        """Drive input column ``column`` by ``spec``: ("constant", v), ("profile", index) or
+        ("ramp", v0, v1, t0, duration); kept as data so a checkpoint can rebuild it."""
+        kind = spec[0]
+        if kind == "constant":
+            fn = constant(spec[1])
+        elif kind == "profile":
+            fn = profile_function(self.scenario.profiles[int(spec[1])])
+        else:
+            fn = ramp_from(*map(float, spec[1:]))
+        self.driven[column] = fn
+        self.driven_spec[column] = tuple(spec)
+
+    # ------------------------------------------------------------------ checkpoints
+
+    def _snapshot(self, tick: int, counters: Any, events_applied: int) -> dict[str, Any]:
+        """The whole twin at a batch boundary: FMU states (noise generators included),
+        exchange buffers, driven inputs, clock and counters."""
+        return {
+            "tick": tick,
+            "macro_steps": int(counters.macro_steps),
+            "fmu_steps": int(counters.fmu_steps),
+            "events_applied": events_applied,
+            "driven": [list(d) for d in self.driven_spec],
+            "instances": [
+                {
+                    "name": inst.name,
+                    "state": inst.slot.save_state(),
+                    "in_val": inst.in_port.values.copy(),
+                    "delay_buf": inst.delay_buf.copy(),
+                    "raw": inst.raw.copy(),
+                    "cur": inst.cur.copy(),
+                    "bias": inst.bias.copy(),
+                    "pending": inst.out_port.values.copy(),
+                    "pending_at": int(s.pending_at),
+                }
+                for inst, s in zip(self.instances, self._slots, strict=True)
+            ],
+        }
+
+    def _restore(self, snap: dict[str, Any]) -> None:
+        for inst, s, saved in zip(self.instances, self._slots, snap["instances"], strict=True):
+            if saved["name"] != inst.name:
+                raise RunError(f"checkpoint holds instance '{saved['name']}', the scenario '{inst.name}'")
+            inst.slot.restore_state(saved["state"])
+            for name in ("delay_buf", "raw", "cur", "bias"):
+                getattr(inst, name)[:] = saved[name]
+            inst.in_port.values[:] = saved["in_val"]
+            inst.out_port.values[:] = saved["pending"]
+            s.pending_at = int(saved["pending_at"])
+        for column, spec in enumerate(snap["driven"]):
+            self._set_driven(column, tuple(spec))
 
     def _init_order(self) -> list[int]:
         """Instances in dependency order of undelayed connections (the loader excluded loops)."""
@@ -412,7 +476,8 @@ class Master:
         out_every = sc.output_interval_ns // sc.step_ns
         try:
             self._create()
-            self._initialize()
+            if self.resume is None:
+                self._initialize()
             if self.loop == "fast":
                 from twin.cosim.native import stepper
 
@@ -421,12 +486,21 @@ class Master:
             self.close()
             raise
         self._slots = self._build_slots()
+        if self.resume is not None:
+            self._restore(self.resume)
         cols = self._columns()
         ccols = (TwinColumn * max(len(cols), 1))(*[TwinColumn(i, kind, idx, 0) for i, kind, idx, _ in cols])
         self.recorder.open([meta for *_, meta in cols])
         counters = TwinCounters()
         counters.fail_slot = -1
         events = list(sc.events)
+        k_start = 0
+        if self.resume is not None:
+            k_start = int(self.resume["tick"])
+            counters.macro_steps = int(self.resume["macro_steps"])
+            counters.fmu_steps = int(self.resume["fmu_steps"])
+            del events[: int(self.resume["events_applied"])]
+        n_events = len(sc.events)
         inst_index = {inst.name: i for i, inst in enumerate(self.instances)}
         ticks = self._ticks_fast if self.loop == "fast" else self._ticks_reference
 
@@ -491,16 +565,20 @@ class Master:
                 )
                 self.recorder.append(np.array([n_ticks * sc.step_ns / NS_PER_S]), row.reshape(1, len(cols)))
 
+        every = (self.checkpoint_every_ns or 0) // sc.step_ns
+        checkpoints = set(range(every, n_ticks, every)) if every > 0 else set()
         marks = sorted(
             {e.at_ns // sc.step_ns for e in sc.events}
             | {n_ticks * j // 100 for j in range(1, 101)}
             | set(range(BATCH_TICKS, n_ticks, BATCH_TICKS))
+            | checkpoints
             | {n_ticks}
         )
         failure: list[RunError] = []
+        interrupted: list[str] = []
 
         def process(env: simpy.Environment) -> Any:
-            k = 0
+            k = k_start
             try:
                 for mark in marks:
                     if mark <= k:
@@ -509,7 +587,12 @@ class Master:
                     yield env.timeout((mark - k) * sc.step_ns)
                     k = mark
                     if self.progress:
-                        self.progress(env.now, sc.duration_ns)
+                        self.progress(env.now + k_start * sc.step_ns, sc.duration_ns)
+                    if mark in checkpoints and self.on_checkpoint:
+                        self.on_checkpoint(self._snapshot(k, counters, n_events - len(events)))
+                    if self.stop and (why := self.stop()):
+                        interrupted.append(why)
+                        return
                 final_tick()
             except RunError as exc:  # the run stops; what was recorded stays
                 failure.append(exc)

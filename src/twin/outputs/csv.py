@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
@@ -94,7 +94,10 @@ class SignalsCsvWriter:
         descriptions: Sequence[str] | None = None,
         sidecar: bool = True,
         fsync: bool = False,
+        resume_at: tuple[int, float] | None = None,
     ) -> None:
+        """``resume_at = (byte offset, last time)`` continues a file written before (a resumed
+        run): it is cut back to that offset, and rows are appended after it."""
         self.path = Path(path)
         self.names = list(names)
         _check_names(self.names)
@@ -121,16 +124,28 @@ class SignalsCsvWriter:
         # One %-template per row, applied to a whole chunk at once: formatting then runs in C
         # instead of a Python loop over values. %r gives the shortest exact text of a float.
         self._row = ",".join(["%r"] * (len(self.names) + 1)) + "\n"
+        if resume_at is not None:
+            offset, self._last_time = resume_at
+            with open(self.path, "r+b") as f:
+                f.truncate(offset)
+            self._file: IO[str] | None = open(self.path, "a", encoding="utf-8", newline="\n")  # noqa: SIM115
+            return
         if sidecar:
             write_units_sidecar(self.path, self.signals)
         # newline="\n": the same bytes on every platform (deterministic files).
-        self._file: IO[str] | None = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        self._file = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         self._file.write(",".join([TIME, *self.names]) + "\n")
         self._flush()
 
+    def position(self) -> tuple[int, float]:
+        """(bytes written, last time): where a resumed run continues."""
+        assert self._file is not None
+        self._file.flush()
+        return self._file.tell(), self._last_time
+
     @classmethod
     def for_signals(
-        cls, path: str | os.PathLike[str], signals: Sequence[Signal], **kwargs: bool
+        cls, path: str | os.PathLike[str], signals: Sequence[Signal], **kwargs: Any
     ) -> SignalsCsvWriter:
         """A writer whose columns, units and subsystems come from ``signals`` (in order)."""
         return cls(

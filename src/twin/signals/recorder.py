@@ -39,6 +39,7 @@ class RunFolderRecorder:
         recording_name: str,
         extra_signals: Sequence[Signal] = (),
         budget_columns: Sequence[str] | None = None,
+        resume: dict | None = None,
     ) -> None:
         self.out_dir = out_dir
         self.keep = keep
@@ -56,13 +57,23 @@ class RunFolderRecorder:
         self._pending_n = 0
         self._last_flush = time.monotonic()
         self.write_s = 0.0  # wall time spent writing files
+        self.resume = resume  # a checkpoint's recorder part: continue the files it describes
 
     def open(self, signals: list[Signal]) -> None:
         start = time.perf_counter()
         from twin.outputs import RecordingWriter, SignalsCsvWriter
 
         self.signals = list(signals)
-        self._csv = SignalsCsvWriter.for_signals(self.out_dir / "signals.csv", self.signals)
+        resume = self.resume
+        csv_path = self.out_dir / "signals.csv"
+        if resume is not None:
+            # the CSV is cut back to the checkpoint and continued; the recording (whose footer a
+            # killed run never wrote) is written anew from the CSV's rows up to the checkpoint
+            self._csv = SignalsCsvWriter.for_signals(
+                csv_path, self.signals, resume_at=tuple(resume["csv_position"])
+            )
+        else:
+            self._csv = SignalsCsvWriter.for_signals(csv_path, self.signals)
         self._rrd = RecordingWriter(
             self.out_dir / "recording.rrd",
             [*self.signals, *self.extra_signals],
@@ -70,6 +81,13 @@ class RunFolderRecorder:
             budget_columns=self.budget_columns,
         )
         self._kept = [c for c, s in enumerate(self.signals) if self.keep(s.name)]
+        if resume is not None:
+            from twin.outputs import read_signals_csv
+
+            before = read_signals_csv(csv_path)
+            self._rrd.append(before.time, {s.name: before[s.name] for s in self.signals}, partial=True)
+            self._times = [np.array(resume["kept_time"])]
+            self._rows = [np.array(resume["kept_rows"])]
         self.write_s += time.perf_counter() - start
 
     def append(self, times: np.ndarray, rows: np.ndarray) -> None:
@@ -95,6 +113,19 @@ class RunFolderRecorder:
         self._pending_t, self._pending, self._pending_n = [], [], 0
         self._last_flush = time.monotonic()
         self.write_s += time.perf_counter() - start
+
+    def checkpoint(self) -> dict:
+        """Flush and describe where the files stand (a checkpoint's recorder part)."""
+        self.flush()
+        assert self._csv is not None
+        table = self.table()
+        return {
+            "csv_position": list(self._csv.position()),
+            "kept_time": table.time,
+            "kept_rows": np.column_stack([table[n] for n in table.names()])
+            if table.names()
+            else np.zeros((len(table), 0)),
+        }
 
     def close(self) -> None:
         """Write what is buffered and close the CSV (the recording stays open for the error
