@@ -605,14 +605,16 @@ class Master:
             self.close()
             self.recorder.close()
         error = failure[0] if failure else None
-        end_tick = (
-            counters.fail_tick
-            if error and counters.fail_slot >= 0
-            else (counters.macro_steps if error else n_ticks)
-        )
+        if error and counters.fail_slot >= 0:
+            end_tick = counters.fail_tick
+        elif error or interrupted:
+            end_tick = counters.macro_steps
+        else:
+            end_tick = n_ticks
         return RunResult(
             table=self.recorder.table() if isinstance(self.recorder, MemoryRecorder) else None,
-            status="failed" if error else "completed",
+            status="failed" if error else ("interrupted" if interrupted else "completed"),
+            info={"interrupted_by": interrupted[0]} if interrupted else {},
             error=error,
             cosim_s=wallclock.perf_counter() - start,
             macro_steps=int(counters.macro_steps),

@@ -1,0 +1,112 @@
+"""A run never loses its results: FMU faults, interruption, kill and resume."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.outputs import read_signals_csv
+
+pytestmark = pytest.mark.slow
+
+REPO = Path(__file__).resolve().parents[1]
+CONSTANT = str(REPO / "scenarios" / "constant-load.toml")
+
+
+def twin(*args: str, **kwargs) -> subprocess.Popen:  # noqa: ANN003
+    return subprocess.Popen(
+        [sys.executable, "-m", "twin.cli", *args],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **kwargs,
+    )
+
+
+def finish(proc: subprocess.Popen, timeout: float = 600) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out, err
+
+
+@pytest.mark.parametrize(
+    "fault, call", [("error", "fmi2DoStep"), ("discard", "fmi2DoStep"), ("nan", "fmi2GetReal")]
+)
+def test_fmu_fault_stops_the_run_with_everything_recorded(tmp_path: Path, fault: str, call: str) -> None:
+    scenario = tmp_path / "fault.toml"
+    scenario.write_text(
+        f'extends = "{CONSTANT}"\n[scenario]\nduration = "20 min"\n'
+        f'[[event]]\nat = "10 min"\naction = "fault"\ntarget = "mechanics"\nfault = "{fault}"\n'
+    )
+    code, _, err = finish(twin("run", str(scenario), "--quiet", "--out", str(tmp_path / "run")))
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err
+    assert "mechanics" in lines[0] and call in lines[0] and "t = 600 s" in lines[0]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["status"] == "failed" and "mechanics" in summary["error"]
+    table = read_signals_csv(tmp_path / "run" / "signals.csv")
+    assert table.time[-1] == 600.0  # every row up to the failing step (1 s output interval)
+    assert np.all(np.isfinite(table["mechanics.probe_true"]))
+    proc = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(tmp_path / "run" / "recording.rrd")],
+                          capture_output=True, check=False)  # fmt: skip
+    assert proc.returncode == 0
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signal_flushes_everything_and_marks_the_run_interrupted(tmp_path: Path, sig: int, code: int) -> None:
+    out = tmp_path / "run"
+    proc = twin("run", CONSTANT, "--quiet", "--out", str(out), "--set", 'scenario.duration="24 h"')
+    csv = out / "signals.csv"
+    deadline = time.monotonic() + 120
+    while not (csv.exists() and csv.stat().st_size > 200_000) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(sig)
+    rc, _, err = finish(proc)
+    assert rc == code, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted"
+    assert signal.Signals(sig).name in summary["error"]
+    table = read_signals_csv(csv)
+    assert 100 < len(table) < 86_400
+    assert summary["sim_end_s"] >= table.time[-1]
+
+
+def test_killed_run_resumes_to_the_same_signals_byte_for_byte(tmp_path: Path) -> None:
+    duration = ["--set", 'scenario.duration="10 h"', "--set", 'scenario.output_interval="10 s"']
+    full, part = tmp_path / "full", tmp_path / "part"
+    code, _, err = finish(twin("run", CONSTANT, "--quiet", "--out", str(full), *duration))
+    assert code == 0, err
+    proc = twin("run", CONSTANT, "--quiet", "--out", str(part), "--checkpoint-every", "1 h", *duration)
+    checkpoint = part / "checkpoint.pkl"
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.3)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate()
+    assert not (part / "summary.json").exists(), "the run ended before it could be killed"
+    # what the kill left is parseable up to its last complete row
+    assert len(read_signals_csv(part / "signals.csv")) > 0
+    code, _, err = finish(twin("resume", str(part), "--quiet"))
+    assert code == 0, err
+    assert (part / "signals.csv").read_bytes() == (full / "signals.csv").read_bytes()
+    a = json.loads((full / "summary.json").read_text())
+    b = json.loads((part / "summary.json").read_text())
+    assert a["compensation"] == b["compensation"] and a["wear_mm"] == b["wear_mm"]
+    proc = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(part / "recording.rrd")],
+                          capture_output=True, check=False)  # fmt: skip
+    assert proc.returncode == 0
+
+
+def test_resume_without_checkpoint_is_bad_input(tmp_path: Path) -> None:
+    code, _, err = finish(twin("resume", str(tmp_path)))
+    assert code == 2 and "Traceback" not in err and "run.json" in err
