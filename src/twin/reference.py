@@ -38,18 +38,6 @@ FEM_PARTS_M: dict[str, float] = {
 }
 FEM_TOTAL_M = -0.016e-3  # the paper's FEM total (reading falls)
 
-#: which twin signal measures each of the paper's points
-SENSOR_COLUMNS: dict[str, str] = {
-    "bearing_block": "sensors.t_bearing_block_meas",
-    "heel_block": "sensors.t_heel_block_meas",
-    "bearing": "sensors.t_bearing_meas",
-    "t_plate": "sensors.t_t_plate_meas",
-    "base": "sensors.t_base_meas",
-    "long_pole": "sensors.t_long_pole_meas",
-    "detecting_frame": "sensors.t_detecting_frame_meas",
-    "room": "sensors.t_room_meas",
-}
-
 #: which thermal-network node sits at each measuring point (room: the network's input)
 NODE_OUTPUTS: dict[str, str] = {
     "bearing_block": "t_bearing_block",
