@@ -46,7 +46,14 @@ static const int VR_MEAS[SD_TEMPS] = {VR_t_bearing_block_meas, VR_t_heel_block_m
 
 /* ------------------------------------------------------------------ helpers */
 
-static double quantize(double x, double q) { return q > 0.0 ? q * round(x / q) : x; }
+/* Rounds to the resolution q. A resolution so fine that x / q leaves the range where doubles
+ * hold whole numbers exactly (2^52) changes nothing and could overflow: x is returned. */
+static double quantize(double x, double q) {
+    double n;
+    if (!(q > 0.0)) return x;
+    n = x / q;
+    return fabs(n) < 4503599627370496.0 ? q * round(n) : x;
+}
 
 static void make_gains(ModelInstance *comp, double h) {
     ModelState *m = &comp->v.m;

@@ -77,6 +77,8 @@ double model_time(const ModelInstance *comp) {
     return comp->v.start_time + (double)comp->v.steps_taken * comp->v.r[INTERNAL_STEP_VR];
 }
 
+static int outputs_finite(ModelInstance *comp);
+
 /* ------------------------------------------------------------------ start values */
 
 static void set_start_values(ModelInstance *comp) {
@@ -207,6 +209,10 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     }
     model_outputs(comp);
     comp->state = ST_STEP_COMPLETE;
+    if (!outputs_finite(comp)) {
+        comp->state = ST_ERROR;
+        return fmi2Error;
+    }
     return fmi2OK;
 }
 

@@ -43,6 +43,8 @@ _UNITS_NS = {
     "h": 3600 * NS_PER_S,
     "d": 86400 * NS_PER_S,
 }
+#: no duration in a scenario can be longer than this (and beyond it numbers stop being sane)
+_ABSURD_NS = 1000 * 366 * 86400 * NS_PER_S
 _DURATION_RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?)\s*([a-z]+)\s*$")
 
 _TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"}
@@ -87,6 +89,8 @@ def parse_duration(value: Any) -> int:
     ns = frac * unit
     if ns.denominator != 1:
         raise ValueError(f"{value!r} is not a whole number of nanoseconds")
+    if ns > _ABSURD_NS:
+        raise ValueError(f"{value!r} is absurdly long (more than 1000 years)")
     return int(ns)
 
 
@@ -535,7 +539,7 @@ def _load_profiles(
                         p.add(f"{key}.points", "expected [[time, value], ...] with at least two points")
                         continue
                     try:
-                        times = [parse_duration(q[0]) / NS_PER_S for q in pts]
+                        times_ns = [parse_duration(q[0]) for q in pts]
                     except ValueError as exc:
                         p.add(f"{key}.points", str(exc))
                         continue
@@ -546,10 +550,11 @@ def _load_profiles(
                     ):
                         p.add(f"{key}.points", "values must be finite numbers")
                         continue
-                    if any(b <= a for a, b in itertools.pairwise(times)):
+                    # compared as exact nanoseconds: two times 1 ns apart may be one float second
+                    if any(b <= a for a, b in itertools.pairwise(times_ns)):
                         p.add(f"{key}.points", "times must increase strictly")
                         continue
-                    table = tuple(zip(times, map(float, values), strict=True))
+                    table = tuple(zip((t / NS_PER_S for t in times_ns), map(float, values), strict=True))
                 elif k in _PROFILE_DURATIONS:
                     ns = p.duration(raw, k, key + ".")
                     if ns is not None:
@@ -577,7 +582,7 @@ def _profile_extremes(pr: Profile) -> list[float]:
     if pr.kind == "ramp":
         return [q["start"], q["end"]]
     if pr.kind == "exponential":
-        scale = 1.0 / (1.0 - math.exp(-q["rise_at"] / q["time_constant"])) if "rise_at" in q else 1.0
+        scale = 1.0 / -math.expm1(-q["rise_at"] / q["time_constant"]) if "rise_at" in q else 1.0
         return [q["start"], q["start"] + q["rise"] * scale]
     if pr.kind == "sine":
         return [q["mean"] - q["amplitude"], q["mean"] + q["amplitude"]]
@@ -636,7 +641,7 @@ def _load_events(
                     f"a fault targets an FMU instance (one of: {', '.join(sorted(fmus))}), got {inst!r}",
                 )
                 continue
-            if fault not in FAULTS:
+            if not isinstance(fault, str) or fault not in FAULTS:
                 p.add(key + ".fault", f"expected one of {sorted(FAULTS)}, got {fault!r}")
                 continue
             if "fault_inject" not in model_variables(fmus[inst].model):

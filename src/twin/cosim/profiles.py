@@ -33,7 +33,7 @@ def profile_function(p: Profile) -> Signal:
         # first-order approach start -> start + rise; with rise_at, scaled so that the full
         # rise is reached exactly at that time (the paper gives the rise after 480 min)
         start, rise, tau = q["start"], q["rise"], q["time_constant"]
-        scale = 1.0 / (1.0 - math.exp(-q["rise_at"] / tau)) if "rise_at" in q else 1.0
+        scale = 1.0 / -math.expm1(-q["rise_at"] / tau) if "rise_at" in q else 1.0
         return lambda t: start + rise * scale * -np.expm1(-np.maximum(t, 0.0) / tau)
     if p.kind == "sine":
         mean, amp, period, phase = q["mean"], q["amplitude"], q["period"], q.get("phase", 0.0)
