@@ -16,6 +16,12 @@ class TwinError(Exception):
     exit_code = 1
 
 
+def _one_line(text: str | None) -> str | None:
+    if text is None:
+        return None
+    return text.replace("\r", "\\r").replace("\n", "\\n")
+
+
 class ConfigError(TwinError, ValueError):
     """Bad input: a scenario file, a ``--set`` value, a command-line argument.
 
@@ -25,6 +31,8 @@ class ConfigError(TwinError, ValueError):
     exit_code = 2
 
     def __init__(self, message: str, *, source: str | None = None, key: str | None = None) -> None:
+        # one problem, one line: a line break inside a quoted TOML key or a value is shown escaped
+        source, key, message = (_one_line(x) for x in (source, key, message))
         self.source = source
         self.key = key
         self.message = message

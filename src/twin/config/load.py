@@ -562,7 +562,8 @@ def _load_profiles(
                             p.add(f"{key}.{k}", "must be positive")
                         elif ns < 0:
                             p.add(f"{key}.{k}", "must not be negative")
-                        params[k] = ns / NS_PER_S
+                        else:
+                            params[k] = ns / NS_PER_S
                 else:
                     v = p.number(raw, k, key + ".")
                     if v is not None:
