@@ -19,6 +19,8 @@ Each FMU is extracted once per module; every example instantiates it afresh.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import math
 from collections.abc import Callable
 from ctypes import byref
@@ -36,7 +38,7 @@ from fmpy.fmi2 import (
     fmi2CallbackFunctions,
     fmi2CallbackLoggerTYPE,
 )
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from twin.fmu.build import model_names
@@ -55,8 +57,8 @@ COMMON = {
     "database": None,
     "suppress_health_check": [HealthCheck.too_slow, HealthCheck.data_too_large],
 }
-VALID_EXAMPLES = 30
-INVALID_EXAMPLES = 40
+VALID_EXAMPLES = 100
+INVALID_EXAMPLES = 100
 
 MODELS = model_names()
 
@@ -64,7 +66,7 @@ MODELS = model_names()
 # ----------------------------------------------------------------------------- model metadata
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Var:
     name: str
     vr: int
@@ -74,13 +76,25 @@ class Var:
     hi: float
     start: Any
 
+    def __repr__(self) -> str:
+        return self.name
 
-@dataclass
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:
+        p.text(self.name)
+
+
+@dataclass(repr=False)
 class Model:
     name: str
     md: Any
     unzipdir: str
     variables: dict[str, Var] = field(default_factory=dict)
+
+    def __repr__(self) -> str:  # hypothesis prints the fixture with a failing example
+        return f"<{self.name}>"
+
+    def _repr_pretty_(self, p: Any, cycle: bool) -> None:
+        p.text(repr(self))
 
     def of(self, causality: str) -> list[Var]:
         return [v for v in self.variables.values() if v.causality == causality]
@@ -218,10 +232,8 @@ class Instance:
 
     def close(self) -> None:
         # terminate is refused in initialization mode (an example may end there): free anyway
-        try:
+        with contextlib.suppress(FMICallException):
             self.slave.terminate()
-        except FMICallException:
-            pass
         self.slave.freeInstance()
 
 
@@ -247,7 +259,7 @@ def value_in_range(v: Var) -> st.SearchStrategy[Any]:
     if v.type == "Boolean":
         return st.booleans()
     if v.type == "Integer":
-        return st.integers(int(math.ceil(v.lo)), int(math.floor(v.hi)))
+        return st.integers(math.ceil(v.lo), math.floor(v.hi))
     return st.floats(v.lo, v.hi, allow_nan=False, allow_infinity=False)
 
 
@@ -256,7 +268,7 @@ def value_out_of_range(v: Var) -> st.SearchStrategy[Any]:
     if v.type == "Boolean":
         return st.integers(-(2**31), 2**31 - 1).filter(lambda x: x not in (0, 1))
     if v.type == "Integer":
-        lo, hi = int(math.ceil(v.lo)), int(math.floor(v.hi))
+        lo, hi = math.ceil(v.lo), math.floor(v.hi)
         options = []
         if hi < 2**31 - 1:
             options.append(st.integers(hi + 1, 2**31 - 1))
@@ -293,6 +305,13 @@ def normalized_shares(names: list[str]) -> st.SearchStrategy[dict[str, float]]:
 
 #: parameters with a dedicated strategy (the internal step must divide the case's step)
 SPECIAL = {"solver_step", "q_avg_window"}
+#: the fault injection input (issue 6, item 2): any value but 0 makes doStep fail on purpose
+FAULT_INPUT = "fault_inject"
+
+
+def physical_input(model: Model, v: Var) -> st.SearchStrategy[Any]:
+    """An input value inside its range; the fault injector stays off."""
+    return st.just(0.0) if v.name == FAULT_INPUT else value_in_range(v)
 
 
 @st.composite
@@ -319,7 +338,7 @@ def valid_setup(d: st.DrawFn, model: Model) -> tuple[dict[str, Any], list[dict[s
                 names = [v.name for v in model.of("parameter") if v.name.startswith(group)]
                 params.update(d(normalized_shares(names)))
     inputs = [
-        {v.name: d(value_in_range(v)) for v in model.of("input")} for _ in range(N_STEPS + 1)
+        {v.name: d(physical_input(model, v)) for v in model.of("input")} for _ in range(N_STEPS + 1)
     ]  # [0]: set in initialization mode; [k]: before step k
     return params, inputs
 
@@ -344,7 +363,7 @@ def expected_rejection(model: Model, params: dict[str, Any]) -> bool | None:
             return not (p["t_ramp_up"] + p["t_dwell_high"] + p["t_ramp_down"] + p["t_dwell_low"] > 0.0)
         if p["profile"] == 3:
             times = [p[f"table_t_{k}"] for k in range(1, p["table_n"] + 1)]
-            return not all(b > a for a, b in zip(times, times[1:], strict=False))
+            return not all(b > a for a, b in itertools.pairwise(times))
         return False
     if model.name == "SensorsDAQ":
         return not p["probe_range_min"] < p["probe_range_max"]
@@ -398,12 +417,15 @@ def test_values_in_range_step_ok_and_outputs_finite(name: str, models: dict[str,
         inst.slave.enterInitializationMode()
         inst.set(inputs[0])
         rejected = expected_rejection(model, params)
+        if rejected is False:  # initial unknowns: computed in initialization mode, finite too
+            assert_finite(inst.outputs(), "in initialization mode", inst)
         try:
             inst.slave.exitInitializationMode()
             accepted = True
         except FMICallException as exc:
             assert exc.status == FMI2_ERROR, f"exitInitializationMode: status {exc.status}\n{inst.log}"
             accepted = False
+        event("started" if accepted else "refused by the model check")
         if rejected is not None:
             assert accepted != rejected, (
                 f"model check {'accepted' if accepted else 'refused'} {params}; "
@@ -507,9 +529,13 @@ def invalid_set(d: st.DrawFn, model: Model) -> tuple[str, Var, Any, dict[str, An
     """(phase, variable, bad value, valid companions set in the same call)."""
     phase = d(st.sampled_from(["instantiated", "initialization", "step complete"]))
     settable = model.of("input") + ([] if phase == "step complete" else model.of("parameter"))
-    target = d(st.sampled_from(settable))
+    # the kind first (input/parameter x Real/Integer/Boolean), so the few Integers and Booleans
+    # are drawn as often as the many Reals
+    kinds = sorted({(v.causality, v.type) for v in settable})
+    kind = d(st.sampled_from(kinds))
+    target = d(st.sampled_from([v for v in settable if (v.causality, v.type) == kind]))
     bad = d(value_out_of_range(target), label="bad value")
-    same_type = [v for v in settable if v.type == target.type and v.name != target.name]
+    same_type = [v for v in settable if v.type == target.type and v.name not in (target.name, FAULT_INPUT)]
     if model.name == "OscillationDrive":  # a companion must not break the q_avg_window rule
         same_type = [v for v in same_type if v.name not in SPECIAL]
     companions = (
@@ -527,6 +553,7 @@ def test_values_out_of_range_give_fmi2error_and_instance_stays_usable(
     model = models[name]
     case = CASES[name]
     phase, target, bad, companions = data.draw(invalid_set(model), label="invalid set")
+    event(f"{target.causality} {target.type} in {phase}")
     inst = Instance(model)
     try:
         inst.slave.setupExperiment(startTime=0.0)
@@ -551,7 +578,8 @@ def test_values_out_of_range_give_fmi2error_and_instance_stays_usable(
         got = inst.get(names)
         assert got == before, f"a refused call changed values: {got} != {before}"
         # still usable: a valid set of the same variable is accepted, and the run goes on
-        inst.set({target.name: data.draw(value_in_range(target), label="valid value"), **companions})
+        valid = data.draw(physical_input(model, target), label="valid value")
+        inst.set({target.name: valid, **companions})
         if phase != "step complete":
             # valid companions may break a cross-parameter rule of the model: start from the case
             baseline = _effective(model, dict(case.parameters))
@@ -561,5 +589,40 @@ def test_values_out_of_range_give_fmi2error_and_instance_stays_usable(
         for _ in range(2):
             inst.step(case.step)
             assert_finite(inst.outputs(), "after the refused set", inst)
+    finally:
+        inst.close()
+
+
+# ----------------------------------------------------------------------------- regressions
+
+RESOLUTIONS = (
+    "temp_resolution",
+    "probe_resolution",
+    "load_resolution",
+    "torque_resolution",
+    "encoder_resolution",
+)
+
+
+@pytest.mark.parametrize("resolution", RESOLUTIONS)
+def test_sensors_daq_finest_resolution_keeps_outputs_finite(
+    resolution: str, models: dict[str, Model]
+) -> None:
+    """Found by the in-range property: quantize(x, q) = q * round(x / q) overflowed to Inf for a
+    resolution in (0, ~1e-300], inside the declared [0, ...]; the outputs were Inf with status OK
+    after initialization and doStep then failed."""
+    model = models["SensorsDAQ"]
+    case = CASES["SensorsDAQ"]
+    inst = Instance(model)
+    try:
+        inst.slave.setupExperiment(startTime=0.0)
+        inst.set({**case.parameters, resolution: 5e-324})  # the smallest positive double
+        inst.slave.enterInitializationMode()
+        inst.set({**case.inputs, "load_true": 1e7, "torque_true": 1e6, "angle_true": 7.0})
+        assert_finite(inst.outputs(), "in initialization mode", inst)
+        inst.slave.exitInitializationMode()
+        assert_finite(inst.outputs(), "after initialization", inst)
+        inst.step(case.step)
+        assert_finite(inst.outputs(), "after a step", inst)
     finally:
         inst.close()
