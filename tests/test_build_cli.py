@@ -8,6 +8,8 @@ import sys
 import zipfile
 from pathlib import Path
 
+import pytest
+
 from twin.cli import main
 from twin.fmu.build import model_names, source_hash
 
@@ -54,3 +56,22 @@ def test_bad_command_line_gives_exit_2(capsys) -> None:
     assert main(["no-such-command"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("twin: ")
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["run", "--no-such-option"], "unrecognized arguments"),
+        (["run", "--checkpoint-every", "soon"], "--checkpoint-every"),
+        (["run", "--checkpoint-every", "0.05 s"], "multiple of scenario.step"),
+        (["run", "no/such/scenario.toml"], "file not found"),
+        (["run", "--set", "scenario.duration"], "expected KEY=VALUE"),
+        (["run", "--set", 'scenario.duration="-3 min"'], "scenario.duration"),
+        (["validate"], "scenario"),
+        (["resume", "no/such/run"], "run.json"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_2(argv: list[str], words: str, capsys) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("twin: ") and words in err[0], err
