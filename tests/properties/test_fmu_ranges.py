@@ -57,8 +57,9 @@ COMMON = {
     "database": None,
     "suppress_health_check": [HealthCheck.too_slow, HealthCheck.data_too_large],
 }
-VALID_EXAMPLES = 100
-INVALID_EXAMPLES = 100
+VALID_EXAMPLES = 150
+REFUSED_EXAMPLES = 50
+INVALID_EXAMPLES = 150
 
 MODELS = model_names()
 
@@ -449,7 +450,7 @@ def test_values_in_range_step_ok_and_outputs_finite(name: str, models: dict[str,
 
 
 @pytest.mark.parametrize("name", MODELS)
-@settings(max_examples=VALID_EXAMPLES, **COMMON)
+@settings(max_examples=REFUSED_EXAMPLES, **COMMON)
 @given(data=st.data())
 def test_model_check_rejection_keeps_initialization_mode(
     name: str, models: dict[str, Model], data: Any

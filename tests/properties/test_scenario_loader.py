@@ -212,9 +212,7 @@ def _stored(v: Var, raw: Any) -> Any:
     return float(raw) if v.type == "Real" else raw
 
 
-def _shrink_into(
-    center: float, reach: Callable[[float], list[float]], x: float, lo: float, hi: float
-) -> float:
+def _shrink_into(reach: Callable[[float], list[float]], x: float, lo: float, hi: float) -> float:
     """Move x toward 0 (ulp by ulp) until every value of reach(x) lies in [lo, hi]."""
     for _ in range(64):
         if all(lo <= r <= hi for r in reach(x)):
@@ -257,7 +255,7 @@ def profile_in_range(d: st.DrawFn, v: Var) -> tuple[dict[str, Any], tuple[str, d
         if d(st.booleans()):
             duration("rise_at")
             scale = 1.0 / -math.expm1(-params["rise_at"] / params["time_constant"])
-        rise = _shrink_into(start, lambda r: [start, start + r * scale], (end - start) / scale, lo, hi)
+        rise = _shrink_into(lambda r: [start, start + r * scale], (end - start) / scale, lo, hi)
         raw["start"], raw["rise"] = start, rise
         params.update(start=start, rise=rise)
     elif kind == "sine":
@@ -265,7 +263,7 @@ def profile_in_range(d: st.DrawFn, v: Var) -> tuple[dict[str, Any], tuple[str, d
         mean = a / 2 + b / 2
         if not lo <= mean <= hi:
             mean = a
-        amp = _shrink_into(mean, lambda x: [mean - x, mean + x], abs(b - a) / 2, lo, hi)
+        amp = _shrink_into(lambda x: [mean - x, mean + x], abs(b - a) / 2, lo, hi)
         raw.update(mean=mean, amplitude=amp)
         params.update(mean=mean, amplitude=amp)
         duration("period")
@@ -358,7 +356,7 @@ def _load_file(data: dict[str, Any]) -> Any:
         return load_scenario(write(Path(tmp) / SOURCE, data))
 
 
-@settings(max_examples=150, **COMMON)
+@settings(max_examples=200, **COMMON)
 @given(drawn=valid_scenarios())
 def test_values_inside_ranges_load_and_are_kept(drawn: tuple[dict[str, Any], Expect]) -> None:
     data, exp = drawn
@@ -864,7 +862,7 @@ def bad_event(d: st.DrawFn, duration: int) -> Mutation:
                     toml_values.filter(lambda x: not isinstance(x, str)),
                     st.just("thermal"),
                     st.just("nobody.t_room"),
-                    st.sampled_from([o.ref for o in OUTPUTS]),
+                    st.sampled_from([o.ref for o in OUTPUTS if o.inst == v.inst]),
                 )
             ),
         )
@@ -889,7 +887,7 @@ def _check_config_errors(exc: ConfigErrors, allowed: list[str]) -> None:
         assert any(re.fullmatch(a, p.key) for a in allowed), f"unexpected problem: {line}\n(all: {exc})"
 
 
-@settings(max_examples=250, **COMMON)
+@settings(max_examples=400, **COMMON)
 @given(drawn=st.lists(mutation(), min_size=1, max_size=4, unique_by=_target))
 def test_values_outside_give_one_clear_line_per_problem(drawn: list[Mutation]) -> None:
     # leave out a mistake another one hides (no valid step: nothing is a non-multiple of it)
@@ -960,7 +958,7 @@ def fuzzed(d: st.DrawFn) -> dict[str, Any]:
     return data
 
 
-@settings(max_examples=300, **COMMON)
+@settings(max_examples=500, **COMMON)
 @given(data=fuzzed())
 def test_any_value_anywhere_loads_or_gives_config_errors(data: dict[str, Any]) -> None:
     try:

@@ -83,6 +83,9 @@ def parse_duration(value: Any) -> int:
             raise ValueError(
                 f"expected a duration like '480 min' or '0.1 s' (units {', '.join(_UNITS_NS)}), got {value!r}"
             )
+        # a quick float look first: an exact Fraction of '1e10000000' takes seconds to build
+        if not math.isfinite(float(m.group(1))) or float(m.group(1)) * _UNITS_NS[m.group(2)] > 2 * _ABSURD_NS:
+            raise ValueError(f"{value!r} is absurdly long (more than 1000 years)")
         frac, unit = Fraction(m.group(1)), _UNITS_NS[m.group(2)]
     else:
         raise ValueError(f"expected a duration, got {type(value).__name__}")
