@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 CONSTANT = str(REPO / "scenarios" / "constant-load.toml")
 
 
-def twin(*args: str, **kwargs) -> subprocess.Popen:  # noqa: ANN003
+def twin(*args: str, **kwargs) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, "-m", "twin.cli", *args],
         cwd=REPO,
