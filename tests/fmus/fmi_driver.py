@@ -25,6 +25,19 @@ class Driver:
         self.slave.instantiate()
         self.time = 0.0
 
+    @classmethod
+    def started(
+        cls,
+        fmu: Path,
+        parameters: dict[str, float] | None = None,
+        inputs: dict[str, float] | None = None,
+        name: str = "inst",
+    ) -> Driver:
+        """A slave already through initialization with these parameters and inputs."""
+        d = cls(fmu, name)
+        d.init(parameters, inputs)
+        return d
+
     def vr(self, name: str) -> int:
         return self.vars[name].valueReference
 

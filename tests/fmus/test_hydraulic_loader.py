@@ -20,14 +20,9 @@ FAST_SERVO = {"servo_frequency": 1e4, "servo_damping": 1.0, "solver_step": 1e-3,
 
 
 def start(
-    fmu_paths: dict[str, Path],
-    parameters: dict[str, float] | None = None,
-    inputs: dict[str, float] | None = None,
-    name: str = "inst",
+    fmu_paths: dict[str, Path], parameters: dict | None = None, inputs: dict | None = None, name: str = "inst"
 ) -> Driver:
-    d = Driver(fmu_paths["HydraulicLoader"], name)
-    d.init(parameters, inputs)
-    return d
+    return Driver.started(fmu_paths["HydraulicLoader"], parameters, inputs, name)
 
 
 def record(d: Driver, names: list[str], n: int, h: float) -> tuple[np.ndarray, np.ndarray]:

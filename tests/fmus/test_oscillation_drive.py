@@ -23,14 +23,14 @@ LOAD = 100e3
 
 
 def start(
-    fmu_paths: dict[str, Path],
-    parameters: dict[str, float] | None = None,
-    inputs: dict[str, float] | None = None,
-    name: str = "inst",
+    fmu_paths: dict[str, Path], parameters: dict | None = None, inputs: dict | None = None, name: str = "inst"
 ) -> Driver:
-    d = Driver(fmu_paths["OscillationDrive"], name)
-    d.init(parameters, {"radial_load": LOAD, "t_bearing": 293.15, **(inputs or {})})
-    return d
+    return Driver.started(
+        fmu_paths["OscillationDrive"],
+        parameters,
+        {"radial_load": LOAD, "t_bearing": 293.15, **(inputs or {})},
+        name,
+    )
 
 
 def record(d: Driver, names: list[str], n: int, h: float) -> np.ndarray:

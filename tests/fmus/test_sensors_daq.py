@@ -36,14 +36,9 @@ T0 = 293.15
 
 
 def start(
-    fmu_paths: dict[str, Path],
-    parameters: dict[str, float] | None = None,
-    inputs: dict[str, float] | None = None,
-    name: str = "inst",
+    fmu_paths: dict[str, Path], parameters: dict | None = None, inputs: dict | None = None, name: str = "inst"
 ) -> Driver:
-    d = Driver(fmu_paths["SensorsDAQ"], name)
-    d.init(parameters, inputs)
-    return d
+    return Driver.started(fmu_paths["SensorsDAQ"], parameters, inputs, name)
 
 
 def record(d: Driver, names: list[str], n: int, h: float) -> np.ndarray:
