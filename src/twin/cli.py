@@ -150,6 +150,20 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compensate(args: argparse.Namespace) -> int:
+    from twin.pipeline import compensate
+
+    csv = Path(args.csv)
+    out = Path(args.out) if args.out else csv.with_name(csv.stem + "-compensated")
+    summary = compensate(csv, Path(args.config) if args.config else None, out)
+    parts = summary["error_parts_mm"]
+    print(
+        f"{csv}: predicted error over the record {parts['total']:+.4f} mm "
+        f"(thermal {parts['thermal']:+.4f}); outputs: {out}"
+    )
+    return 0
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from twin.calibrate import calibrate_file
 
@@ -197,6 +211,16 @@ def make_parser() -> argparse.ArgumentParser:
         "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
     )
     p.set_defaults(func=_cmd_validate)
+
+    p = sub.add_parser("compensate", help="run the error model on a CSV of measurements (a lab's or a run's)")
+    p.add_argument("csv", help="CSV with a time column (s) and named columns in SI units")
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="[errormodel] column map and coefficients (default: the twin's names)",
+    )
+    p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
+    p.set_defaults(func=_cmd_compensate)
 
     p = sub.add_parser("calibrate", help="fit the thermal network to the paper's measured temperature rises")
     p.add_argument(

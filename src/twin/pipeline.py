@@ -38,6 +38,17 @@ from twin.signals.table import SignalTable
 _GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
 
 
+def _model_defaults() -> dict[str, float]:
+    """The FixtureMechanics and SensorsDAQ parameters' declared values (their sources are in
+    the modelDescription.xml): the error model's default knowledge of the tester."""
+    values: dict[str, float] = {}
+    for model in sorted(_GEOMETRY_FROM):
+        for name, v in model_variables(model).items():
+            if v.causality == "parameter" and v.type == "Real" and v.start is not None:
+                values[name] = float(v.start)
+    return values
+
+
 def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     """Error-model configuration of a scenario.
 
@@ -46,73 +57,68 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     drawings, in a lab); ``[errormodel]`` may override any of them, the temperature columns
     (``temperatures = { point = "column" }``), the reading and the true-wear column.
     """
-    values: dict[str, float] = {}
+    values = _model_defaults()
     for spec in scenario.fmus:
         if spec.model in _GEOMETRY_FROM:
-            for name, v in model_variables(spec.model).items():
-                if v.causality == "parameter" and v.type == "Real" and v.start is not None:
-                    values[name] = float(v.start)
             values.update({k: float(p.value) for k, p in spec.parameters.items()})
     em = {k: p.value for k, p in scenario.errormodel.items()}
+    return errormodel_config(values, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
+
+
+def errormodel_config(
+    values: dict[str, float], em: dict[str, Any], source: str, window_s: float
+) -> EvaluationConfig:
+    """An :class:`EvaluationConfig` from known coefficients and an ``[errormodel]`` table."""
+    em = dict(em)
     temperatures = dict(DEFAULT_TEMPERATURES)
     if "temperatures" in em:
         if not isinstance(em["temperatures"], dict):
-            raise ConfigError(
-                "expected a table point = column", source=scenario.source_path, key="errormodel.temperatures"
-            )
+            raise ConfigError("expected a table point = column", source=source, key="errormodel.temperatures")
         temperatures.update(em.pop("temperatures"))
     reading = em.pop("reading", DEFAULT_READING)
     true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
     columns = {k: em.pop(k) for k in ("load", "torque", "angle", "vibration") if k in em}
     factors = em.pop("factors", list(PARTS))
     if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
-        raise ConfigError(
-            f"expected a list from {list(PARTS)}", source=scenario.source_path, key="errormodel.factors"
-        )
+        raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
     geometry_overrides = em.pop("geometry", {})
     if em:
-        raise ConfigError(f"unknown key(s) {sorted(em)}", source=scenario.source_path, key="errormodel")
+        raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
     if not isinstance(geometry_overrides, dict) or not all(
         isinstance(v, int | float) and not isinstance(v, bool) for v in geometry_overrides.values()
     ):
-        raise ConfigError(
-            "expected a table of numbers", source=scenario.source_path, key="errormodel.geometry"
-        )
+        raise ConfigError("expected a table of numbers", source=source, key="errormodel.geometry")
     known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
     unknown = sorted(set(geometry_overrides) - known)
     if unknown:
-        raise ConfigError(
-            f"unknown geometry value(s) {unknown}", source=scenario.source_path, key="errormodel.geometry"
-        )
+        raise ConfigError(f"unknown geometry value(s) {unknown}", source=source, key="errormodel.geometry")
     if not all(isinstance(v, str) for v in columns.values()):
         raise ConfigError(
             "load, torque, angle, vibration must be column names",
-            source=scenario.source_path,
+            source=source,
             key="errormodel",
         )
     if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
-        raise ConfigError(
-            "reading and true_wear must be column names", source=scenario.source_path, key="errormodel"
-        )
+        raise ConfigError("reading and true_wear must be column names", source=source, key="errormodel")
     if not all(isinstance(k, str) and isinstance(v, str) for k, v in temperatures.items()):
         raise ConfigError(
             "temperatures must map point names to column names",
-            source=scenario.source_path,
+            source=source,
             key="errormodel.temperatures",
         )
     values.update(geometry_overrides)
     mechanics = None
     if all(f.name in values for f in fields(MechanicalCoefficients)):
-        mechanics = MechanicalCoefficients.from_parameters(values, source=scenario.source_path)
+        mechanics = MechanicalCoefficients.from_parameters(values, source=source)
     return EvaluationConfig(
-        geometry=ThermalGeometry.from_parameters(values, source=scenario.source_path),
+        geometry=ThermalGeometry.from_parameters(values, source=source),
         mechanics=mechanics,
         factors=tuple(factors),
         **columns,
         temperatures=temperatures,
         reading=str(reading),
         true_wear=str(true_wear) if true_wear else None,
-        window_s=scenario.drift_window_ns / NS_PER_S,
+        window_s=window_s,
     )
 
 
@@ -227,7 +233,7 @@ def run(
             for n in names:
                 em_table.add(table.meta[n], table[n])
             write_signals_csv(em_table, out_dir / "errormodel.csv")
-            _plot(table, out_dir, scenario)
+            _plot(table, out_dir, f"{scenario.name}: predicted error and its parts", cfg)
     finally:
         recorder.finish()
     # the co-simulation loop alone: the time spent writing the files is reported apart
@@ -284,17 +290,65 @@ def resume_run(
     )
 
 
-def _plot(table: SignalTable, out_dir: Path, scenario: Scenario) -> None:
+def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[str, Any]:
+    """The error model on a CSV of measurements (a lab's or a twin run's signals.csv).
+
+    ``config_path`` is a TOML file with an ``[errormodel]`` table: which columns hold the eight
+    temperatures (K), the probe reading (m) and, where present, load, torque, angle, vibration
+    and a true wear; ``geometry`` the tester's coefficients (names as the FixtureMechanics and
+    SensorsDAQ parameters; defaults are those FMUs' values); ``factors``; and optionally
+    ``drift_window`` (default 5 min). Writes errormodel.csv, summary.json, error_budget.png.
+    """
+    import tomllib
+
+    from twin.config.load import parse_duration
+    from twin.outputs import read_signals_csv
+
+    em: dict[str, Any] = {}
+    window_s = 300.0
+    source = str(config_path) if config_path else "compensate"
+    if config_path is not None:
+        try:
+            data = tomllib.loads(config_path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ConfigError("file not found", source=source) from None
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise ConfigError(f"cannot read: {exc}", source=source) from None
+        unknown = sorted(set(data) - {"errormodel"})
+        if unknown:
+            raise ConfigError(f"unknown key(s) {unknown} (expected [errormodel])", source=source)
+        em = dict(data.get("errormodel", {}))
+        if "drift_window" in em:
+            try:
+                window_s = parse_duration(em.pop("drift_window")) / NS_PER_S
+            except ValueError as exc:
+                raise ConfigError(str(exc), source=source, key="errormodel.drift_window") from None
+    cfg = errormodel_config(_model_defaults(), em, source, window_s)
+    table = read_signals_csv(csv_path)
+    evaluated = evaluate(table, cfg)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = [n for n in table.names() if n.startswith("errormodel.")]
+    em_table = SignalTable(table.time)
+    for n in names:
+        em_table.add(table.meta[n], table[n])
+    write_signals_csv(em_table, out_dir / "errormodel.csv")
+    summary = {"input": str(csv_path), "config": source, "status": "completed", **evaluated.summary}
+    write_summary(out_dir / "summary.json", summary)
+    _plot(table, out_dir, f"{csv_path.name}: predicted error and its parts", cfg)
+    return summary
+
+
+def _plot(table: SignalTable, out_dir: Path, title: str, cfg: EvaluationConfig) -> None:
     from twin.outputs import error_budget_png
 
     error_budget_png(
         table,
         out_dir / "error_budget.png",
-        reading=DEFAULT_READING,
+        reading=cfg.reading,
         predicted="errormodel.e_z",
         parts={p: f"errormodel.e_{p}" for p in PARTS},
-        temperatures=[c for c in DEFAULT_TEMPERATURES.values() if c in table],
-        title=f"{scenario.name}: predicted error and its parts",
+        temperatures=[c for c in cfg.temperatures.values() if c in table],
+        title=title,
     )
 
 

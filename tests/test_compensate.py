@@ -1,0 +1,101 @@
+"""`twin compensate`: the error model on a CSV of measurements gives what the run gave."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from twin.cli import main
+from twin.config.load import load_scenario, scenarios_dir
+from twin.pipeline import run
+
+pytestmark = pytest.mark.slow
+
+
+def test_compensating_a_runs_csv_reproduces_the_runs_error_model(tmp_path: Path) -> None:
+    sc = load_scenario(scenarios_dir() / "constant-load.toml", ['scenario.duration="20 min"'])
+    run(sc, tmp_path / "run")
+    mech = {k: p.value for k, p in sc.fmu("mechanics").parameters.items()}
+    config = tmp_path / "lab.toml"
+    # what a lab writes down once: its tester's coefficients (here the twin's own)
+    config.write_text(
+        "[errormodel]\ngeometry = { "
+        + ", ".join(
+            f"{k} = {mech[k]!r}"
+            for k in (
+                "spindle_runout",
+                "runout_phase",
+                "sensor_tilt",
+                "abbe_offset",
+                "tplate_rotation_compliance",
+            )
+        )
+        + " }\n"
+    )
+    assert (
+        main(
+            [
+                "compensate",
+                str(tmp_path / "run" / "signals.csv"),
+                "--config",
+                str(config),
+                "--out",
+                str(tmp_path / "c"),
+            ]
+        )
+        == 0
+    )
+    assert (tmp_path / "c" / "errormodel.csv").read_bytes() == (
+        tmp_path / "run" / "errormodel.csv"
+    ).read_bytes()
+    a = json.loads((tmp_path / "c" / "summary.json").read_text())
+    b = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert a["compensation"] == b["compensation"] and a["drift_mm"]["predicted"] == b["drift_mm"]["predicted"]
+    assert (tmp_path / "c" / "error_budget.png").stat().st_size > 0
+
+
+def test_a_labs_own_column_names(tmp_path: Path) -> None:
+    # a lab's CSV: other names for the eight temperatures and the probe, no other sensors
+    import numpy as np
+
+    t = np.arange(0.0, 3600.0, 10.0)
+    rise = 5.0 * (1 - np.exp(-t / 1800.0))
+    names = [f"T{i}" for i in range(8)]
+    lines = ["time," + ",".join(names) + ",probe"]
+    for k, tk in enumerate(t):
+        temps = [293.15 + rise[k]] * 8
+        lines.append(",".join(repr(float(v)) for v in [tk, *temps, 4.8e-3 - 2e-6 * rise[k]]))
+    csv = tmp_path / "lab.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    points = [
+        "bearing_block",
+        "heel_block",
+        "bearing",
+        "t_plate",
+        "base",
+        "long_pole",
+        "detecting_frame",
+        "room",
+    ]
+    config = tmp_path / "lab.toml"
+    config.write_text(
+        '[errormodel]\nreading = "probe"\nfactors = ["thermal"]\ntemperatures = { '
+        + ", ".join(f'{p} = "T{i}"' for i, p in enumerate(points))
+        + " }\n"
+    )
+    assert main(["compensate", str(csv), "--config", str(config), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["temperature_rise_C"]["room"] == pytest.approx(rise[-1], abs=0.05)
+    assert summary["drift_mm"]["probe"] == pytest.approx(-2e-3 * rise[-1], rel=0.02)
+
+
+def test_bad_compensate_config_is_bad_input(tmp_path: Path, capsys) -> None:
+    config = tmp_path / "bad.toml"
+    config.write_text("[errormodel]\ngeometry = { no_such = 1.0 }\n")
+    csv = tmp_path / "x.csv"
+    csv.write_text("time,a\n0.0,1.0\n1.0,2.0\n")
+    assert main(["compensate", str(csv), "--config", str(config)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "errormodel.geometry" in err[0]
