@@ -171,7 +171,7 @@ def test_corrupt_or_truncated_serialized_state_is_rejected(model: str, fmu_paths
     d.init(CASES[model].parameters, CASES[model].inputs)
     state = d.slave.getFMUstate()
     data = bytearray(d.slave.serializeFMUstate(state))
-    for bad in (bytes(data[:-1]), b"XXXXXXXX" + bytes(data[8:])):
+    for bad in (bytes(data[:-1]), b"BADMAGIC" + bytes(data[8:])):
         buf = (ctypes.c_char * len(bad)).from_buffer_copy(bad)
         out = ctypes.c_void_p()
         with pytest.raises(FMICallException) as exc:
