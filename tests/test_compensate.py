@@ -9,6 +9,7 @@ import pytest
 
 from twin.cli import main
 from twin.config.load import load_scenario, scenarios_dir
+from twin.errormodel.sources import DEFAULT_TEMPERATURES
 from twin.pipeline import run
 
 pytestmark = pytest.mark.slow
@@ -69,16 +70,7 @@ def test_a_labs_own_column_names(tmp_path: Path) -> None:
         lines.append(",".join(repr(float(v)) for v in [tk, *temps, 4.8e-3 - 2e-6 * rise[k]]))
     csv = tmp_path / "lab.csv"
     csv.write_text("\n".join(lines) + "\n")
-    points = [
-        "bearing_block",
-        "heel_block",
-        "bearing",
-        "t_plate",
-        "base",
-        "long_pole",
-        "detecting_frame",
-        "room",
-    ]
+    points = list(DEFAULT_TEMPERATURES)  # the paper's eight measuring points
     config = tmp_path / "lab.toml"
     config.write_text(
         '[errormodel]\nreading = "probe"\nfactors = ["thermal"]\ntemperatures = { '

@@ -10,18 +10,11 @@ import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 
+from twin.errormodel.sources import DEFAULT_TEMPERATURES
+
 from .fmi_driver import Driver
 
-POINTS = [
-    "bearing_block",
-    "heel_block",
-    "bearing",
-    "t_plate",
-    "base",
-    "long_pole",
-    "detecting_frame",
-    "room",
-]
+POINTS = list(DEFAULT_TEMPERATURES)  # the paper's eight measuring points
 T_IN = [f"t_{p}" for p in POINTS]
 T_OUT = [f"t_{p}_meas" for p in POINTS]
 QUIET = {

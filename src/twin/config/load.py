@@ -240,6 +240,23 @@ class _Problems:
         return float(v)
 
 
+def _array_of_tables(
+    p: _Problems, data: Mapping[str, Any], name: str, hint: str
+) -> list[tuple[int, str, dict]]:
+    """(index, key, table) of each entry of a ``[[name]]`` array; problems for the rest."""
+    raw = data.get(name, [])
+    if not isinstance(raw, list):
+        p.add(name, f"expected an array of tables [[{name}]]")
+        return []
+    out = []
+    for i, entry in enumerate(raw):
+        if isinstance(entry, dict):
+            out.append((i, f"{name}[{i}]", entry))
+        else:
+            p.add(f"{name}[{i}]", f"expected a table{hint}")
+    return out
+
+
 def _table(p: _Problems, data: Mapping[str, Any], key: str, prefix: str = "") -> dict[str, Any]:
     v = data.get(key, {})
     if not isinstance(v, dict):
@@ -430,15 +447,7 @@ def _load_connections(p: _Problems, data: Mapping[str, Any], fmus: Mapping[str, 
             continue
         for dst in dsts:
             out.append(Connection(src, dst))
-    delays = data.get("delay", [])
-    if not isinstance(delays, list):
-        p.add("delay", "expected an array of tables [[delay]]")
-        delays = []
-    for i, raw in enumerate(delays):
-        key = f"delay[{i}]"
-        if not isinstance(raw, dict):
-            p.add(key, "expected a table with from, to, initial")
-            continue
+    for _i, key, raw in _array_of_tables(p, data, "delay", " with from, to, initial"):
         p.unknown_keys(raw, {"from", "to", "initial"}, key + ".")
         initial = p.number(raw, "initial", key + ".")
         if isinstance(raw.get("from"), str) and isinstance(raw.get("to"), str) and initial is not None:
@@ -617,16 +626,8 @@ def _load_events(
     connections: Sequence[Connection],
 ) -> list[Event]:
     fed = {c.dst for c in connections}
-    raw_events = data.get("event", [])
-    if not isinstance(raw_events, list):
-        p.add("event", "expected an array of tables [[event]]")
-        return []
     out = []
-    for i, raw in enumerate(raw_events):
-        key = f"event[{i}]"
-        if not isinstance(raw, dict):
-            p.add(key, "expected a table")
-            continue
+    for _i, key, raw in _array_of_tables(p, data, "event", ""):
         p.unknown_keys(raw, _EVENT_KEYS, key + ".")
         at = p.duration(raw, "at", key + ".")
         action = raw.get("action")
