@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Parameter, Scenario
 from twin.errors import ConfigError
-from twin.reference import EXPERIMENT_S, NODE_OUTPUTS, TEMPERATURE_RISE_K
+from twin.paper import EXPERIMENT_S, NODE_OUTPUTS, TEMPERATURE_RISE_K
 
 #: fitted parameters: (name, how) -- "factor": a factor on the estimate in [0.1, 10];
 #: "share": an absolute share in [0, 0.05] (its estimate is 0, so a factor cannot move it)

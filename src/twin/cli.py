@@ -139,7 +139,7 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from twin.pipeline import evaluation_config
+    from twin.errormodel.config import evaluation_config
 
     scenario = _load(args)
     evaluation_config(scenario)

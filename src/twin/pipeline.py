@@ -13,122 +13,20 @@ import pickle
 import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from twin import __version__
-from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Loop, Master, RunResult
+from twin.errormodel.config import errormodel_config, evaluation_config, input_columns, model_defaults
 from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate
-from twin.errormodel.sources import (
-    DEFAULT_READING,
-    DEFAULT_TEMPERATURES,
-    MechanicalCoefficients,
-    ThermalGeometry,
-)
 from twin.errors import ConfigError, RunError
 from twin.outputs import write_signals_csv, write_summary
 from twin.outputs.summary import write_json_atomic
-from twin.reference import DRIFT_M, TEMPERATURE_RISE_K
+from twin.paper import DRIFT_M, TEMPERATURE_RISE_K
 from twin.signals.recorder import RunFolderRecorder
 from twin.signals.table import SignalTable
-
-_GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
-
-
-def _model_defaults() -> dict[str, float]:
-    """The FixtureMechanics and SensorsDAQ parameters' declared values (their sources are in
-    the modelDescription.xml): the error model's default knowledge of the tester."""
-    values: dict[str, float] = {}
-    for model in sorted(_GEOMETRY_FROM):
-        for name, v in model_variables(model).items():
-            if v.causality == "parameter" and v.type == "Real" and v.start is not None:
-                values[name] = float(v.start)
-    return values
-
-
-def evaluation_config(scenario: Scenario) -> EvaluationConfig:
-    """Error-model configuration of a scenario.
-
-    Geometry and the probe's zero drift default to the values the scenario gives its
-    FixtureMechanics and SensorsDAQ instances (the instrument's data sheet and the fixture's
-    drawings, in a lab); ``[errormodel]`` may override any of them, the temperature columns
-    (``temperatures = { point = "column" }``), the reading and the true-wear column.
-    """
-    values = _model_defaults()
-    for spec in scenario.fmus:
-        if spec.model in _GEOMETRY_FROM:
-            values.update({k: float(p.value) for k, p in spec.parameters.items()})
-    em = {k: p.value for k, p in scenario.errormodel.items()}
-    return errormodel_config(values, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
-
-
-def errormodel_config(
-    values: dict[str, float], em: dict[str, Any], source: str, window_s: float
-) -> EvaluationConfig:
-    """An :class:`EvaluationConfig` from known coefficients and an ``[errormodel]`` table."""
-    em = dict(em)
-    temperatures = dict(DEFAULT_TEMPERATURES)
-    if "temperatures" in em:
-        if not isinstance(em["temperatures"], dict):
-            raise ConfigError("expected a table point = column", source=source, key="errormodel.temperatures")
-        temperatures.update(em.pop("temperatures"))
-    reading = em.pop("reading", DEFAULT_READING)
-    true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
-    columns = {k: em.pop(k) for k in ("load", "torque", "angle", "vibration") if k in em}
-    factors = em.pop("factors", list(PARTS))
-    if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
-        raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
-    geometry_overrides = em.pop("geometry", {})
-    if em:
-        raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
-    if not isinstance(geometry_overrides, dict) or not all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in geometry_overrides.values()
-    ):
-        raise ConfigError("expected a table of numbers", source=source, key="errormodel.geometry")
-    known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
-    unknown = sorted(set(geometry_overrides) - known)
-    if unknown:
-        raise ConfigError(f"unknown geometry value(s) {unknown}", source=source, key="errormodel.geometry")
-    if not all(isinstance(v, str) for v in columns.values()):
-        raise ConfigError(
-            "load, torque, angle, vibration must be column names",
-            source=source,
-            key="errormodel",
-        )
-    if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
-        raise ConfigError("reading and true_wear must be column names", source=source, key="errormodel")
-    if not all(isinstance(k, str) and isinstance(v, str) for k, v in temperatures.items()):
-        raise ConfigError(
-            "temperatures must map point names to column names",
-            source=source,
-            key="errormodel.temperatures",
-        )
-    values.update(geometry_overrides)
-    mechanics = None
-    if all(f.name in values for f in fields(MechanicalCoefficients)):
-        mechanics = MechanicalCoefficients.from_parameters(values, source=source)
-    return EvaluationConfig(
-        geometry=ThermalGeometry.from_parameters(values, source=source),
-        mechanics=mechanics,
-        factors=tuple(factors),
-        **columns,
-        temperatures=temperatures,
-        reading=str(reading),
-        true_wear=str(true_wear) if true_wear else None,
-        window_s=window_s,
-    )
-
-
-def _kept_columns(cfg: EvaluationConfig) -> set[str]:
-    """The columns the error model and the plot read: the only ones a run keeps in memory."""
-    names = {*cfg.temperatures.values(), cfg.reading, cfg.load, cfg.torque, cfg.angle, cfg.vibration}
-    if cfg.true_wear:
-        names.add(cfg.true_wear)
-    return names
-
 
 RUN_FILE = "run.json"
 CHECKPOINT_FILE = "checkpoint.pkl"
@@ -174,7 +72,7 @@ def run(
         )
     em_signals = evaluation_signals(with_true_wear=bool(cfg.true_wear))
     budget = ["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"]
-    kept = _kept_columns(cfg)
+    kept = input_columns(cfg)
     recorder = RunFolderRecorder(
         out_dir,
         keep=kept.__contains__,
@@ -323,7 +221,7 @@ def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[
                 window_s = parse_duration(em.pop("drift_window")) / NS_PER_S
             except ValueError as exc:
                 raise ConfigError(str(exc), source=source, key="errormodel.drift_window") from None
-    cfg = errormodel_config(_model_defaults(), em, source, window_s)
+    cfg = errormodel_config(model_defaults(), em, source, window_s)
     table = read_signals_csv(csv_path)
     evaluated = evaluate(table, cfg)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.reference import FEM_PARTS_M
+from twin.paper import FEM_PARTS_M
 
 from .fmi_driver import Driver
 
