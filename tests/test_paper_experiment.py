@@ -16,8 +16,8 @@ import pytest
 
 from twin.config.load import default_scenario_path, load_scenario
 from twin.outputs import read_signals_csv
-from twin.pipeline import run
 from twin.paper import DRIFT_M, FEM_PARTS_M, TEMPERATURE_RISE_K
+from twin.pipeline import run
 
 pytestmark = pytest.mark.slow
 
