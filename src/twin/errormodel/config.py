@@ -13,10 +13,13 @@ from typing import Any
 
 from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Scenario
-from twin.errormodel.evaluate import PARTS, EvaluationConfig
+from twin.errormodel.evaluate import EvaluationConfig
+from twin.errormodel.factors import FACTORS, PARTS
 from twin.errormodel.sources import (
+    COLUMN_FIELDS,
     DEFAULT_READING,
     DEFAULT_TEMPERATURES,
+    DEFAULT_TRUE_WEAR,
     MechanicalCoefficients,
     ThermalGeometry,
 )
@@ -57,42 +60,15 @@ def errormodel_config(
 ) -> EvaluationConfig:
     """An :class:`EvaluationConfig` from known coefficients and an ``[errormodel]`` table."""
     em = dict(em)
-    temperatures = dict(DEFAULT_TEMPERATURES)
-    if "temperatures" in em:
-        if not isinstance(em["temperatures"], dict):
-            raise ConfigError("expected a table point = column", source=source, key="errormodel.temperatures")
-        temperatures.update(em.pop("temperatures"))
-    reading = em.pop("reading", DEFAULT_READING)
-    true_wear = em.pop("true_wear", "mechanics.wear_depth_true")
-    columns = {k: em.pop(k) for k in ("load", "torque", "angle", "vibration") if k in em}
+    columns = _pop_columns(em, source)
     factors = em.pop("factors", list(PARTS))
     if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
         raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
     geometry_overrides = em.pop("geometry", {})
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
-    if not isinstance(geometry_overrides, dict) or not all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in geometry_overrides.values()
-    ):
-        raise ConfigError("expected a table of numbers", source=source, key="errormodel.geometry")
-    known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
-    unknown = sorted(set(geometry_overrides) - known)
-    if unknown:
-        raise ConfigError(f"unknown geometry value(s) {unknown}", source=source, key="errormodel.geometry")
-    if not all(isinstance(v, str) for v in columns.values()):
-        raise ConfigError(
-            "load, torque, angle, vibration must be column names",
-            source=source,
-            key="errormodel",
-        )
-    if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
-        raise ConfigError("reading and true_wear must be column names", source=source, key="errormodel")
-    if not all(isinstance(k, str) and isinstance(v, str) for k, v in temperatures.items()):
-        raise ConfigError(
-            "temperatures must map point names to column names",
-            source=source,
-            key="errormodel.temperatures",
-        )
+    _check_geometry(geometry_overrides, source)
+    _check_columns(columns, source)
     values.update(geometry_overrides)
     mechanics = None
     if all(f.name in values for f in fields(MechanicalCoefficients)):
@@ -101,17 +77,69 @@ def errormodel_config(
         geometry=ThermalGeometry.from_parameters(values, source=source),
         mechanics=mechanics,
         factors=tuple(factors),
-        **columns,
-        temperatures=temperatures,
-        reading=str(reading),
-        true_wear=str(true_wear) if true_wear else None,
+        **{k: v for k, v in columns.items() if k in _sensor_fields()},
+        temperatures=columns["temperatures"],
+        reading=str(columns["reading"]),
+        true_wear=str(columns["true_wear"]) if columns["true_wear"] else None,
         window_s=window_s,
     )
 
 
+def _sensor_fields() -> list[str]:
+    """The optional instruments' column fields (load, torque, angle, vibration), as the factors
+    declare them, in the order of :class:`~twin.errormodel.sources.Columns`."""
+    declared = {s for f in FACTORS for s in f.sensors}
+    return [name for name in COLUMN_FIELDS if name in declared]
+
+
+def _pop_columns(em: dict[str, Any], source: str) -> dict[str, Any]:
+    """Take the column names out of an ``[errormodel]`` table: the temperatures (merged over
+    the twin's), the reading, the true wear and those of the optional instruments given."""
+    temperatures = dict(DEFAULT_TEMPERATURES)
+    if "temperatures" in em:
+        if not isinstance(em["temperatures"], dict):
+            raise ConfigError("expected a table point = column", source=source, key="errormodel.temperatures")
+        temperatures.update(em.pop("temperatures"))
+    return {
+        "temperatures": temperatures,
+        "reading": em.pop("reading", DEFAULT_READING),
+        "true_wear": em.pop("true_wear", DEFAULT_TRUE_WEAR),
+        **{k: em.pop(k) for k in _sensor_fields() if k in em},
+    }
+
+
+def _check_columns(columns: dict[str, Any], source: str) -> None:
+    sensors = _sensor_fields()
+    if not all(isinstance(v, str) for k, v in columns.items() if k in sensors):
+        raise ConfigError(f"{', '.join(sensors)} must be column names", source=source, key="errormodel")
+    reading, true_wear = columns["reading"], columns["true_wear"]
+    if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
+        raise ConfigError("reading and true_wear must be column names", source=source, key="errormodel")
+    if not all(isinstance(k, str) and isinstance(v, str) for k, v in columns["temperatures"].items()):
+        raise ConfigError(
+            "temperatures must map point names to column names",
+            source=source,
+            key="errormodel.temperatures",
+        )
+
+
+def _check_geometry(overrides: Any, source: str) -> None:
+    """Check ``[errormodel] geometry``: a table of numbers naming known coefficients."""
+    if not isinstance(overrides, dict) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in overrides.values()
+    ):
+        raise ConfigError("expected a table of numbers", source=source, key="errormodel.geometry")
+    known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ConfigError(f"unknown geometry value(s) {unknown}", source=source, key="errormodel.geometry")
+
+
 def input_columns(cfg: EvaluationConfig) -> set[str]:
-    """The columns the error model and the plot read: the only ones a run keeps in memory."""
-    names = {*cfg.temperatures.values(), cfg.reading, cfg.load, cfg.torque, cfg.angle, cfg.vibration}
-    if cfg.true_wear:
-        names.add(cfg.true_wear)
-    return names
+    """The columns the error model and the plot read: the only ones a run keeps in memory.
+
+    Those of every factor, switched on or not (the temperatures and the sensors' presence are
+    reported either way), and the true wear.
+    """
+    names = {name for f in FACTORS for field in (*f.columns, *f.sensors) for name in cfg.names(field)}
+    return names | set(cfg.names("true_wear"))

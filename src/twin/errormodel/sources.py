@@ -19,7 +19,7 @@ that moves the clamp's contact face down (pole, clamp) is a negative ``p_dz`` of
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -37,6 +37,43 @@ DEFAULT_TEMPERATURES: dict[str, str] = {
     "room": "sensors.t_room_meas",
 }
 DEFAULT_READING = "sensors.probe_meas"
+DEFAULT_LOAD = "sensors.load_meas"
+DEFAULT_TORQUE = "sensors.torque_meas"
+DEFAULT_ANGLE = "sensors.angle_meas"
+DEFAULT_VIBRATION = "sensors.vibration_meas"
+DEFAULT_TRUE_WEAR = "mechanics.wear_depth_true"
+
+
+@dataclass(frozen=True)
+class Columns:
+    """Which column of the signal table holds each measured stream (a lab maps its own names).
+
+    Every field is a column name (``temperatures`` one per measuring point; ``true_wear`` is
+    ``None`` for measurements without a known wear). The error factors name the fields they
+    read (:mod:`twin.errormodel.factors`), so a field is declared here once and a factor
+    refers to it by name.
+    """
+
+    temperatures: Mapping[str, str] = field(default_factory=lambda: dict(DEFAULT_TEMPERATURES))
+    reading: str = DEFAULT_READING
+    load: str = DEFAULT_LOAD
+    torque: str = DEFAULT_TORQUE
+    angle: str = DEFAULT_ANGLE
+    vibration: str = DEFAULT_VIBRATION
+    true_wear: str | None = DEFAULT_TRUE_WEAR
+
+    def names(self, field_name: str) -> tuple[str, ...]:
+        """The column name(s) field ``field_name`` holds: all eight temperatures, one, or none."""
+        value = getattr(self, field_name)
+        if value is None:
+            return ()
+        if isinstance(value, Mapping):
+            return tuple(value.values())
+        return (value,)
+
+
+#: the fields of :class:`Columns`, in their declared order
+COLUMN_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Columns))
 
 
 @dataclass(frozen=True)
@@ -103,11 +140,6 @@ def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[
 
 
 # ----------------------------------------------------------------------------- the other factors
-
-DEFAULT_LOAD = "sensors.load_meas"
-DEFAULT_TORQUE = "sensors.torque_meas"
-DEFAULT_ANGLE = "sensors.angle_meas"
-DEFAULT_VIBRATION = "sensors.vibration_meas"
 
 
 @dataclass(frozen=True)

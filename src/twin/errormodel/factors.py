@@ -1,0 +1,406 @@
+"""The paper's five error factors, each declared once, in one list.
+
+Li et al. (2017) name five factors of the wear-depth detecting error: thermal dE_T, loading
+dE_F, fluctuating dE_V, positioning dE_G and (detecting) interference dE_I. Each becomes one
+:class:`Factor` in :data:`FACTORS`: its name, the paper's symbol, a label for plots, the
+sensor columns it reads (fields of :class:`~twin.errormodel.sources.Columns`, which
+``EvaluationConfig`` extends) and its function, from the :class:`Measured` streams to its
+per-sample :class:`Contribution` to e_z. :func:`~twin.errormodel.evaluate.evaluate`, the
+summary, the CSV columns (``evaluation_signals``), ``input_columns`` and the plots iterate
+the list, so a new factor is one more entry here (and its error parameters in
+:mod:`~twin.errormodel.sources`): nothing else to remember, and a declaration with a part
+missing fails when this module is imported, with a :class:`FactorError` that says what.
+
+A factor's function maps measured streams to the small-error parameters of the tester's
+bodies (the error characteristic matrices dT_ijp and dT_ijs) and through the characteristic
+matrices of both branches to e_z (:meth:`Measured.e_z`); interference is the exception, the
+spikes a robust filter takes out of the reading. The parts add up to e_z in the order of the
+list; the order is part of the numbers (a floating-point sum), so keep it.
+"""
+
+from __future__ import annotations
+
+import keyword
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from twin.errormodel.model import ErrorModel, Errors
+from twin.errormodel.sources import (
+    COLUMN_FIELDS,
+    MechanicalCoefficients,
+    fluctuating_errors,
+    hampel,
+    loading_errors,
+    positioning_errors,
+    thermal_errors,
+)
+from twin.errors import ConfigError, TwinError
+from twin.signals.table import SignalTable
+
+if TYPE_CHECKING:
+    from twin.errormodel.evaluate import EvaluationConfig
+
+__all__ = [
+    "FACTORS",
+    "FEM_GROUPS",
+    "PARTS",
+    "Contribution",
+    "Factor",
+    "FactorError",
+    "Measured",
+    "endpoints",
+    "factor",
+    "factor_list",
+]
+
+#: how the tester's bodies group into the paper's four FEM part results (facts.md 2)
+FEM_GROUPS: dict[str, tuple[str, ...]] = {
+    "bearing_block": ("bearing_block",),
+    "t_plate": ("testing_spindle", "spherical_plain_bearing", "t_plate"),
+    "detecting_frame": ("detecting_frame",),
+    "long_pole": ("contacting_clamp", "long_pole"),
+    "displacement_sensor": ("displacement_sensor",),
+}
+
+
+class FactorError(TwinError, TypeError):
+    """A factor declared with a part missing or wrong (a programming error, not bad input).
+
+    Raised when the list is built, that is when this module is imported, or when a factor's
+    function returns something its declaration does not promise.
+    """
+
+
+def _rel(y: np.ndarray) -> np.ndarray:
+    """The change of a stream since its first sample (the probe is zeroed at the start)."""
+    return y - y[0]
+
+
+def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, float]:
+    """Start and end value of ``y`` from lines through the first and last ``window_s``.
+
+    A least-squares line evaluated at the first (last) time averages the sensors' noise out
+    of a slow drift without the lag of a plain mean.
+    """
+
+    def fit(mask: np.ndarray, at: float) -> float:
+        if mask.sum() < 2:
+            return float(y[mask][0]) if mask.any() else float("nan")
+        _slope, icpt = np.polyfit(t[mask] - at, y[mask], 1)
+        return float(icpt)
+
+    return fit(t <= t[0] + window_s, float(t[0])), fit(t >= t[-1] - window_s, float(t[-1]))
+
+
+@dataclass(frozen=True)
+class Contribution:
+    """What one factor adds: its per-sample part of e_z (m) and, for a factor declared
+    ``by_body``, the same split over the tester's bodies (one array per body)."""
+
+    e_z: np.ndarray
+    by_body: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Measured:
+    """The measured streams of one evaluation, as the factors read them.
+
+    ``reading`` is the displacement probe's reading, ``cleaned`` the same after the robust
+    (Hampel) filter and ``spikes`` where that filter found interference; ``temperatures`` the
+    eight measuring points' readings. Built by :meth:`read`, which raises
+    :class:`~twin.errors.ConfigError` for a missing reading or temperature column.
+    """
+
+    table: SignalTable
+    cfg: EvaluationConfig
+    model: ErrorModel
+    reading: np.ndarray
+    cleaned: np.ndarray
+    spikes: np.ndarray
+    temperatures: dict[str, np.ndarray]
+
+    @classmethod
+    def read(cls, table: SignalTable, cfg: EvaluationConfig, model: ErrorModel) -> Measured:
+        """The streams of ``table``: the reading (filtered first: the positioning factor and the
+        reading change start from the cleaned reading) and the eight temperatures."""
+        if len(table.time) < 2:
+            raise ConfigError("the error model needs at least two samples", source="errormodel")
+        reading = _column(table, cfg.reading, "probe reading")
+        cleaned, spikes = hampel(reading, cfg.spike_half_window, cfg.spike_sigmas, cfg.spike_min)
+        temperatures = {
+            point: _column(table, col, f"temperature at '{point}'") for point, col in cfg.temperatures.items()
+        }
+        return cls(table, cfg, model, reading, cleaned, spikes, temperatures)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return len(self.table.time)
+
+    def sensor(self, name: str) -> np.ndarray | None:
+        """The stream of the column that field ``name`` names, or ``None`` where the table has
+        no such column (an instrument the tester lacks)."""
+        column = getattr(self.cfg, name)
+        return self.table.columns.get(column)
+
+    def drift(self, y: np.ndarray) -> float:
+        """End minus start value of ``y`` over the run (see :func:`endpoints`)."""
+        start, end = endpoints(self.table.time, y, self.cfg.window_s)
+        return end - start
+
+    def change(self, name: str) -> np.ndarray | None:
+        """:meth:`sensor` relative to its first sample."""
+        values = self.sensor(name)
+        return None if values is None else _rel(values)
+
+    @property
+    def coefficients(self) -> MechanicalCoefficients:
+        """The mechanical coefficients a lab identifies once (only ``identified`` factors ask)."""
+        if self.cfg.mechanics is None:
+            raise FactorError("a factor not declared 'identified' asked for the mechanical coefficients")
+        return self.cfg.mechanics
+
+    def e_z(self, errors: Errors) -> np.ndarray:
+        """First-order e_z of the small-error parameters ``errors``, one value per sample."""
+        if not errors:
+            return np.zeros(self.n)
+        return np.asarray(self.model.e_z(errors), dtype=float) * np.ones(self.n)
+
+    def zero(self, by_body: bool = False) -> Contribution:
+        """A factor's contribution while it is switched off or its cause is not measured."""
+        bodies = {b: np.zeros(self.n) for b in self.model.bodies} if by_body else {}
+        return Contribution(np.zeros(self.n), bodies)
+
+
+def _column(table: SignalTable, name: str, what: str) -> np.ndarray:
+    if name not in table:
+        raise ConfigError(f"no column '{name}' for the {what}", source="errormodel")
+    return table[name]
+
+
+#: a factor's function: the measured streams -> its contribution to e_z
+Function = Callable[[Measured], Contribution]
+#: what a factor adds to the summary, from its contribution (also the zero one of a factor
+#: switched off, so the summary has the same keys whichever factors run)
+Report = Callable[[Contribution, Measured], Mapping[str, Any]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Factor:
+    """One error factor of the paper, declared once; checked when constructed.
+
+    ``name`` names its column ``errormodel.e_<name>``, its key in the summary and in the
+    ``[errormodel] factors`` list; ``symbol`` is the paper's (``dE_T``); ``label`` the legend
+    of the plots. ``columns`` are the :class:`~twin.errormodel.sources.Columns` fields it
+    needs (the table must have them), ``sensors`` those it reads where present (an absent
+    instrument leaves its input out, and the summary's ``sensors_used`` says so). ``function``
+    computes the contribution. ``identified``: it needs the mechanical coefficients a lab
+    identifies once on its tester and contributes zero without them. ``by_body``: it also
+    records its contribution body by body (columns ``errormodel.<name>.<body>``). ``report``
+    adds figures of its own to the summary.
+    """
+
+    name: str
+    symbol: str
+    label: str
+    function: Function
+    columns: tuple[str, ...] = ()
+    sensors: tuple[str, ...] = ()
+    identified: bool = False
+    by_body: bool = False
+    report: Report | None = None
+
+    def __post_init__(self) -> None:
+        problems = [p for check in _CHECKS if (p := check(self))]
+        if problems:
+            raise FactorError(f"factor {self.name!r}: " + "; ".join(problems))
+
+    @property
+    def column(self) -> str:
+        """The column of its part of e_z."""
+        return f"errormodel.e_{self.name}"
+
+    def is_on(self, cfg: EvaluationConfig) -> bool:
+        """Whether ``cfg`` switches it on (its ``factors``): then its sensors count as used."""
+        return self.name in cfg.factors
+
+    def contribution(self, m: Measured) -> Contribution:
+        """Its contribution on ``m``, zero while switched off; checked against the declaration.
+
+        Raises :class:`~twin.errors.ConfigError` for a needed column the table lacks.
+        """
+        if not self.is_on(m.cfg) or (self.identified and m.cfg.mechanics is None):
+            return m.zero(self.by_body)
+        for name in self.columns:
+            for column in m.cfg.names(name):
+                _column(m.table, column, f"{self.name} factor ({name})")
+        c = self.function(m)
+        if np.shape(c.e_z) != (m.n,):
+            raise FactorError(f"factor {self.name!r} returned e_z of shape {np.shape(c.e_z)}, not ({m.n},)")
+        if set(c.by_body) != (set(m.model.bodies) if self.by_body else set()):
+            raise FactorError(
+                f"factor {self.name!r} returned values by body for {sorted(c.by_body)}, "
+                f"declared by_body={self.by_body} (bodies {list(m.model.bodies)})"
+            )
+        return c
+
+
+def _check_name(f: Factor) -> str | None:
+    ok = isinstance(f.name, str) and f.name.isidentifier() and f.name.islower()
+    return None if ok and not keyword.iskeyword(f.name) else "name must be a lower_snake identifier"
+
+
+def _check_texts(f: Factor) -> str | None:
+    if not all(isinstance(t, str) and t.strip() for t in (f.symbol, f.label)):
+        return "symbol and label must be non-empty strings"
+    return None
+
+
+def _check_columns(f: Factor) -> str | None:
+    declared = (*f.columns, *f.sensors)
+    if not isinstance(f.columns, tuple) or not isinstance(f.sensors, tuple) or not declared:
+        return "declares no columns (give 'columns' and/or 'sensors' as tuples of EvaluationConfig fields)"
+    unknown = [c for c in declared if c not in COLUMN_FIELDS]
+    if unknown:
+        return f"{unknown} are not column fields of EvaluationConfig (those are {list(COLUMN_FIELDS)})"
+    if len(set(declared)) != len(declared):
+        return "a column is declared twice"
+    return None
+
+
+def _check_callables(f: Factor) -> str | None:
+    if not callable(f.function):
+        return "has no function (measured streams -> contribution)"
+    if f.report is not None and not callable(f.report):
+        return "report must be callable or None"
+    return None
+
+
+_CHECKS: tuple[Callable[[Factor], str | None], ...] = (
+    _check_name,
+    _check_texts,
+    _check_columns,
+    _check_callables,
+)
+
+
+def factor_list(*factors: Factor) -> tuple[Factor, ...]:
+    """The factors as one tuple, refusing anything but factors and a name or symbol used twice."""
+    for f in factors:
+        if not isinstance(f, Factor):
+            raise FactorError(f"not a Factor: {f!r}")
+    for what in ("name", "symbol"):
+        values = [getattr(f, what) for f in factors]
+        twice = sorted({v for v in values if values.count(v) > 1})
+        if twice:
+            raise FactorError(f"factor {what}(s) {twice} declared twice")
+    return tuple(factors)
+
+
+def factor(name: str) -> Factor:
+    """The declared factor called ``name``."""
+    for f in FACTORS:
+        if f.name == name:
+            return f
+    raise KeyError(name)
+
+
+# ----------------------------------------------------------------------------- the five factors
+
+
+def _thermal(m: Measured) -> Contribution:
+    """Thermal dE_T: alpha L dT of every body from the temperature rises, plus the probe's
+    zero drift, through the positioning error matrices dT_ijp (``p_dz``)."""
+    rises = {point: _rel(y) for point, y in m.temperatures.items()}
+    by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.geometry))
+    return Contribution(np.sum(np.array(list(by_body.values())), axis=0), by_body)
+
+
+def _thermal_report(c: Contribution, m: Measured) -> dict[str, Any]:
+    """The thermal drift of the paper's FEM parts (mm), to set beside its Table 6 and text."""
+    return {
+        "thermal_parts_mm": {
+            g: sum(m.drift(c.by_body[b]) for b in bodies) * 1e3 for g, bodies in FEM_GROUPS.items()
+        }
+    }
+
+
+def _loading(m: Measured) -> Contribution:
+    """Loading dE_F: the load cell's change compresses the liner and the structure."""
+    load = m.change("load")
+    if load is None:
+        return m.zero()
+    return Contribution(m.e_z(loading_errors(load, m.coefficients)))
+
+
+def _fluctuating(m: Measured) -> Contribution:
+    """Fluctuating dE_V: the spindle's runout against the encoder's angle and the fixture's
+    vibration, through the kinematic error matrices dT_ijs (``s_dz``)."""
+    angle = m.sensor("angle")
+    angle0 = float(angle[0]) if angle is not None else 0.0
+    errors = fluctuating_errors(angle, angle0, m.change("vibration"), m.coefficients)
+    return Contribution(_rel(m.e_z(errors)))
+
+
+def _positioning(m: Measured) -> Contribution:
+    """Positioning dE_G: the probe's tilt from Z (cosine error of the cleaned reading change)
+    and the T-plate's rotation by the friction torque at the Abbe offset."""
+    errors = positioning_errors(_rel(m.cleaned), m.change("torque"), m.coefficients)
+    return Contribution(_rel(m.e_z(errors)))
+
+
+def _interference(m: Measured) -> Contribution:
+    """Detecting interference dE_I: the spikes the robust filter took out of the reading."""
+    return Contribution(m.reading - m.cleaned)
+
+
+#: the paper's five factors; e_z is their sum, in this order
+FACTORS: tuple[Factor, ...] = factor_list(
+    Factor(
+        name="thermal",
+        symbol="dE_T",
+        label="thermal dE_T",
+        columns=("temperatures",),
+        function=_thermal,
+        by_body=True,
+        report=_thermal_report,
+    ),
+    Factor(
+        name="loading",
+        symbol="dE_F",
+        label="loading dE_F",
+        sensors=("load",),
+        function=_loading,
+        identified=True,
+    ),
+    Factor(
+        name="fluctuating",
+        symbol="dE_V",
+        label="fluctuating dE_V",
+        sensors=("angle", "vibration"),
+        function=_fluctuating,
+        identified=True,
+    ),
+    Factor(
+        name="positioning",
+        symbol="dE_G",
+        label="positioning dE_G",
+        columns=("reading",),
+        sensors=("torque",),
+        function=_positioning,
+        identified=True,
+    ),
+    Factor(
+        name="interference",
+        symbol="dE_I",
+        label="interference dE_I",
+        columns=("reading",),
+        function=_interference,
+    ),
+)
+
+#: the factors' names in order (the parts of e_z)
+PARTS: tuple[str, ...] = tuple(f.name for f in FACTORS)
