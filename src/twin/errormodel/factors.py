@@ -260,9 +260,11 @@ def _check_texts(f: Factor) -> str | None:
 
 
 def _check_columns(f: Factor) -> str | None:
+    if not isinstance(f.columns, tuple) or not isinstance(f.sensors, tuple):
+        return "columns and sensors must be tuples of EvaluationConfig fields"
     declared = (*f.columns, *f.sensors)
-    if not isinstance(f.columns, tuple) or not isinstance(f.sensors, tuple) or not declared:
-        return "declares no columns (give 'columns' and/or 'sensors' as tuples of EvaluationConfig fields)"
+    if not declared:
+        return "declares no columns (give 'columns' and/or 'sensors': the EvaluationConfig fields it reads)"
     unknown = [c for c in declared if c not in COLUMN_FIELDS]
     if unknown:
         return f"{unknown} are not column fields of EvaluationConfig (those are {list(COLUMN_FIELDS)})"

@@ -1,0 +1,294 @@
+"""The error factors as one list: a declaration with a part missing fails when it is made, and
+every declared factor reaches the CSV columns, the summary and the columns a run keeps."""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import sys
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from twin.errormodel import factors as factors_module
+from twin.errormodel.config import errormodel_config, input_columns, model_defaults
+from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate, evaluation_signals
+from twin.errormodel.factors import FACTORS, Contribution, Factor, FactorError, Measured, factor, factor_list
+from twin.errormodel.sources import DEFAULT_TEMPERATURES
+from twin.errormodel.tester import tester_model
+from twin.errors import ConfigError, TwinError
+from twin.signals.table import Signal, SignalTable
+
+
+def _nothing(m: Measured) -> Contribution:
+    return m.zero()
+
+
+def declare(**overrides: Any) -> Factor:
+    """A complete declaration with ``overrides`` applied."""
+    parts: dict[str, Any] = {
+        "name": "creep",
+        "symbol": "dE_C",
+        "label": "creep dE_C",
+        "sensors": ("load",),
+        "function": _nothing,
+    }
+    parts.update(overrides)
+    return Factor(**parts)
+
+
+# ----------------------------------------------------------------------------- declarations
+
+
+def test_a_complete_declaration_is_accepted() -> None:
+    f = declare()
+    assert f.column == "errormodel.e_creep"
+    assert factor_list(*FACTORS, f)[-1] is f
+
+
+@pytest.mark.parametrize(
+    ("overrides", "says"),
+    [
+        ({"sensors": ()}, "declares no columns"),
+        ({"columns": (), "sensors": ()}, "declares no columns"),
+        ({"sensors": "load"}, "must be tuples"),
+        ({"function": None}, "has no function"),
+        ({"function": "loading_errors"}, "has no function"),
+        ({"sensors": ("load_cell",)}, "['load_cell'] are not column fields of EvaluationConfig"),
+        # a field of EvaluationConfig, but not a column: it names no stream to read
+        ({"columns": ("window_s",)}, "['window_s'] are not column fields"),
+        ({"columns": ("load",), "sensors": ("load",)}, "declared twice"),
+        ({"name": ""}, "lower_snake identifier"),
+        ({"name": "Creep"}, "lower_snake identifier"),
+        ({"name": "e z"}, "lower_snake identifier"),
+        ({"symbol": ""}, "symbol and label"),
+        ({"label": "  "}, "symbol and label"),
+        ({"report": "thermal_parts_mm"}, "report must be callable"),
+    ],
+)
+def test_a_declaration_with_a_part_missing_or_wrong_fails(overrides: dict[str, Any], says: str) -> None:
+    with pytest.raises(FactorError, match=r"factor .*" + re.escape(says)) as info:
+        declare(**overrides)
+    # a programming error, catchable as the project's error and as the builtin
+    assert isinstance(info.value, TwinError) and isinstance(info.value, TypeError)
+
+
+def test_a_declaration_without_a_function_cannot_be_made() -> None:
+    with pytest.raises(TypeError, match="function"):
+        Factor(name="creep", symbol="dE_C", label="creep", sensors=("load",))  # type: ignore[call-arg]
+
+
+def test_every_problem_of_a_declaration_is_named_at_once() -> None:
+    with pytest.raises(FactorError) as info:
+        declare(name="Creep", sensors=(), function=None)
+    text = str(info.value)
+    assert "identifier" in text and "no columns" in text and "no function" in text
+
+
+def test_a_name_or_symbol_used_twice_fails() -> None:
+    thermal = factor("thermal")
+    with pytest.raises(FactorError, match=r"name\(s\) \['thermal'\] declared twice"):
+        factor_list(*FACTORS, replace(thermal, symbol="dE_T2"))
+    with pytest.raises(FactorError, match=r"symbol\(s\) \['dE_T'\] declared twice"):
+        factor_list(*FACTORS, declare(symbol="dE_T"))
+    with pytest.raises(FactorError, match="not a Factor"):
+        factor_list(*FACTORS, "creep")  # type: ignore[arg-type]
+
+
+def test_a_bad_declaration_fails_when_its_module_is_imported(tmp_path: Path) -> None:
+    source = tmp_path / "my_factors.py"
+    source.write_text(
+        "from twin.errormodel.factors import FACTORS, Factor, factor_list\n"
+        "FACTORS_PLUS = factor_list(*FACTORS, Factor(name='creep', symbol='dE_C', label='creep',\n"
+        "                                         columns=('load_cell',), function=print))\n"
+    )
+    spec = importlib.util.spec_from_file_location("my_factors", source)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    with pytest.raises(FactorError, match="load_cell"):
+        spec.loader.exec_module(module)
+
+
+def test_the_list_is_the_papers_five_factors_in_order() -> None:
+    assert PARTS == ("thermal", "loading", "fluctuating", "positioning", "interference")
+    assert [f.symbol for f in FACTORS] == ["dE_T", "dE_F", "dE_V", "dE_G", "dE_I"]
+    assert all(f.symbol in f.label and f.name in f.label for f in FACTORS)
+    with pytest.raises(KeyError):
+        factor("creep")
+
+
+# ----------------------------------------------------------------------------- in use
+
+N = 600
+
+
+def streams(cfg: EvaluationConfig, *, without: tuple[str, ...] = ()) -> SignalTable:
+    """Ten minutes of every stream the factors read: warming, a load swing, a swinging spindle,
+    a vibrating fixture, a torque, two interference spikes on a wearing probe."""
+    t = np.arange(N, dtype=float)
+    table = SignalTable(t)
+    rng = np.random.default_rng(7)
+
+    def add(name: str, values: np.ndarray) -> None:
+        if name not in without:
+            table.add(Signal(name, "", "sensors"), values)
+
+    for i, column in enumerate(cfg.temperatures.values()):
+        add(column, 293.15 + (1 + 0.1 * i) * t / N)
+    reading = 4.8e-3 + 2e-6 * t / N + 1e-8 * rng.standard_normal(N)
+    reading[[200, 401]] += 30e-6
+    add(cfg.reading, reading)
+    add(cfg.load, 150e3 + 50e3 * np.sin(2 * np.pi * t / 300))
+    add(cfg.angle, np.deg2rad(25) * np.sin(2 * np.pi * t / 6))
+    add(cfg.vibration, 0.2e-6 * np.sin(2 * np.pi * t / 2.3))
+    add(cfg.torque, 40 + 5 * np.sin(2 * np.pi * t / 6))
+    assert cfg.true_wear is not None
+    add(cfg.true_wear, 2e-6 * t / N)
+    return table
+
+
+def config(**em: Any) -> EvaluationConfig:
+    # a tester with every mechanical cause present, so no part is zero by its coefficients
+    geometry = {
+        "spindle_runout": 3e-6,
+        "sensor_tilt": 0.05,
+        "abbe_offset": 0.05,
+        "tplate_rotation_compliance": 1e-6,
+    }
+    return errormodel_config(model_defaults(), {"geometry": geometry, **em}, "test", 60.0)
+
+
+def test_every_declared_factor_appears_in_the_columns_the_summary_and_the_inputs() -> None:
+    cfg = config()
+    table = streams(cfg)
+    signals = [s.name for s in evaluation_signals(with_true_wear=True)]
+    evaluated = evaluate(table, cfg)
+    kept = input_columns(cfg)
+    bodies = tester_model().bodies
+    for f in FACTORS:
+        assert f.column in signals and f.column in table, f.name
+        assert np.max(np.abs(table[f.column])) > 0, f"{f.name} recorded only zeros"
+        assert f.name in evaluated.parts
+        assert f.name in evaluated.summary["error_parts_mm"]
+        assert f.name in evaluated.summary["error_parts_rms_um"]
+        for field in (*f.columns, *f.sensors):
+            assert set(cfg.names(field)) <= kept, (f.name, field)
+        if f.by_body:
+            assert all(f"errormodel.{f.name}.{b}" in table for b in bodies)
+    assert list(evaluated.summary["error_parts_mm"]) == [*PARTS, "total"]
+    # the sensors' columns of the summary are those the factors declare, all present here
+    assert evaluated.summary["sensors_used"] == {
+        "load": True,
+        "torque": True,
+        "angle": True,
+        "vibration": True,
+    }
+    # no column of evaluation_signals is left out of the table, nor the other way round
+    assert {n for n in table.names() if n.startswith("errormodel.")} == set(signals)
+
+
+def test_e_z_is_the_sum_of_the_parts_in_the_order_of_the_list() -> None:
+    cfg = config()
+    evaluated = evaluate(streams(cfg), cfg)
+    stacked = np.sum(np.array([evaluated.parts[p] for p in PARTS]), axis=0)
+    np.testing.assert_array_equal(evaluated.e_z, stacked)
+    reversed_sum = np.sum(np.array([evaluated.parts[p] for p in reversed(PARTS)]), axis=0)
+    assert not np.array_equal(evaluated.e_z, reversed_sum)  # the order shows in the last bits
+
+
+def test_a_factor_switched_off_records_zeros_and_its_sensors_unused() -> None:
+    cfg = config(factors=["loading", "fluctuating", "interference"])
+    table = streams(cfg)
+    evaluated = evaluate(table, cfg)
+    for name in ("thermal", "positioning"):
+        assert not np.any(evaluated.parts[name])
+        assert evaluated.summary["error_parts_mm"][name] == 0.0
+    # thermal's body-by-body columns are still written (as zeros): the CSV has the same columns
+    assert all(not np.any(table[f"errormodel.thermal.{b}"]) for b in tester_model().bodies)
+    assert evaluated.summary["thermal_parts_mm"] == dict.fromkeys(factors_module.FEM_GROUPS, 0.0)
+    assert evaluated.summary["sensors_used"]["torque"] is False  # only positioning reads it
+    assert evaluated.summary["sensors_used"]["load"] is True
+
+
+def test_an_absent_instrument_is_left_out_and_reported() -> None:
+    cfg = config()
+    table = streams(cfg, without=(cfg.load, cfg.vibration))
+    evaluated = evaluate(table, cfg)
+    assert not np.any(evaluated.parts["loading"])
+    assert np.any(evaluated.parts["fluctuating"])  # the runout against the angle remains
+    assert evaluated.summary["sensors_used"] == {
+        "load": False,
+        "torque": True,
+        "angle": True,
+        "vibration": False,
+    }
+
+
+@pytest.fixture
+def with_creep(monkeypatch: pytest.MonkeyPatch) -> Iterator[Factor]:
+    """A sixth factor appended to the list, in every module that holds the list."""
+
+    def creep(m: Measured) -> Contribution:
+        load = m.change("load")
+        assert load is not None
+        return Contribution(1e-12 * load)
+
+    def report(c: Contribution, m: Measured) -> dict[str, Any]:
+        return {"creep_peak_um": float(np.max(np.abs(c.e_z))) * 1e6}
+
+    extra = declare(function=creep, report=report)
+    longer = factor_list(*FACTORS, extra)
+    holders = [
+        m
+        for name, m in sys.modules.items()
+        if name.startswith("twin.") and getattr(m, "FACTORS", None) is FACTORS
+    ]
+    assert len(holders) >= 3  # factors, evaluate, config
+    for module in holders:
+        monkeypatch.setattr(module, "FACTORS", longer)
+    yield extra
+
+
+def test_a_new_factor_is_declared_in_one_place(with_creep: Factor) -> None:
+    cfg = replace(config(), factors=(*PARTS, "creep"))
+    table = streams(cfg)
+    evaluated = evaluate(table, cfg)
+    assert "errormodel.e_creep" in [s.name for s in evaluation_signals(with_true_wear=False)]
+    np.testing.assert_array_equal(table["errormodel.e_creep"], 1e-12 * (table[cfg.load] - table[cfg.load][0]))
+    assert list(evaluated.summary["error_parts_mm"]) == [*PARTS, "creep", "total"]
+    assert evaluated.summary["creep_peak_um"] > 0
+    np.testing.assert_array_equal(
+        evaluated.e_z, np.sum(np.array([evaluated.parts[p] for p in (*PARTS, "creep")]), axis=0)
+    )
+
+
+def test_a_function_that_breaks_its_declaration_fails_loudly() -> None:
+    cfg = replace(config(), factors=("creep",))
+    m = Measured.read(streams(cfg), cfg, tester_model())
+    short = declare(function=lambda m: Contribution(np.zeros(m.n - 1)))
+    with pytest.raises(FactorError, match=r"e_z of shape \(599,\)"):
+        short.contribution(m)
+    # by_body declared but not given: its columns would be missing from the CSV
+    no_bodies = declare(function=lambda m: Contribution(np.zeros(m.n)), by_body=True)
+    with pytest.raises(FactorError, match="by body"):
+        no_bodies.contribution(m)
+
+
+def test_a_needed_column_missing_from_the_table_names_the_factor() -> None:
+    cfg = config()
+    m = Measured.read(streams(cfg, without=(cfg.torque,)), cfg, tester_model())
+    needs_torque = declare(columns=("torque",), sensors=())
+    with pytest.raises(ConfigError, match=re.escape("no column 'sensors.torque_meas' for the creep factor")):
+        needs_torque.contribution(replace(m, cfg=replace(cfg, factors=("creep",))))
+
+
+def test_the_default_columns_are_the_twins() -> None:
+    cfg = config()
+    assert dict(cfg.temperatures) == DEFAULT_TEMPERATURES
+    assert cfg.names("temperatures") == tuple(DEFAULT_TEMPERATURES.values())
+    assert cfg.names("true_wear") == ("mechanics.wear_depth_true",)
+    assert replace(cfg, true_wear=None).names("true_wear") == ()
