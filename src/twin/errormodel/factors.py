@@ -359,50 +359,22 @@ def _interference(m: Measured) -> Contribution:
     return Contribution(m.reading - m.cleaned)
 
 
+# A table, formatted by hand: the five factors side by side, in the paper's order.
+# fmt: off
 #: the paper's five factors; e_z is their sum, in this order
 FACTORS: tuple[Factor, ...] = factor_list(
-    Factor(
-        name="thermal",
-        symbol="dE_T",
-        label="thermal dE_T",
-        columns=("temperatures",),
-        function=_thermal,
-        by_body=True,
-        report=_thermal_report,
-    ),
-    Factor(
-        name="loading",
-        symbol="dE_F",
-        label="loading dE_F",
-        sensors=("load",),
-        function=_loading,
-        identified=True,
-    ),
-    Factor(
-        name="fluctuating",
-        symbol="dE_V",
-        label="fluctuating dE_V",
-        sensors=("angle", "vibration"),
-        function=_fluctuating,
-        identified=True,
-    ),
-    Factor(
-        name="positioning",
-        symbol="dE_G",
-        label="positioning dE_G",
-        columns=("reading",),
-        sensors=("torque",),
-        function=_positioning,
-        identified=True,
-    ),
-    Factor(
-        name="interference",
-        symbol="dE_I",
-        label="interference dE_I",
-        columns=("reading",),
-        function=_interference,
-    ),
+    Factor(name="thermal", symbol="dE_T", label="thermal ΔE_T", function=_thermal,
+           columns=("temperatures",), by_body=True, report=_thermal_report),
+    Factor(name="loading", symbol="dE_F", label="loading ΔE_F", function=_loading,
+           sensors=("load",), identified=True),
+    Factor(name="fluctuating", symbol="dE_V", label="fluctuating ΔE_V", function=_fluctuating,
+           sensors=("angle", "vibration"), identified=True),
+    Factor(name="positioning", symbol="dE_G", label="positioning ΔE_G", function=_positioning,
+           columns=("reading",), sensors=("torque",), identified=True),
+    Factor(name="interference", symbol="dE_I", label="interference ΔE_I", function=_interference,
+           columns=("reading",)),
 )
+# fmt: on
 
 #: the factors' names in order (the parts of e_z)
 PARTS: tuple[str, ...] = tuple(f.name for f in FACTORS)

@@ -30,13 +30,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.errormodel.topology import Topology
-from twin.errormodel.transforms import (
-    ERROR_PARAMETERS,
-    apply,
-    exact_error_matrix,
-    small_error_matrix,
-)
+from twin.errormodel.topology import Body, Topology
+from twin.errormodel.transforms import ERROR_PARAMETERS, apply, error_matrix
 from twin.errors import ConfigError
 
 __all__ = [
@@ -239,7 +234,6 @@ class BranchModel:
     def _actual(
         self, kins: list[Array], errors: Mapping[int, list[tuple[int, int, Array]]], exact: bool
     ) -> Array:
-        build = exact_error_matrix if exact else small_error_matrix
         v = self.point
         for j in reversed(range(len(self.chain) - 1)):
             params: list[list[Array | float]] = [[0.0] * 6, [0.0] * 6]
@@ -248,10 +242,10 @@ class BranchModel:
                 params[kind][q] = x
                 given[kind] = True
             if given[1]:
-                v = apply(build(*params[1]), v)
+                v = apply(error_matrix(*params[1], exact=exact), v)
             v = apply(kins[j], v)
             if given[0]:
-                v = apply(build(*params[0]), v)
+                v = apply(error_matrix(*params[0], exact=exact), v)
             v = apply(self._positioning[j], v)
         return v
 
@@ -430,34 +424,22 @@ def _prepare(
     motion: Motion | None,
     defaults: Mapping[str, float],
 ) -> _Inputs:
-    """Validate errors and motion and find the sample count ``N`` (``None`` if all scalar)."""
+    """Validate errors and motion and find the sample count ``N`` (``None`` if all scalar).
+
+    Every per-sample input (a motion variable, an error parameter, a stack of ideal kinematic
+    characteristic matrices) must have the same ``N``; the first of each length is named.
+    """
     lengths: dict[int, str] = {}
-    mot: dict[str, Array] = {}
-    for name, value in {**defaults, **(motion or {})}.items():
-        mot[name] = _as_samples(value, f"motion variable '{name}'")
-        if mot[name].ndim:
-            lengths.setdefault(mot[name].shape[0], f"motion variable '{name}'")
+    mot = {
+        name: _samples(value, f"motion variable '{name}'", lengths)
+        for name, value in {**defaults, **(motion or {})}.items()
+    }
     errs: dict[int, list[tuple[int, int, Array]]] = {}
     for key, params in (errors or {}).items():
         body = topology.body(key)
-        if body.lower is None:
-            raise ConfigError(f"body '{body.name}' is the base (the reference): it takes no errors")
         if body.index in errs:
             raise ConfigError(f"errors of body '{body.name}' given twice")
-        if not isinstance(params, Mapping):
-            raise ConfigError(f"errors of body '{body.name}' must map parameter names to values")
-        entries = []
-        for pkey, value in params.items():
-            if pkey not in ERROR_KEYS:
-                raise ConfigError(
-                    f"body '{body.name}': unknown error parameter {pkey!r} (expected p_dx..p_ez or s_dx..s_ez)"
-                )
-            x = _as_samples(value, f"body '{body.name}' {pkey}")
-            if x.ndim:
-                lengths.setdefault(x.shape[0], f"body '{body.name}' {pkey}")
-            kind, q = pkey.split("_")
-            entries.append((KINDS.index(kind), ERROR_PARAMETERS.index(q), x))
-        errs[body.index] = entries
+        errs[body.index] = _body_errors(body, params, lengths)
     for b in branches:
         n_stack = b._stack_length()
         if n_stack is not None:
@@ -465,8 +447,34 @@ def _prepare(
     if len(lengths) > 1:
         detail = ", ".join(f"{who}: {n}" for n, who in lengths.items())
         raise ConfigError(f"inconsistent sample counts ({detail})")
-    n = next(iter(lengths), None)
-    return _Inputs(n, mot, errs)
+    return _Inputs(next(iter(lengths), None), mot, errs)
+
+
+def _samples(value: ArrayLike, what: str, lengths: dict[int, str]) -> Array:
+    """:func:`_as_samples`, noting the length of a per-sample array (and who has it first)."""
+    x = _as_samples(value, what)
+    if x.ndim:
+        lengths.setdefault(x.shape[0], what)
+    return x
+
+
+def _body_errors(body: Body, params: Any, lengths: dict[int, str]) -> list[tuple[int, int, Array]]:
+    """One body's error parameters as ``(kind, parameter, values)``: kind 0 is its positioning
+    error matrix dT_ijp (``p_*``), 1 its kinematic error matrix dT_ijs (``s_*``)."""
+    if body.lower is None:
+        raise ConfigError(f"body '{body.name}' is the base (the reference): it takes no errors")
+    if not isinstance(params, Mapping):
+        raise ConfigError(f"errors of body '{body.name}' must map parameter names to values")
+    entries = []
+    for pkey, value in params.items():
+        if pkey not in ERROR_KEYS:
+            raise ConfigError(
+                f"body '{body.name}': unknown error parameter {pkey!r} (expected p_dx..p_ez or s_dx..s_ez)"
+            )
+        kind, q = pkey.split("_")
+        x = _samples(value, f"body '{body.name}' {pkey}", lengths)
+        entries.append((KINDS.index(kind), ERROR_PARAMETERS.index(q), x))
+    return entries
 
 
 class ErrorModel:

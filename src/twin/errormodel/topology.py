@@ -41,6 +41,57 @@ def _raise(problems: list[str], source: str | None) -> None:
     raise errors[0] if len(errors) == 1 else ConfigErrors(errors)
 
 
+def _by_index(bodies: Iterable[Body]) -> tuple[dict[int, Body], list[str]]:
+    """The bodies by index, and the problems of their indices and names."""
+    problems: list[str] = []
+    by_index: dict[int, Body] = {}
+    names: set[str] = set()
+    for b in bodies:
+        if isinstance(b.index, bool) or not isinstance(b.index, int) or b.index < 1:
+            problems.append(f"body '{b.name}': index must be a positive integer, got {b.index!r}")
+            continue
+        if b.index in by_index:
+            problems.append(f"duplicate body index {b.index} ('{by_index[b.index].name}' and '{b.name}')")
+            continue
+        if not b.name or b.name in names:
+            problems.append(f"body {b.index}: name {b.name!r} is empty or used twice")
+        names.add(b.name)
+        by_index[b.index] = b
+    return by_index, problems
+
+
+def _base_problems(by_index: dict[int, Body]) -> list[str]:
+    """Exactly one base (no lower body), numbered 1 as in Huston's numbering."""
+    bases = [b for b in by_index.values() if b.lower is None]
+    if not bases:
+        return ["no base body (exactly one body must have no lower body)"]
+    if len(bases) > 1:
+        return [f"several base bodies: {sorted(b.index for b in bases)} (exactly one allowed)"]
+    if bases[0].index != BASE_INDEX:
+        return [f"the base body must have index {BASE_INDEX} (Huston numbering), got {bases[0].index}"]
+    return []
+
+
+def _cycles(by_index: dict[int, Body]) -> list[str]:
+    """Walk every body down its lower bodies; a walk that revisits a body is a cycle (it never
+    reaches the base). Each cycle is reported once, from its smallest index, whichever body
+    found it."""
+    cycles: dict[frozenset[int], str] = {}
+    for b in by_index.values():
+        seen = [b.index]
+        k = b.lower
+        while k is not None and k not in seen:
+            seen.append(k)
+            k = by_index[k].lower
+        if k is not None:
+            members = seen[seen.index(k) :]
+            start = members.index(min(members))
+            members = members[start:] + members[:start]
+            text = " -> ".join(str(i) for i in [*members, members[0]])
+            cycles.setdefault(frozenset(members), f"cycle in lower bodies: {text}")
+    return list(cycles.values())
+
+
 class Topology:
     """A tree of bodies rooted at the base body 1, validated when built.
 
@@ -49,54 +100,16 @@ class Topology:
     """
 
     def __init__(self, bodies: Iterable[Body], *, source: str | None = None) -> None:
-        bodies = list(bodies)
-        problems: list[str] = []
-        by_index: dict[int, Body] = {}
-        names: set[str] = set()
-        for b in bodies:
-            if isinstance(b.index, bool) or not isinstance(b.index, int) or b.index < 1:
-                problems.append(f"body '{b.name}': index must be a positive integer, got {b.index!r}")
-                continue
-            if b.index in by_index:
-                problems.append(f"duplicate body index {b.index} ('{by_index[b.index].name}' and '{b.name}')")
-                continue
-            if not b.name or b.name in names:
-                problems.append(f"body {b.index}: name {b.name!r} is empty or used twice")
-            names.add(b.name)
-            by_index[b.index] = b
-        bases = [b for b in by_index.values() if b.lower is None]
-        if not bases:
-            problems.append("no base body (exactly one body must have no lower body)")
-        elif len(bases) > 1:
-            problems.append(f"several base bodies: {sorted(b.index for b in bases)} (exactly one allowed)")
-        elif bases[0].index != BASE_INDEX:
-            problems.append(
-                f"the base body must have index {BASE_INDEX} (Huston numbering), got {bases[0].index}"
-            )
-        for b in by_index.values():
-            if b.lower is not None and b.lower not in by_index:
-                problems.append(f"body {b.index} ('{b.name}'): unknown lower body {b.lower}")
+        by_index, problems = _by_index(bodies)
+        problems += _base_problems(by_index)
+        problems += [
+            f"body {b.index} ('{b.name}'): unknown lower body {b.lower}"
+            for b in by_index.values()
+            if b.lower is not None and b.lower not in by_index
+        ]
         _raise(problems, source)
-
-        # Walk every body down to the base; a walk that revisits a body is a cycle (it never reaches
-        # the base). Only after this check is L^n(k) well defined for all n.
-        cycles: dict[frozenset[int], str] = {}
-        for b in by_index.values():
-            seen = [b.index]
-            k = b.lower
-            while k is not None:
-                if k in seen:
-                    members = seen[seen.index(k) :]
-                    # Report each cycle once, starting at its smallest index, whichever body found it.
-                    start = members.index(min(members))
-                    members = members[start:] + members[:start]
-                    text = " -> ".join(str(i) for i in [*members, members[0]])
-                    cycles.setdefault(frozenset(members), f"cycle in lower bodies: {text}")
-                    break
-                seen.append(k)
-                k = by_index[k].lower
-        _raise(list(cycles.values()), source)
-
+        # Only without cycles is L^n(k) well defined for all n.
+        _raise(_cycles(by_index), source)
         self._bodies = dict(sorted(by_index.items()))
         self._by_name = {b.name: b for b in self._bodies.values()}
 

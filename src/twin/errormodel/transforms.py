@@ -17,6 +17,7 @@ __all__ = [
     "ERROR_PARAMETERS",
     "apply",
     "error_generators",
+    "error_matrix",
     "exact_error_matrix",
     "identity",
     "rotation_x",
@@ -84,51 +85,51 @@ def rotation_z(angle: ArrayLike) -> Matrix:
     return _rotation(angle, 0, 1)
 
 
-def small_error_matrix(
+def error_matrix(
     dx: ArrayLike = 0.0,
     dy: ArrayLike = 0.0,
     dz: ArrayLike = 0.0,
     ex: ArrayLike = 0.0,
     ey: ArrayLike = 0.0,
     ez: ArrayLike = 0.0,
+    *,
+    exact: bool = False,
 ) -> Matrix:
-    """First-order error characteristic matrix (small-angle rotation, as in the MBS literature).
+    """An error characteristic matrix (the paper's dT_ijp or dT_ijs) from its six parameters.
 
-    ``[[1, -ez, ey, dx], [ez, 1, -ex, dy], [-ey, ex, 1, dz], [0, 0, 0, 1]]``. Exactly ``I`` when all
-    six parameters are zero; linear in them, so ``small_error_matrix(...) - I`` is the sum of
-    ``parameter * generator`` (see :func:`error_generators`).
+    ``exact=False``, the paper's first-order matrix (small-angle rotation, as in the MBS
+    literature): ``[[1, -ez, ey, dx], [ez, 1, -ex, dy], [-ey, ex, 1, dz], [0, 0, 0, 1]]``. Exactly
+    ``I`` when all six parameters are zero; linear in them, so ``error_matrix(...) - I`` is the
+    sum of ``parameter * generator`` (see :func:`error_generators`).
+
+    ``exact=True``, a full rotation: ``translation(dx, dy, dz) @ Rz(ez) @ Ry(ey) @ Rx(ex)``. It
+    agrees with the first-order matrix to first order; use it to check how much the dropped
+    higher-order terms matter.
     """
     (dx, dy, dz, ex, ey, ez), m = _stack(dx, dy, dz, ex, ey, ez)
-    m[..., 0, 1] = -ez
-    m[..., 0, 2] = ey
+    (_exact_rotation if exact else _small_rotation)(m, ex, ey, ez)
     m[..., 0, 3] = dx
-    m[..., 1, 0] = ez
-    m[..., 1, 2] = -ex
     m[..., 1, 3] = dy
-    m[..., 2, 0] = -ey
-    m[..., 2, 1] = ex
     m[..., 2, 3] = dz
     return m
 
 
-def exact_error_matrix(
-    dx: ArrayLike = 0.0,
-    dy: ArrayLike = 0.0,
-    dz: ArrayLike = 0.0,
-    ex: ArrayLike = 0.0,
-    ey: ArrayLike = 0.0,
-    ez: ArrayLike = 0.0,
-) -> Matrix:
-    """Error matrix with a full rotation: ``translation(dx, dy, dz) @ Rz(ez) @ Ry(ey) @ Rx(ex)``.
+def _small_rotation(m: Matrix, ex: Matrix, ey: Matrix, ez: Matrix) -> None:
+    """Fill the rotation block of the identity stack ``m`` with I + [e]x (first order)."""
+    m[..., 0, 1] = -ez
+    m[..., 0, 2] = ey
+    m[..., 1, 0] = ez
+    m[..., 1, 2] = -ex
+    m[..., 2, 0] = -ey
+    m[..., 2, 1] = ex
 
-    Agrees with :func:`small_error_matrix` to first order; use it to check how much the dropped
-    higher-order terms matter.
-    """
-    (dx, dy, dz, ex, ey, ez), m = _stack(dx, dy, dz, ex, ey, ez)
+
+def _exact_rotation(m: Matrix, ex: Matrix, ey: Matrix, ez: Matrix) -> None:
+    """Fill the rotation block of ``m`` with Rz(ez) @ Ry(ey) @ Rx(ex), written out so a stack
+    of 1e6 matrices costs a few array operations."""
     ca, sa = np.cos(ex), np.sin(ex)
     cb, sb = np.cos(ey), np.sin(ey)
     cc, sc = np.cos(ez), np.sin(ez)
-    # Rz @ Ry @ Rx written out, so a stack of 1e6 matrices costs a few array operations.
     m[..., 0, 0] = cc * cb
     m[..., 0, 1] = cc * sb * sa - sc * ca
     m[..., 0, 2] = cc * sb * ca + sc * sa
@@ -138,14 +139,20 @@ def exact_error_matrix(
     m[..., 2, 0] = -sb
     m[..., 2, 1] = cb * sa
     m[..., 2, 2] = cb * ca
-    m[..., 0, 3] = dx
-    m[..., 1, 3] = dy
-    m[..., 2, 3] = dz
-    return m
+
+
+def small_error_matrix(*params: ArrayLike, **named: ArrayLike) -> Matrix:
+    """The first-order error matrix: :func:`error_matrix` with ``exact=False``."""
+    return error_matrix(*params, **named)
+
+
+def exact_error_matrix(*params: ArrayLike, **named: ArrayLike) -> Matrix:
+    """The error matrix with a full rotation: :func:`error_matrix` with ``exact=True``."""
+    return error_matrix(*params, exact=True, **named)
 
 
 def error_generators() -> Matrix:
-    """The six 4x4 generators ``G_q`` with ``small_error_matrix(*x) = I + sum_q x_q G_q``.
+    """The six 4x4 generators ``G_q`` with ``error_matrix(*x) = I + sum_q x_q G_q``.
 
     Shape ``(6, 4, 4)``, ordered as :data:`ERROR_PARAMETERS`.
     """
@@ -153,7 +160,7 @@ def error_generators() -> Matrix:
     for q in range(6):
         x = np.zeros(6)
         x[q] = 1.0
-        g[q] = small_error_matrix(*x) - np.eye(4)
+        g[q] = error_matrix(*x) - np.eye(4)
     return g
 
 
