@@ -6,10 +6,11 @@ dE_F, fluctuating dE_V, positioning dE_G and (detecting) interference dE_I. Each
 sensor columns it reads (fields of :class:`~twin.errormodel.sources.Columns`, which
 ``EvaluationConfig`` extends) and its function, from the :class:`Measured` streams to its
 per-sample :class:`Contribution` to e_z. :func:`~twin.errormodel.evaluate.evaluate`, the
-summary, the CSV columns (``evaluation_signals``), ``input_columns`` and the plots iterate
-the list, so a new factor is one more entry here (and its error parameters in
-:mod:`~twin.errormodel.sources`): nothing else to remember, and a declaration with a part
-missing fails when this module is imported, with a :class:`FactorError` that says what.
+summary it builds, the CSV columns (``evaluation_signals``) and ``input_columns`` iterate the
+list, and a plot finds each part's column and label here, so a new factor is one more entry
+(with its error parameters in :mod:`~twin.errormodel.sources`, and a new field of ``Columns``
+if it reads a new instrument): nothing else to remember. A declaration with a part missing
+fails when this module is imported, with a :class:`FactorError` that says what.
 
 A factor's function maps measured streams to the small-error parameters of the tester's
 bodies (the error characteristic matrices dT_ijp and dT_ijs) and through the characteristic

@@ -1,12 +1,20 @@
 """Error sources: from measured streams to the error parameters of the tester's bodies.
 
-The comprehensive error model needs, per body, its small-error parameters (dx .. ez). Each of
-the paper's five error factors maps measured quantities to some of them:
+The comprehensive error model needs, per body, its small-error parameters (dx .. ez of the
+positioning and kinematic error characteristic matrices dT_ijp, dT_ijs). Each of the paper's
+five error factors (declared in :mod:`twin.errormodel.factors`) maps measured quantities to
+some of them:
 
-- thermal dE_T: ``alpha * L * dT`` of every body from the eight temperature sensors (this
-  module), plus the probe's own zero drift with temperature (body 7);
-- loading dE_F, fluctuating dE_V, positioning dE_G, interference dE_I: added with the
-  loading/oscillation models (their parts are zero while their causes are absent).
+- thermal dE_T: ``alpha * L * dT`` of every body from the eight temperature sensors, plus the
+  probe's own zero drift with temperature (body 7): :func:`thermal_errors`;
+- loading dE_F: the load cell times the loading chain's compliance: :func:`loading_errors`;
+- fluctuating dE_V: the spindle's runout against the angle encoder, the vibration pickup:
+  :func:`fluctuating_errors`;
+- positioning dE_G: the probe's tilt (cosine error) and the T-plate's rotation by the friction
+  torque at the Abbe offset: :func:`positioning_errors`;
+- interference dE_I: no body moves; :func:`hampel` separates the spikes from the reading.
+
+:class:`Columns` says which column of a table holds each of those streams.
 
 Only measured streams are used (the temperature sensors' readings, never the FMUs' node
 temperatures), so the same code runs on a lab's CSV of real measurements.
