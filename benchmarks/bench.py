@@ -133,11 +133,14 @@ def master_loops() -> list[str | None]:
     loop was ``"reference"`` and becomes ``"python"``) without an edit; [None] when Master has
     no ``loop`` keyword (its only loop).
     """
-    if "loop" not in inspect.signature(Master).parameters:
+    parameter = inspect.signature(Master).parameters.get("loop")
+    if parameter is None:
         return [None]
-    values = [
-        v for v in typing.get_args(typing.get_type_hints(Master.__init__)["loop"]) if isinstance(v, str)
-    ]
+    try:
+        hint = typing.get_type_hints(Master.__init__)["loop"]
+    except NameError:  # another annotation names a TYPE_CHECKING-only import: look the alias up
+        hint = getattr(sys.modules[Master.__module__], str(parameter.annotation), None)
+    values = [v for v in typing.get_args(hint) if isinstance(v, str)]
     if not values:
         raise RuntimeError("Master's loop keyword is not annotated with a Literal of its values")
     return values
