@@ -34,6 +34,7 @@ import sys
 import tempfile
 import time
 import traceback
+import typing
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -126,10 +127,23 @@ def libcosim_version() -> str | None:
 
 
 def master_loops() -> list[str | None]:
-    """['fast', 'reference'] if Master takes a ``loop`` keyword, else [None] (its only loop)."""
-    if "loop" in inspect.signature(Master).parameters:
-        return ["fast", "reference"]
-    return [None]
+    """The values of Master's ``loop`` keyword, read from its type (``Literal[...]``), else [None].
+
+    Read rather than written here, so the benchmark follows a renamed loop (the pure-Python
+    loop was ``"reference"`` and becomes ``"python"``) without an edit; [None] when Master has
+    no ``loop`` keyword (its only loop).
+    """
+    parameter = inspect.signature(Master).parameters.get("loop")
+    if parameter is None:
+        return [None]
+    try:
+        hint = typing.get_type_hints(Master.__init__)["loop"]
+    except NameError:  # another annotation names a TYPE_CHECKING-only import: look the alias up
+        hint = getattr(sys.modules[Master.__module__], str(parameter.annotation), None)
+    values = [v for v in typing.get_args(hint) if isinstance(v, str)]
+    if not values:
+        raise RuntimeError("Master's loop keyword is not annotated with a Literal of its values")
+    return values
 
 
 def loop_label(loop: str | None) -> str:
@@ -422,24 +436,27 @@ def zero_unsafe(scenario: Scenario) -> list[Any]:
     return out
 
 
-def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) -> dict[str, Any]:
-    """The scenario in libcosimpy: same FMU files, parameters, seeds, connections, constant inputs.
-
-    ``mode="connect"`` makes every connection; ``mode="initial"`` replaces the
-    :func:`zero_unsafe` ones by the destination's initial value (the source's value after
-    initialization), so libcosim can initialize; the other connections stay.
-    """
+def _libcosim_initial_value(execution: Any, idx: int, ref: int, vtype: int, value: Any) -> bool:
+    """Set one start value of a libcosim slave through the setter of the variable's type."""
     from libcosimpy.CosimEnums import CosimVariableType
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimObserver import CosimObserver
+
+    if vtype == CosimVariableType.BOOLEAN.value:
+        return execution.boolean_initial_value(idx, ref, bool(value))
+    if vtype == CosimVariableType.INTEGER.value:
+        return execution.integer_initial_value(idx, ref, int(value))
+    return execution.real_initial_value(idx, ref, float(value))
+
+
+def _libcosim_add_slaves(
+    execution: Any, scenario: Scenario, seeder: Master
+) -> tuple[list[Any], dict[str, int], dict[str, Any]]:
+    """Every FMU of the scenario as a libcosim slave with its parameters (and the master's seeds).
+
+    Returns the slaves (to keep them alive), each instance's slave index and its variables
+    (name -> (reference, type)).
+    """
     from libcosimpy.CosimSlave import CosimLocalSlave
 
-    if scenario.events:
-        raise RuntimeError("scenario events are not translated to libcosim")
-    unsafe = set(zero_unsafe(scenario)) if mode == "initial" else set()
-    seeder = Master(scenario)  # only for its per-instance seed rule
-    t0 = time.perf_counter()
-    execution = CosimExecution.from_step_size(step_size=scenario.step_ns)
     keep, index, refs = [], {}, {}
     for i, spec in enumerate(scenario.fmus):
         if spec.period_ns != scenario.step_ns:
@@ -453,15 +470,20 @@ def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) 
         if "seed" in refs[spec.name] and "seed" not in values:
             values["seed"] = seeder._instance_seed(i)
         for name, value in values.items():
-            ref, vtype = refs[spec.name][name]
-            if vtype == CosimVariableType.BOOLEAN.value:
-                ok = execution.boolean_initial_value(idx, ref, bool(value))
-            elif vtype == CosimVariableType.INTEGER.value:
-                ok = execution.integer_initial_value(idx, ref, int(value))
-            else:
-                ok = execution.real_initial_value(idx, ref, float(value))
-            if not ok:
+            if not _libcosim_initial_value(execution, idx, *refs[spec.name][name], value):
                 raise RuntimeError(f"libcosim refused {spec.name}.{name} = {value!r}")
+    return keep, index, refs
+
+
+def _libcosim_wire(
+    execution: Any,
+    scenario: Scenario,
+    index: dict[str, int],
+    refs: dict[str, Any],
+    unsafe: set[Any],
+    init_outputs: dict[str, float],
+) -> None:
+    """Constant inputs as initial values, then the connections (the unsafe ones as initial values)."""
     for p in scenario.profiles:
         if p.kind != "constant":
             raise RuntimeError(f"input {p.target}: only constant profiles are translated to libcosim")
@@ -475,12 +497,14 @@ def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) 
             execution.connect_real_variables(index[si], refs[si][sv][0], index[di], refs[di][dv][0]) is False
         ):
             raise RuntimeError(f"libcosim refused connection {c.src} -> {c.dst}")
-    observer = CosimObserver.create_last_value()
-    execution.add_observer(observer)
-    t1 = time.perf_counter()
-    if not execution.step(scenario.duration_ns // scenario.step_ns):
-        raise RuntimeError("libcosim execution failed")
-    t2 = time.perf_counter()
+
+
+def _libcosim_last_outputs(
+    observer: Any, scenario: Scenario, index: dict[str, int], refs: dict[str, Any]
+) -> dict[str, float]:
+    """The last value of every Real output, as 'instance.variable' -> value."""
+    from libcosimpy.CosimEnums import CosimVariableType
+
     last = {}
     for spec in scenario.fmus:
         outs = [
@@ -490,6 +514,37 @@ def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) 
         ]
         vals = observer.last_real_values(index[spec.name], [refs[spec.name][k][0] for k in outs])
         last.update({f"{spec.name}.{k}": float(v) for k, v in zip(outs, vals, strict=True)})
+    return last
+
+
+def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) -> dict[str, Any]:
+    """The scenario in libcosimpy: same FMU files, parameters, seeds, connections, constant inputs.
+
+    ``mode="connect"`` makes every connection; ``mode="initial"`` replaces the
+    :func:`zero_unsafe` ones by the destination's initial value (the source's value after
+    initialization), so libcosim can initialize; the other connections stay.
+    """
+    # imported before the clock starts (the helpers' own imports then cost nothing)
+    from libcosimpy.CosimEnums import CosimVariableType  # noqa: F401
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave  # noqa: F401
+
+    if scenario.events:
+        raise RuntimeError("scenario events are not translated to libcosim")
+    unsafe = set(zero_unsafe(scenario)) if mode == "initial" else set()
+    seeder = Master(scenario)  # only for its per-instance seed rule
+    t0 = time.perf_counter()
+    execution = CosimExecution.from_step_size(step_size=scenario.step_ns)
+    _keep, index, refs = _libcosim_add_slaves(execution, scenario, seeder)
+    _libcosim_wire(execution, scenario, index, refs, unsafe, init_outputs)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    t1 = time.perf_counter()
+    if not execution.step(scenario.duration_ns // scenario.step_ns):
+        raise RuntimeError("libcosim execution failed")
+    t2 = time.perf_counter()
+    last = _libcosim_last_outputs(observer, scenario, index, refs)
     return {"setup_s": t1 - t0, "loop_s": t2 - t1, "total_s": t2 - t0, "last": last}
 
 
@@ -524,6 +579,99 @@ def libcosim_worker() -> int:
     os._exit(0)  # skip libcosim's teardown: its time is not measured and it is not needed
 
 
+def _libcosim_mode(scenario: Scenario, version: str | None, spec: dict[str, Any]) -> str:
+    """How libcosim gets the system: "connect" (as connected) or "initial" (explained on stdout).
+
+    A trial run as connected decides: if libcosim cannot initialize it, the :func:`zero_unsafe`
+    connections become constant initial values.
+    """
+    if version is None:
+        print("   libcosimpy: not installed (pip install libcosimpy); only our master is timed")
+        return "connect"
+    print(
+        f"   libcosimpy {version}: default fixed-step algorithm (its own worker threads), last-value observer, "
+        "each run in a fresh process (timed inside it; process start and imports not counted)"
+    )
+    try:
+        libcosim_child({**spec, "mode": "connect"})
+    except LibcosimFailed as exc:
+        unsafe = zero_unsafe(scenario)
+        print(f"   libcosim cannot initialize the system as connected: {exc}")
+        print(
+            f"   (libcosim reads outputs in initialization mode; our FMUs compute theirs at "
+            f"fmi2ExitInitializationMode and report 0 before, which {len(unsafe)} range-checked inputs refuse)"
+        )
+        print(
+            f"   => libcosim runs with those {len(unsafe)} connections replaced by constant initial values "
+            f"(the sources' values after initialization); {len(scenario.connections) - len(unsafe)} connections stay. "
+            "Same FMU work per step, fewer transfers: favours libcosim"
+        )
+        print("      replaced: " + ", ".join(f"{c.src}->{c.dst}" for c in unsafe))
+        return "initial"
+    return "connect"
+
+
+def _time_ours(
+    scenario: Scenario, loops: list[str | None], ours: dict[str, dict[str, list[float]]]
+) -> dict[str, float]:
+    """One run of each master loop, timings appended to ``ours``; the last run's final outputs."""
+    last: dict[str, float] = {}
+    for loop in loops:
+        r = run_master(scenario, loop)
+        d = ours[loop_label(loop)]
+        d["total"].append(r["cosim_s"])
+        d["loop"].append(r["loop_s"] if r["loop_s"] is not None else r["cosim_s"])
+        table = r["result"].table
+        last = {name: float(table[name][-1]) for name in table.names()}
+    return last
+
+
+def _agreement(theirs: dict[str, float], ours: dict[str, float]) -> tuple[int, int, tuple[float, str] | None]:
+    """(bit-identical final outputs, outputs compared, (largest relative difference, its name))."""
+    common = [k for k in theirs if k in ours]
+    diffs = sorted((abs(theirs[k] - ours[k]) / max(abs(ours[k]), abs(theirs[k]), 1e-300), k) for k in common)
+    return sum(d == 0.0 for d, _ in diffs), len(diffs), diffs[-1] if diffs else None
+
+
+def _report_libcosim(
+    ours: dict[str, dict[str, list[float]]],
+    lib: dict[str, list[float]],
+    agreement: tuple[int, int, tuple[float, str] | None] | None,
+    lib_error: str | None,
+) -> None:
+    """Print the timings of section (b) and store its figures in RESULTS["libcosim"]."""
+    b = RESULTS["libcosim"]
+    print(f"   {'':34s} {'stepping (s)':>30s}   {'set-up + stepping (s)':>30s}")
+    for label, d in ours.items():
+        print(f"   {label:34s} {spread(d['loop']):>30s}   {spread(d['total']):>30s}")
+    if not lib["total"]:
+        if lib_error:
+            print(f"   libcosim failed: {lib_error}")
+        for label, d in ours.items():
+            b["ours"][label] = {"ours_s": median(d["total"]), "ratio": None, "ratio_loop": None}
+        return
+    print(
+        f"   {'libcosimpy ' + str(b['version']):34s} {spread(lib['loop']):>30s}   {spread(lib['total']):>30s}"
+    )
+    for label, d in ours.items():
+        rl = median(lib["loop"]) / median(d["loop"])
+        rt = median(lib["total"]) / median(d["total"])
+        print(f"   ratio libcosim/{label}: {rl:.2f}x stepping, {rt:.2f}x with set-up")
+        b["ours"][label] = {"ours_s": median(d["total"]), "ratio": rt, "ratio_loop": rl}
+    b["lib_s"] = median(lib["total"])
+    if agreement is not None:
+        same, total, worst = agreement
+        print(
+            f"   same system check: {same} of {total} final outputs bit-identical in twin and libcosim"
+            + (f"; largest relative difference {worst[0]:.1e} ({worst[1]})" if worst and worst[0] > 0 else "")
+            + (
+                "; the others depend on the temperatures libcosim holds constant"
+                if b["mode"] == "initial"
+                else ""
+            )
+        )
+
+
 def bench_libcosim(duration: str, step: str, reps: int) -> None:
     scenario, overrides = tester_scenario(duration, step)
     n = scenario.duration_ns // scenario.step_ns
@@ -538,68 +686,31 @@ def bench_libcosim(duration: str, step: str, reps: int) -> None:
     )
     version = libcosim_version()
     loops = master_loops()
-    warm = run_master(
-        scenario, loops[0]
-    )  # warm-up (FMUs built and cached); its first row = initialized outputs
+    # warm-up (FMUs built and cached); its first row = the initialized outputs
+    warm = run_master(scenario, loops[0])
     table = warm["result"].table
-    init_outputs = {name: float(table[name][0]) for name in table.names()}
-    mode = "connect"
-    if version is None:
-        print("   libcosimpy: not installed (pip install libcosimpy); only our master is timed")
-    else:
-        print(
-            f"   libcosimpy {version}: default fixed-step algorithm (its own worker threads), last-value observer, "
-            "each run in a fresh process (timed inside it; process start and imports not counted)"
-        )
-        try:
-            libcosim_child(
-                {"duration": duration, "step": step, "init_outputs": init_outputs, "mode": "connect"}
-            )
-        except LibcosimFailed as exc:
-            unsafe = zero_unsafe(scenario)
-            mode = "initial"
-            print(f"   libcosim cannot initialize the system as connected: {exc}")
-            print(
-                f"   (libcosim reads outputs in initialization mode; our FMUs compute theirs at "
-                f"fmi2ExitInitializationMode and report 0 before, which {len(unsafe)} range-checked inputs refuse)"
-            )
-            print(
-                f"   => libcosim runs with those {len(unsafe)} connections replaced by constant initial values "
-                f"(the sources' values after initialization); {len(scenario.connections) - len(unsafe)} connections stay. "
-                "Same FMU work per step, fewer transfers: favours libcosim"
-            )
-            print("      replaced: " + ", ".join(f"{c.src}->{c.dst}" for c in unsafe))
+    spec: dict[str, Any] = {
+        "duration": duration,
+        "step": step,
+        "init_outputs": {name: float(table[name][0]) for name in table.names()},
+    }
+    mode = _libcosim_mode(scenario, version, spec)
     ours: dict[str, dict[str, list[float]]] = {loop_label(lp): {"loop": [], "total": []} for lp in loops}
     lib: dict[str, list[float]] = {"loop": [], "total": []}
     agreement = None
     lib_error = None
     for _ in range(reps):
-        for loop in loops:
-            r = run_master(scenario, loop)
-            d = ours[loop_label(loop)]
-            d["total"].append(r["cosim_s"])
-            d["loop"].append(r["loop_s"] if r["loop_s"] is not None else r["cosim_s"])
-            table = r["result"].table
-            last_ours = {name: float(table[name][-1]) for name in table.names()}
-        if version is not None and lib_error is None:
-            try:
-                lr = libcosim_child(
-                    {"duration": duration, "step": step, "init_outputs": init_outputs, "mode": mode}
-                )
-            except LibcosimFailed as exc:
-                lib_error = str(exc)
-                continue
-            lib["loop"].append(lr["loop_s"])
-            lib["total"].append(lr["total_s"])
-            common = [k for k in lr["last"] if k in last_ours]
-            diffs = sorted(
-                (abs(lr["last"][k] - last_ours[k]) / max(abs(last_ours[k]), abs(lr["last"][k]), 1e-300), k)
-                for k in common
-            )
-            agreement = (sum(d == 0.0 for d, _ in diffs), len(diffs), diffs[-1] if diffs else None)
-    print(f"   {'':34s} {'stepping (s)':>30s}   {'set-up + stepping (s)':>30s}")
-    for label, d in ours.items():
-        print(f"   {label:34s} {spread(d['loop']):>30s}   {spread(d['total']):>30s}")
+        last_ours = _time_ours(scenario, loops, ours)
+        if version is None or lib_error is not None:
+            continue
+        try:
+            lr = libcosim_child({**spec, "mode": mode})
+        except LibcosimFailed as exc:
+            lib_error = str(exc)
+            continue
+        lib["loop"].append(lr["loop_s"])
+        lib["total"].append(lr["total_s"])
+        agreement = _agreement(lr["last"], last_ours)
     RESULTS["libcosim"] = {
         "n": n,
         "duration": duration,
@@ -609,40 +720,7 @@ def bench_libcosim(duration: str, step: str, reps: int) -> None:
         "mode": mode,
         "n_unsafe": len(zero_unsafe(scenario)),
     }
-    if lib["total"]:
-        print(
-            f"   {'libcosimpy ' + str(version):34s} {spread(lib['loop']):>30s}   {spread(lib['total']):>30s}"
-        )
-        for label, d in ours.items():
-            rl = median(lib["loop"]) / median(d["loop"])
-            rt = median(lib["total"]) / median(d["total"])
-            print(f"   ratio libcosim/{label}: {rl:.2f}x stepping, {rt:.2f}x with set-up")
-            RESULTS["libcosim"]["ours"][label] = {"ours_s": median(d["total"]), "ratio": rt, "ratio_loop": rl}
-        RESULTS["libcosim"]["lib_s"] = median(lib["total"])
-        if agreement is not None:
-            same, total, worst = agreement
-            print(
-                f"   same system check: {same} of {total} final outputs bit-identical in twin and libcosim"
-                + (
-                    f"; largest relative difference {worst[0]:.1e} ({worst[1]})"
-                    if worst and worst[0] > 0
-                    else ""
-                )
-                + (
-                    "; the others depend on the temperatures libcosim holds constant"
-                    if mode == "initial"
-                    else ""
-                )
-            )
-    else:
-        if lib_error:
-            print(f"   libcosim failed: {lib_error}")
-        for label, d in ours.items():
-            RESULTS["libcosim"]["ours"][label] = {
-                "ours_s": median(d["total"]),
-                "ratio": None,
-                "ratio_loop": None,
-            }
+    _report_libcosim(ours, lib, agreement, lib_error)
 
 
 # ----------------------------------------------------------------------------- (c)-(e) whole runs
@@ -758,91 +836,98 @@ def _met(ok: bool | None) -> str:
     return "" if ok is None else ("yes" if ok else "**no**")
 
 
+Row = tuple[str, str, str, str]  # figure, measured, target, met
+
+
+def _below(what: str, measured: str, value: float, limit: float, unit: str) -> Row:
+    """A row whose target is an upper limit: "< limit unit", met if value < limit."""
+    return (what, measured, f"< {limit:g} {unit}", _met(value < limit))
+
+
+def _overhead_rows(o: dict[str, Any]) -> list[Row]:
+    rows = []
+    for label, d in o["loops"].items():
+        vs_c = (
+            f"; {d['master_us'] - o['c_us']:+.2f} us vs the same calls from C, {o['c_us']:.2f} us"
+            if o["c_us"] is not None
+            else ""
+        )
+        rows.append(
+            (
+                f"master overhead per FMU step, {label} (1 FMU, {o['n']} steps)",
+                f"{d['overhead_us']:+.2f} us ({d['master_us']:.2f} vs raw ctypes {o['raw_us']:.2f} us{vs_c})",
+                "<= 2 us",
+                _met(d["overhead_us"] <= 2.0),
+            )
+        )
+    return rows
+
+
+def _libcosim_rows(b: dict[str, Any]) -> list[Row]:
+    rows = []
+    for label, d in b["ours"].items():
+        what = f"tester system, 5 FMUs at {b['step']}, {b['duration']}: {label}"
+        if d["ratio"] is None:
+            rows.append((what, f"{d['ours_s']:.3f} s (libcosimpy not installed)", ">= 2x faster", ""))
+            continue
+        note = " [1]" if b["mode"] == "initial" else ""
+        measured = f"{d['ours_s']:.3f} s vs {b['lib_s']:.3f} s: **{d['ratio']:.2f}x** ({d['ratio_loop']:.2f}x stepping only)"
+        rows.append((what + note + " vs libcosimpy", measured, ">= 2x faster", _met(d["ratio"] >= 2.0)))
+    return rows
+
+
+def _replay_rows(r: dict[str, list[float]]) -> list[Row]:
+    loop, wall = median(r["cosim_s"]), median(r["wall_s"])
+    return [
+        _below(
+            "480-min replay: co-simulation loop (timing.cosim_s)",
+            f"{loop:.2f} s (real-time factor {median(r['rtf']):.0f})",
+            loop,
+            1.0,
+            "s",
+        ),
+        _below(
+            "480-min replay: `twin run` from process start",
+            f"{wall:.2f} s (real-time factor {median(r['rtf_wall']):.0f})",
+            wall,
+            3.0,
+            "s",
+        ),
+        ("480-min replay: peak RSS", f"{median(r['maxrss_mb']):.0f} MB", "", ""),
+    ]
+
+
+def _endurance_rows(r: dict[str, list[float]]) -> list[Row]:
+    wall, rss = median(r["wall_s"]), median(r["maxrss_mb"])
+    measured = f"{wall:.1f} s (loop {median(r['cosim_s']):.1f} s, real-time factor {median(r['rtf']):.0f})"
+    return [
+        _below("MIL endurance 41.7 h (0.1 s): `twin run` from process start", measured, wall, 60.0, "s"),
+        _below("MIL endurance: peak RSS", f"{rss:.0f} MB", rss, 400, "MB"),
+    ]
+
+
+def _flatness_rows(f: dict[str, Any]) -> list[Row]:
+    return [
+        (
+            f"peak RSS {f['short']} vs {f['long']} (constant load)",
+            f"{f['short_mb']:.0f} MB vs {f['long_mb']:.0f} MB: ratio {f['ratio']:.2f}",
+            "within 20 %",
+            _met(f["ratio"] <= 1.2),
+        )
+    ]
+
+
 def markdown_table(info: dict[str, str], args: argparse.Namespace) -> str:
-    rows: list[tuple[str, str, str, str]] = []
-    if "overhead" in RESULTS:
-        o = RESULTS["overhead"]
-        for label, d in o["loops"].items():
-            rows.append(
-                (
-                    f"master overhead per FMU step, {label} (1 FMU, {o['n']} steps)",
-                    f"{d['overhead_us']:+.2f} us ({d['master_us']:.2f} vs raw ctypes {o['raw_us']:.2f} us"
-                    + (
-                        f"; {d['master_us'] - o['c_us']:+.2f} us vs the same calls from C, {o['c_us']:.2f} us"
-                        if o["c_us"] is not None
-                        else ""
-                    )
-                    + ")",
-                    "<= 2 us",
-                    _met(d["overhead_us"] <= 2.0),
-                )
-            )
-    if "libcosim" in RESULTS:
-        b = RESULTS["libcosim"]
-        for label, d in b["ours"].items():
-            what = f"tester system, 5 FMUs at {b['step']}, {b['duration']}: {label}"
-            if d["ratio"] is None:
-                rows.append((what, f"{d['ours_s']:.3f} s (libcosimpy not installed)", ">= 2x faster", ""))
-            else:
-                if b["mode"] == "initial":
-                    what += " [1]"
-                rows.append(
-                    (
-                        what + " vs libcosimpy",
-                        f"{d['ours_s']:.3f} s vs {b['lib_s']:.3f} s: **{d['ratio']:.2f}x** ({d['ratio_loop']:.2f}x stepping only)",
-                        ">= 2x faster",
-                        _met(d["ratio"] >= 2.0),
-                    )
-                )
-    if "replay" in RESULTS:
-        r = RESULTS["replay"]
-        rows.append(
-            (
-                "480-min replay: co-simulation loop (timing.cosim_s)",
-                f"{median(r['cosim_s']):.2f} s (real-time factor {median(r['rtf']):.0f})",
-                "< 1 s",
-                _met(median(r["cosim_s"]) < 1.0),
-            )
-        )
-        rows.append(
-            (
-                "480-min replay: `twin run` from process start",
-                f"{median(r['wall_s']):.2f} s (real-time factor {median(r['rtf_wall']):.0f})",
-                "< 3 s",
-                _met(median(r["wall_s"]) < 3.0),
-            )
-        )
-        rows.append(("480-min replay: peak RSS", f"{median(r['maxrss_mb']):.0f} MB", "", ""))
+    rows: list[Row] = []
+    for key, make in (("overhead", _overhead_rows), ("libcosim", _libcosim_rows), ("replay", _replay_rows)):
+        if key in RESULTS:
+            rows += make(RESULTS[key])
     if "endurance" in RESULTS:
-        r = RESULTS["endurance"]
-        rows.append(
-            (
-                "MIL endurance 41.7 h (0.1 s): `twin run` from process start",
-                f"{median(r['wall_s']):.1f} s (loop {median(r['cosim_s']):.1f} s, real-time factor {median(r['rtf']):.0f})",
-                "< 60 s",
-                _met(median(r["wall_s"]) < 60.0),
-            )
-        )
-        rows.append(
-            (
-                "MIL endurance: peak RSS",
-                f"{median(r['maxrss_mb']):.0f} MB",
-                "< 400 MB",
-                _met(median(r["maxrss_mb"]) < 400),
-            )
-        )
+        rows += _endurance_rows(RESULTS["endurance"])
     elif "replay" in RESULTS:
         rows.append(("MIL endurance 41.7 h", "skipped", "< 60 s, < 400 MB", ""))
     if "flatness" in RESULTS:
-        f = RESULTS["flatness"]
-        rows.append(
-            (
-                f"peak RSS {f['short']} vs {f['long']} (constant load)",
-                f"{f['short_mb']:.0f} MB vs {f['long_mb']:.0f} MB: ratio {f['ratio']:.2f}",
-                "within 20 %",
-                _met(f["ratio"] <= 1.2),
-            )
-        )
+        rows += _flatness_rows(RESULTS["flatness"])
     lines = [
         f"Machine: {info['cpu']}, {info['cores']}, {info['memory']} RAM; {info['os']}; Python {info['python']}, "
         f"numpy {info['numpy']}, libcosimpy {info['libcosimpy']}; twin {info['twin']}. "

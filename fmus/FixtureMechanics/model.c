@@ -53,92 +53,89 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     return fmi2OK;
 }
 
-void model_outputs(ModelInstance *comp) {
+/* Each output is written into its slot of r where it is computed, and later equations read
+ * it back from there: the outputs are the model's variables, with no second copy of them. */
+
+/* Branch 1: heel and bearing block grow up (-Z); below the spindle axis the spindle radius,
+ * the bearing rings and the T-plate grow down (+Z). The load compresses the liner
+ * (thickness * pressure / modulus) and bends the structure. Returns the T-plate bottom's Z. */
+static double bearing_branch(ModelInstance *comp, const double *dt) {
     double *r = comp->v.r;
-    const double *tref = comp->v.m.t_ref;
-    double dt[FM_TEMPS];
-    double a_ci = r[VR_alpha_cast_iron], a_st = r[VR_alpha_steel], a_b = r[VR_alpha_bearing_steel];
-    double dz_bb, dz_sp, dz_br, dz_tp, dz_load, dz_run, dz_vib, wear, z_t, dz_fr, dz_pole, dz_cl;
-    double f_free, k_total, z_top, gap, force, z_clamp, z_sensor, rotation, relative, measured;
-    double s0 = r[VR_running_in_distance];
-    int i;
+    double a_st = r[VR_alpha_steel];
+    r[VR_dz_bearing_block] = -r[VR_alpha_cast_iron] * (r[VR_h_heel_block] * dt[HEEL] + r[VR_h_bearing_block] * dt[BBLOCK]);
+    r[VR_dz_spindle] = a_st * r[VR_r_spindle] * dt[SPINDLE];
+    r[VR_dz_bearing] = r[VR_alpha_bearing_steel] * r[VR_t_bearing_rings] * dt[BEARING];
+    r[VR_dz_t_plate] = a_st * r[VR_l_t_plate] * dt[TPLATE];
+    r[VR_dz_loading] = (r[VR_liner_thickness] / (r[VR_liner_modulus] * r[VR_contact_area]) + r[VR_compliance_structure]) *
+                       r[VR_radial_load];
+    r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
+    r[VR_dz_vibration] = r[VR_vibration_z];
+    r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
+    r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
+                      r[VR_dz_runout] + r[VR_dz_vibration] + r[VR_wear_depth_true];
+    return r[VR_z_t_plate];
+}
 
-    for (i = 0; i < FM_TEMPS; i++) dt[i] = r[VR_TEMPS[i]] - tref[i];
+/* Branch 2: the frame hangs from the base and grows down, carrying the sensor; the pole grows
+ * down from its top (held on the T-plate) to the clamp, and the clamp down to the head's
+ * contact face. */
+static void detecting_branch(double *r, const double *dt) {
+    double a_st = r[VR_alpha_steel];
+    r[VR_dz_detecting_frame] = a_st * r[VR_l_detecting_frame] * dt[FRAME];
+    r[VR_dz_long_pole] = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
+                                 r[VR_l_pole_lower] * dt[POLE_LOWER]);
+    r[VR_dz_clamp] = a_st * r[VR_l_clamp] * dt[CLAMP];
+    r[VR_z_sensor] = r[VR_dz_detecting_frame];
+}
 
-    /* branch 1: heel and bearing block grow up (-Z); below the spindle axis the spindle
-     * radius, the bearing rings and the T-plate grow down (+Z) */
-    dz_bb = -a_ci * (r[VR_h_heel_block] * dt[HEEL] + r[VR_h_bearing_block] * dt[BBLOCK]);
-    dz_sp = a_st * r[VR_r_spindle] * dt[SPINDLE];
-    dz_br = a_b * r[VR_t_bearing_rings] * dt[BEARING];
-    dz_tp = a_st * r[VR_l_t_plate] * dt[TPLATE];
-    /* the load compresses the liner (thickness * pressure / modulus) and bends the structure */
-    dz_load = (r[VR_liner_thickness] / (r[VR_liner_modulus] * r[VR_contact_area]) + r[VR_compliance_structure]) *
-              r[VR_radial_load];
-    dz_run = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
-    dz_vib = r[VR_vibration_z];
-    wear = comp->v.m.wear + r[VR_wear_offset];
-    z_t = dz_bb + dz_sp + dz_br + dz_tp + dz_load + dz_run + dz_vib + wear;
-
-    /* branch 2: the frame hangs from the base and grows down; the pole grows down from its
-     * top (held on the T-plate) to the clamp, and the clamp down to the head's contact face */
-    dz_fr = a_st * r[VR_l_detecting_frame] * dt[FRAME];
-    dz_pole = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
-                      r[VR_l_pole_lower] * dt[POLE_LOWER]);
-    dz_cl = a_st * r[VR_l_clamp] * dt[CLAMP];
-    z_sensor = dz_fr;
-
-    /* contact: with the pole top at z_top, the spring pushes up with f_spring0 + k_spring*z_top,
-     * the head with f_head0 + k_head*(z_clamp - z_sensor), gravity pulls m g down. The net upward
-     * force grows as the pole goes down. The pole follows the T-plate while that force (the
-     * contact force) stays >= 0; otherwise the pole stops below the T-plate where the force
-     * vanishes and a gap opens (lift-off is reported, not hidden). */
-    k_total = r[VR_k_spring] + r[VR_k_head];
-    f_free = r[VR_f_spring0] + r[VR_f_head0] - r[VR_m_pole] * G_ACCEL;
+/* Contact: with the pole top at z_top, the spring pushes up with f_spring0 + k_spring*z_top,
+ * the head with f_head0 + k_head*(z_clamp - z_sensor), gravity pulls m g down. The net upward
+ * force grows as the pole goes down. The pole follows the T-plate (at z_t) while that force
+ * (the contact force) stays >= 0; otherwise the pole stops below the T-plate where the force
+ * vanishes and a gap opens (lift-off is reported, not hidden). */
+static void pole_contact(double *r, double z_t) {
+    double k_total = r[VR_k_spring] + r[VR_k_head];
+    double f_free = r[VR_f_spring0] + r[VR_f_head0] - r[VR_m_pole] * G_ACCEL;
     /* the head's force depends on the clamp relative to the sensor: fold the sensor's own
      * thermal motion and the pole/clamp growth into the equivalent pole-top position */
-    {
-        double shift = r[VR_k_head] * (dz_pole + dz_cl - z_sensor);
-        double force_at_contact = f_free + r[VR_k_spring] * z_t + r[VR_k_head] * z_t + shift;
-        if (force_at_contact >= 0.0) {
-            z_top = z_t;
-            force = force_at_contact;
-            gap = 0.0;
-        } else {
-            z_top = -(f_free + shift) / k_total; /* below the T-plate, where the net force is zero */
-            force = 0.0;
-            gap = z_top - z_t;
-        }
+    double shift = r[VR_k_head] * (r[VR_dz_long_pole] + r[VR_dz_clamp] - r[VR_z_sensor]);
+    double force_at_contact = f_free + r[VR_k_spring] * z_t + r[VR_k_head] * z_t + shift;
+    if (force_at_contact >= 0.0) {
+        r[VR_z_pole_top] = z_t;
+        r[VR_contact_force] = force_at_contact;
+        r[VR_pole_gap] = 0.0;
+    } else {
+        r[VR_z_pole_top] = -(f_free + shift) / k_total; /* below the T-plate, where the net force is zero */
+        r[VR_contact_force] = 0.0;
+        r[VR_pole_gap] = r[VR_z_pole_top] - z_t;
     }
-    z_clamp = z_top + dz_pole + dz_cl;
+    r[VR_lift_off] = r[VR_pole_gap] > 0.0 ? 1.0 : 0.0;
+    r[VR_z_clamp] = r[VR_z_pole_top] + r[VR_dz_long_pole] + r[VR_dz_clamp];
+}
 
-    /* positioning: the friction torque turns the T-plate, and with it pole and clamp, by a
-     * small angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi.
-     * Its axis tilted from Z reads the relative motion times cos(tilt). */
-    rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
-    relative = z_clamp - z_sensor;
-    measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt]);
-
-    r[VR_dz_bearing_block] = dz_bb;
-    r[VR_dz_spindle] = dz_sp;
-    r[VR_dz_bearing] = dz_br;
-    r[VR_dz_t_plate] = dz_tp;
-    r[VR_dz_loading] = dz_load;
-    r[VR_dz_runout] = dz_run;
-    r[VR_dz_vibration] = dz_vib;
+/* Positioning: the friction torque turns the T-plate, and with it pole and clamp, by a small
+ * angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi. Its axis
+ * tilted from Z reads the relative motion times cos(tilt). */
+static void probe_reading(double *r) {
+    double rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
+    double relative = r[VR_z_clamp] - r[VR_z_sensor];
+    double measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt]);
     r[VR_tplate_rotation] = rotation;
     r[VR_dz_positioning] = measured - relative;
-    r[VR_z_t_plate] = z_t;
-    r[VR_dz_detecting_frame] = dz_fr;
-    r[VR_dz_long_pole] = dz_pole;
-    r[VR_dz_clamp] = dz_cl;
-    r[VR_z_pole_top] = z_top;
-    r[VR_pole_gap] = gap;
-    r[VR_contact_force] = force;
-    r[VR_lift_off] = gap > 0.0 ? 1.0 : 0.0;
-    r[VR_z_clamp] = z_clamp;
-    r[VR_z_sensor] = z_sensor;
     r[VR_probe_true] = r[VR_probe_preload] + measured;
-    r[VR_wear_depth_true] = wear;
+}
+
+void model_outputs(ModelInstance *comp) {
+    double *r = comp->v.r;
+    double dt[FM_TEMPS], z_t;
+    int i;
+
+    /* all displacements are small, so each body's thermal term is linear in its dT */
+    for (i = 0; i < FM_TEMPS; i++) dt[i] = r[VR_TEMPS[i]] - comp->v.m.t_ref[i];
+    z_t = bearing_branch(comp, dt);
+    detecting_branch(r, dt);
+    pole_contact(r, z_t);
+    probe_reading(r);
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
-                          (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / s0));
+                          (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / r[VR_running_in_distance]));
 }

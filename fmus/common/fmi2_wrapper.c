@@ -236,20 +236,53 @@ fmi2Status fmi2Reset(fmi2Component c) {
 #define GET_STATES (ST_INIT_MODE | ST_STEP_COMPLETE | ST_STEP_FAILED | ST_TERMINATED | ST_ERROR)
 #define SET_STATES (ST_INSTANTIATED | ST_INIT_MODE | ST_STEP_COMPLETE)
 
-static int check_get_args(ModelInstance *comp, const char *fn, const fmi2ValueReference vr[], size_t nvr,
-                          const void *value, size_t n_vars) {
-    size_t k;
-    if (!allowed(comp, fn, GET_STATES)) return 0;
+/* The typed get/set functions differ only in their base type: one row each of this table,
+ * and one get_values / set_values for all three (the Reference-FMUs share theirs the same way,
+ * through GET_VARIABLES(T) and SET_VARIABLES(T) macros). Integer and Boolean values are both
+ * int, in FMI 2 and in ModelValues. */
+typedef enum { T_REAL, T_INTEGER, T_BOOLEAN } BaseType;
+
+typedef struct {
+    const char *get_fn;
+    const char *set_fn;
+    size_t n_vars;
+    const VarInfo *vars;
+} BaseTypeInfo;
+
+static const BaseTypeInfo BASE_TYPES[] = {
+    {"fmi2GetReal", "fmi2SetReal", N_REALS, VARS_REAL},
+    {"fmi2GetInteger", "fmi2SetInteger", N_INTEGERS, VARS_INTEGER},
+    {"fmi2GetBoolean", "fmi2SetBoolean", N_BOOLEANS, VARS_BOOLEAN},
+};
+
+/* The instance's array of the Integer or Boolean values. */
+static int *int_values(ModelInstance *comp, BaseType type) { return type == T_INTEGER ? comp->v.i : comp->v.b; }
+
+/* What every get and set checks first: the call is allowed in this state and its arrays are
+ * there. Returns 1 or logs and returns 0. */
+static int check_call(ModelInstance *comp, const char *fn, int states, const fmi2ValueReference vr[], size_t nvr,
+                      const void *value) {
+    if (!allowed(comp, fn, states)) return 0;
     if (nvr > 0 && (!vr || !value)) {
         log_error(comp, "%s: NULL argument", fn);
         return 0;
     }
-    for (k = 0; k < nvr; k++) {
-        if (vr[k] >= n_vars) {
-            log_error(comp, "%s: unknown value reference %u", fn, vr[k]);
-            return 0;
-        }
-    }
+    return 1;
+}
+
+/* Is vr one of the n_vars value references of its type?  Returns 1 or logs and returns 0. */
+static int known_vr(ModelInstance *comp, const char *fn, fmi2ValueReference vr, size_t n_vars) {
+    if (vr < n_vars) return 1;
+    log_error(comp, "%s: unknown value reference %u", fn, vr);
+    return 0;
+}
+
+static int check_get_args(ModelInstance *comp, const char *fn, const fmi2ValueReference vr[], size_t nvr,
+                          const void *value, size_t n_vars) {
+    size_t k;
+    if (!check_call(comp, fn, GET_STATES, vr, nvr, value)) return 0;
+    for (k = 0; k < nvr; k++)
+        if (!known_vr(comp, fn, vr[k], n_vars)) return 0;
     return 1;
 }
 
@@ -275,31 +308,21 @@ static int settable(ModelInstance *comp, const char *fn, const VarInfo *info, do
 }
 
 /* Checks the whole request first, so a rejected call changes nothing. */
-static int check_set_args(ModelInstance *comp, const char *fn, const fmi2ValueReference vr[], size_t nvr, const void *value,
-                          size_t n_vars, const VarInfo *table, int kind) {
+static int check_set_args(ModelInstance *comp, BaseType type, const fmi2ValueReference vr[], size_t nvr, const void *value) {
+    const BaseTypeInfo *t = &BASE_TYPES[type];
+    const char *fn = t->set_fn;
     size_t k;
-    if (!allowed(comp, fn, SET_STATES)) return 0;
-    if (nvr > 0 && (!vr || !value)) {
-        log_error(comp, "%s: NULL argument", fn);
-        return 0;
-    }
+    if (!check_call(comp, fn, SET_STATES, vr, nvr, value)) return 0;
     for (k = 0; k < nvr; k++) {
         double x;
-        if (vr[k] >= n_vars) {
-            log_error(comp, "%s: unknown value reference %u", fn, vr[k]);
+        if (!known_vr(comp, fn, vr[k], t->n_vars)) return 0;
+        if (type == T_REAL) x = ((const fmi2Real *)value)[k];
+        else x = (double)((const int *)value)[k];
+        if (type == T_BOOLEAN && x != fmi2True && x != fmi2False) {
+            log_error(comp, "%s: value %d of '%s' is not a Boolean", fn, ((const int *)value)[k], t->vars[vr[k]].name);
             return 0;
         }
-        if (kind == 0) x = ((const fmi2Real *)value)[k];
-        else if (kind == 1) x = (double)((const fmi2Integer *)value)[k];
-        else {
-            int bv = ((const fmi2Boolean *)value)[k];
-            if (bv != fmi2True && bv != fmi2False) {
-                log_error(comp, "%s: value %d of '%s' is not a Boolean", fn, bv, table[vr[k]].name);
-                return 0;
-            }
-            x = (double)bv;
-        }
-        if (!settable(comp, fn, &table[vr[k]], x)) return 0;
+        if (!settable(comp, fn, &t->vars[vr[k]], x)) return 0;
     }
     return 1;
 }
@@ -321,29 +344,31 @@ static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
     return fmi2OK;
 }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+static fmi2Status get_values(fmi2Component c, BaseType type, const fmi2ValueReference vr[], size_t nvr, void *value) {
     ModelInstance *comp = (ModelInstance *)c;
     size_t k;
-    if (!check_get_args(comp, "fmi2GetReal", vr, nvr, value, N_REALS)) return fmi2Error;
-    if (outputs_in_init_mode(comp) != fmi2OK) return fmi2Error;
-    for (k = 0; k < nvr; k++) value[k] = comp->v.r[vr[k]];
+    if (!check_get_args(comp, BASE_TYPES[type].get_fn, vr, nvr, value, BASE_TYPES[type].n_vars)) return fmi2Error;
+    if (type == T_REAL) {
+        /* the outputs are Reals: only they need computing in initialization mode */
+        if (outputs_in_init_mode(comp) != fmi2OK) return fmi2Error;
+        for (k = 0; k < nvr; k++) ((fmi2Real *)value)[k] = comp->v.r[vr[k]];
+    } else {
+        const int *array = int_values(comp, type);
+        for (k = 0; k < nvr; k++) ((int *)value)[k] = array[vr[k]];
+    }
     return fmi2OK;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    return get_values(c, T_REAL, vr, nvr, value);
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
-    size_t k;
-    if (!check_get_args(comp, "fmi2GetInteger", vr, nvr, value, N_INTEGERS)) return fmi2Error;
-    for (k = 0; k < nvr; k++) value[k] = comp->v.i[vr[k]];
-    return fmi2OK;
+    return get_values(c, T_INTEGER, vr, nvr, value);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
-    size_t k;
-    if (!check_get_args(comp, "fmi2GetBoolean", vr, nvr, value, N_BOOLEANS)) return fmi2Error;
-    for (k = 0; k < nvr; k++) value[k] = comp->v.b[vr[k]];
-    return fmi2OK;
+    return get_values(c, T_BOOLEAN, vr, nvr, value);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
@@ -353,36 +378,32 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return fmi2OK;
 }
 
-static void after_set(ModelInstance *comp) {
+static fmi2Status set_values(fmi2Component c, BaseType type, const fmi2ValueReference vr[], size_t nvr, const void *value) {
+    ModelInstance *comp = (ModelInstance *)c;
+    size_t k;
+    if (!check_set_args(comp, type, vr, nvr, value)) return fmi2Error;
+    if (type == T_REAL) {
+        for (k = 0; k < nvr; k++) comp->v.r[vr[k]] = ((const fmi2Real *)value)[k];
+    } else {
+        int *array = int_values(comp, type);
+        /* Booleans were checked to be fmi2True (1) or fmi2False (0) */
+        for (k = 0; k < nvr; k++) array[vr[k]] = ((const int *)value)[k];
+    }
     /* outputs with direct feedthrough follow their inputs at once */
-    if (comp->state == ST_STEP_COMPLETE) model_outputs(comp);
+    if (nvr && comp->state == ST_STEP_COMPLETE) model_outputs(comp);
+    return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
-    size_t k;
-    if (!check_set_args(comp, "fmi2SetReal", vr, nvr, value, N_REALS, VARS_REAL, 0)) return fmi2Error;
-    for (k = 0; k < nvr; k++) comp->v.r[vr[k]] = value[k];
-    if (nvr) after_set(comp);
-    return fmi2OK;
+    return set_values(c, T_REAL, vr, nvr, value);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
-    size_t k;
-    if (!check_set_args(comp, "fmi2SetInteger", vr, nvr, value, N_INTEGERS, VARS_INTEGER, 1)) return fmi2Error;
-    for (k = 0; k < nvr; k++) comp->v.i[vr[k]] = value[k];
-    if (nvr) after_set(comp);
-    return fmi2OK;
+    return set_values(c, T_INTEGER, vr, nvr, value);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
-    size_t k;
-    if (!check_set_args(comp, "fmi2SetBoolean", vr, nvr, value, N_BOOLEANS, VARS_BOOLEAN, 2)) return fmi2Error;
-    for (k = 0; k < nvr; k++) comp->v.b[vr[k]] = value[k] ? 1 : 0;
-    if (nvr) after_set(comp);
-    return fmi2OK;
+    return set_values(c, T_BOOLEAN, vr, nvr, value);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
@@ -405,6 +426,21 @@ typedef struct {
     ModelValues v;
 } SerializedState;
 
+/* Where a state goes: the host's *FMUstate if it hands one back, else a new allocation.
+ * NULL (logged) when out of memory. */
+static ModelValues *state_slot(ModelInstance *comp, const char *fn, fmi2FMUstate *FMUstate) {
+    ModelValues *s = (ModelValues *)*FMUstate;
+    if (!s) {
+        s = (ModelValues *)malloc(sizeof *s);
+        if (!s) {
+            log_error(comp, "%s: out of memory", fn);
+            return NULL;
+        }
+        *FMUstate = s;
+    }
+    return s;
+}
+
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     ModelInstance *comp = (ModelInstance *)c;
     ModelValues *s;
@@ -413,15 +449,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
         log_error(comp, "fmi2GetFMUstate: NULL argument");
         return fmi2Error;
     }
-    s = (ModelValues *)*FMUstate;
-    if (!s) {
-        s = (ModelValues *)malloc(sizeof *s);
-        if (!s) {
-            log_error(comp, "fmi2GetFMUstate: out of memory");
-            return fmi2Error;
-        }
-        *FMUstate = s;
-    }
+    if (!(s = state_slot(comp, "fmi2GetFMUstate", FMUstate))) return fmi2Error;
     *s = comp->v;
     s->state = comp->state;
     return fmi2OK;
@@ -509,47 +537,37 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         log_error(comp, "fmi2DeSerializeFMUstate: corrupt state");
         return fmi2Error;
     }
-    s = (ModelValues *)*FMUstate;
-    if (!s) {
-        s = (ModelValues *)malloc(sizeof *s);
-        if (!s) {
-            log_error(comp, "fmi2DeSerializeFMUstate: out of memory");
-            return fmi2Error;
-        }
-        *FMUstate = s;
-    }
+    if (!(s = state_slot(comp, "fmi2DeSerializeFMUstate", FMUstate))) return fmi2Error;
     *s = in.v;
     return fmi2OK;
+}
+
+/* A function the capability flags of modelDescription.xml say this FMU does not provide:
+ * fmi2Error with the reason (a NULL instance has nobody to tell). */
+static fmi2Status unsupported(fmi2Component c, const char *why) {
+    if (c) log_error((ModelInstance *)c, "%s", why);
+    return fmi2Error;
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],
                                         fmi2Real dvUnknown[]) {
-    ModelInstance *comp = (ModelInstance *)c;
     (void)vUnknown_ref, (void)nUnknown, (void)vKnown_ref, (void)nKnown, (void)dvKnown, (void)dvUnknown;
-    if (!comp) return fmi2Error;
-    log_error(comp, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
-    return fmi2Error;
+    return unsupported(c, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
 }
 
 /* ------------------------------------------------------------------ co-simulation */
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],
                                        const fmi2Real value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
     (void)vr, (void)nvr, (void)order, (void)value;
-    if (!comp) return fmi2Error;
-    log_error(comp, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
-    return fmi2Error;
+    return unsupported(c, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],
                                         fmi2Real value[]) {
-    ModelInstance *comp = (ModelInstance *)c;
     (void)vr, (void)nvr, (void)order, (void)value;
-    if (!comp) return fmi2Error;
-    log_error(comp, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
-    return fmi2Error;
+    return unsupported(c, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
 }
 
 /* Scans the outputs for NaN/Inf after a step: a model must never hand one to the host. */
@@ -631,50 +649,42 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    ModelInstance *comp = (ModelInstance *)c;
-    if (!comp) return fmi2Error;
-    log_error(comp, "fmi2CancelStep: fmi2DoStep always completes synchronously, there is nothing to cancel");
-    return fmi2Error;
+    return unsupported(c, "fmi2CancelStep: fmi2DoStep always completes synchronously, there is nothing to cancel");
+}
+
+/* The status queries: fmi2DoStep always completes, so nothing is ever pending. Only the last
+ * successful time and "terminated" have an answer: status_query returns fmi2OK when s is the
+ * kind the caller can answer (it then fills in the value), fmi2Discard for any other kind and
+ * fmi2Error for a query in the wrong state or without a place for the value. */
+#define NO_ANSWER (-1)
+
+static fmi2Status status_query(fmi2Component c, const char *fn, const void *value, fmi2StatusKind s, int answered) {
+    if (!allowed((ModelInstance *)c, fn, GET_STATES) || !value) return fmi2Error;
+    return (int)s == answered ? fmi2OK : fmi2Discard;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    ModelInstance *comp = (ModelInstance *)c;
-    (void)s;
-    if (!allowed(comp, "fmi2GetStatus", GET_STATES) || !value) return fmi2Error;
-    log_error(comp, "fmi2GetStatus: no asynchronous step is ever pending");
-    return fmi2Discard;
+    fmi2Status status = status_query(c, "fmi2GetStatus", value, s, NO_ANSWER);
+    if (status == fmi2Discard) log_error((ModelInstance *)c, "fmi2GetStatus: no asynchronous step is ever pending");
+    return status;
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    ModelInstance *comp = (ModelInstance *)c;
-    if (!allowed(comp, "fmi2GetRealStatus", GET_STATES) || !value) return fmi2Error;
-    if (s == fmi2LastSuccessfulTime) {
-        *value = model_time(comp);
-        return fmi2OK;
-    }
-    return fmi2Discard;
+    fmi2Status status = status_query(c, "fmi2GetRealStatus", value, s, fmi2LastSuccessfulTime);
+    if (status == fmi2OK) *value = model_time((ModelInstance *)c);
+    return status;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    ModelInstance *comp = (ModelInstance *)c;
-    (void)s;
-    if (!allowed(comp, "fmi2GetIntegerStatus", GET_STATES) || !value) return fmi2Error;
-    return fmi2Discard;
+    return status_query(c, "fmi2GetIntegerStatus", value, s, NO_ANSWER);
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    ModelInstance *comp = (ModelInstance *)c;
-    if (!allowed(comp, "fmi2GetBooleanStatus", GET_STATES) || !value) return fmi2Error;
-    if (s == fmi2Terminated) {
-        *value = fmi2False;
-        return fmi2OK;
-    }
-    return fmi2Discard;
+    fmi2Status status = status_query(c, "fmi2GetBooleanStatus", value, s, fmi2Terminated);
+    if (status == fmi2OK) *value = fmi2False;
+    return status;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    ModelInstance *comp = (ModelInstance *)c;
-    (void)s;
-    if (!allowed(comp, "fmi2GetStringStatus", GET_STATES) || !value) return fmi2Error;
-    return fmi2Discard;
+    return status_query(c, "fmi2GetStringStatus", value, s, NO_ANSWER);
 }

@@ -353,45 +353,64 @@ def _effective(model: Model, params: dict[str, Any]) -> dict[str, Any]:
     return values
 
 
+# Each model's model_check as documented in its readme, on the effective parameters: True if it
+# refuses them, False if it accepts them, None on the edge of a floating-point tolerance (either
+# outcome is fine).
+
+
+def _hydraulic_refuses(p: dict[str, Any]) -> bool | None:
+    if p["profile"] == 2:
+        return not (p["t_ramp_up"] + p["t_dwell_high"] + p["t_ramp_down"] + p["t_dwell_low"] > 0.0)
+    if p["profile"] == 3:
+        times = [p[f"table_t_{k}"] for k in range(1, p["table_n"] + 1)]
+        return not all(b > a for a, b in itertools.pairwise(times))
+    return False
+
+
+def _oscillation_refuses(p: dict[str, Any]) -> bool | None:
+    if not p["mu_min"] <= p["mu_max"]:
+        return True
+    h, w = p["solver_step"], p["q_avg_window"]
+    n = math.floor(w / h + 0.5)
+    err = abs(n * h - w)
+    if n >= 1 and 0.5e-9 * w < err < 2e-9 * w:
+        return None
+    return n < 1.0 or err > 1e-9 * w
+
+
+def _shares_off(p: dict[str, Any], group: str) -> bool | None:
+    """Do the heat shares of one group miss a sum of 1 (summed as the C code does)?"""
+    total = 0.0
+    for name in p:  # the XML's (= the C code's node) order
+        if name.startswith(group):
+            total += p[name]
+    off = abs(total - 1.0)
+    return None if 0.5e-9 < off < 2e-9 else off > 1e-9
+
+
+def _thermal_refuses(p: dict[str, Any]) -> bool | None:
+    verdicts = [_shares_off(p, group) for group in ("hyd_share_", "fric_share_")]
+    if True in verdicts:
+        return True
+    return None if None in verdicts else False
+
+
+MODEL_RULES: dict[str, Callable[[dict[str, Any]], bool | None]] = {
+    "HydraulicLoader": _hydraulic_refuses,
+    "SensorsDAQ": lambda p: not p["probe_range_min"] < p["probe_range_max"],
+    "FixtureMechanics": lambda p: p["k_spring"] + p["k_head"] <= 0.0,
+    "OscillationDrive": _oscillation_refuses,
+    "ThermalNetwork": _thermal_refuses,
+}
+
+
 def expected_rejection(model: Model, params: dict[str, Any]) -> bool | None:
     """Does the model's own check (documented in its readme) refuse these parameters?
 
     True/False; None on the edge of a floating-point tolerance (either outcome is fine).
     """
-    p = _effective(model, params)
-    if model.name == "HydraulicLoader":
-        if p["profile"] == 2:
-            return not (p["t_ramp_up"] + p["t_dwell_high"] + p["t_ramp_down"] + p["t_dwell_low"] > 0.0)
-        if p["profile"] == 3:
-            times = [p[f"table_t_{k}"] for k in range(1, p["table_n"] + 1)]
-            return not all(b > a for a, b in itertools.pairwise(times))
-        return False
-    if model.name == "SensorsDAQ":
-        return not p["probe_range_min"] < p["probe_range_max"]
-    if model.name == "FixtureMechanics":
-        return p["k_spring"] + p["k_head"] <= 0.0
-    if model.name == "OscillationDrive":
-        if not p["mu_min"] <= p["mu_max"]:
-            return True
-        h, w = p["solver_step"], p["q_avg_window"]
-        n = math.floor(w / h + 0.5)
-        err = abs(n * h - w)
-        if n >= 1 and 0.5e-9 * w < err < 2e-9 * w:
-            return None
-        return n < 1.0 or err > 1e-9 * w
-    if model.name == "ThermalNetwork":
-        verdicts = []
-        for group in ("hyd_share_", "fric_share_"):
-            total = 0.0
-            for name in p:  # the XML's (= the C code's node) order
-                if name.startswith(group):
-                    total += p[name]
-            off = abs(total - 1.0)
-            verdicts.append(None if 0.5e-9 < off < 2e-9 else off > 1e-9)
-        if True in verdicts:
-            return True
-        return None if None in verdicts else False
-    return False
+    rule = MODEL_RULES.get(model.name)
+    return rule(_effective(model, params)) if rule else False
 
 
 def test_every_model_has_its_rules() -> None:

@@ -221,62 +221,101 @@ def _shrink_into(reach: Callable[[float], list[float]], x: float, lo: float, hi:
     return 0.0
 
 
-@st.composite
-def profile_in_range(d: st.DrawFn, v: Var) -> tuple[dict[str, Any], tuple[str, dict[str, float], tuple]]:
-    """A profile whose values stay inside v's range: (TOML table, expected (kind, params, table))."""
-    lo, hi = v.lo, v.hi
-    value = st.floats(lo, hi, allow_nan=False)
-    kind = d(st.sampled_from(["constant", "ramp", "exponential", "sine", "table"]))
-    raw: dict[str, Any] = {"profile": kind}
-    params: dict[str, float] = {}
-    table: tuple[tuple[float, float], ...] = ()
+@dataclass
+class _Profile:
+    """A profile being drawn for one input: its TOML table and the parameters it must load as."""
 
-    def duration(key: str, *, zero_ok: bool = False) -> None:
-        ns, spelled = d(
+    d: st.DrawFn
+    v: Var
+    raw: dict[str, Any]
+    params: dict[str, float] = field(default_factory=dict)
+
+    def value(self) -> float:
+        """A value inside the input's range."""
+        return self.d(st.floats(self.v.lo, self.v.hi, allow_nan=False))
+
+    def duration(self, key: str, *, zero_ok: bool = False) -> None:
+        """A duration at ``key`` in any exact spelling; loaded as seconds."""
+        ns, spelled = self.d(
             st.integers(0 if zero_ok else 1, 10**15).flatmap(
                 lambda n: st.tuples(st.just(n), duration_spelling(n))
             )
         )
-        raw[key] = spelled
-        params[key] = ns / NS_PER_S
+        self.raw[key] = spelled
+        self.params[key] = ns / NS_PER_S
 
-    if kind == "constant":
-        raw["value"] = params["value"] = d(value)
-    elif kind == "ramp":
-        raw["start"] = params["start"] = d(value)
-        raw["end"] = params["end"] = d(value)
-        duration("duration")
-        if d(st.booleans()):
-            duration("delay", zero_ok=True)
-    elif kind == "exponential":
-        start, end = d(value), d(value)
-        duration("time_constant")
-        scale = 1.0
-        if d(st.booleans()):
-            duration("rise_at")
-            scale = 1.0 / -math.expm1(-params["rise_at"] / params["time_constant"])
-        rise = _shrink_into(lambda r: [start, start + r * scale], (end - start) / scale, lo, hi)
-        raw["start"], raw["rise"] = start, rise
-        params.update(start=start, rise=rise)
-    elif kind == "sine":
-        a, b = d(value), d(value)
-        mean = a / 2 + b / 2
-        if not lo <= mean <= hi:
-            mean = a
-        amp = _shrink_into(lambda x: [mean - x, mean + x], abs(b - a) / 2, lo, hi)
-        raw.update(mean=mean, amplitude=amp)
-        params.update(mean=mean, amplitude=amp)
-        duration("period")
-        if d(st.booleans()):
-            raw["phase"] = params["phase"] = d(st.floats(-1e6, 1e6))
-    else:
-        times = sorted(d(st.sets(st.integers(0, 10**15), min_size=2, max_size=6)))
-        values = [d(value) for _ in times]
-        raw["points"] = [[d(duration_spelling(t)), x] for t, x in zip(times, values, strict=True)]
-        table = tuple((t / NS_PER_S, float(x)) for t, x in zip(times, values, strict=True))
+
+# One function per profile kind: it fills the _Profile and returns the table the loader must
+# build (empty but for "table").
+
+
+def _constant_profile(p: _Profile) -> tuple[tuple[float, float], ...]:
+    p.raw["value"] = p.params["value"] = p.value()
+    return ()
+
+
+def _ramp_profile(p: _Profile) -> tuple[tuple[float, float], ...]:
+    p.raw["start"] = p.params["start"] = p.value()
+    p.raw["end"] = p.params["end"] = p.value()
+    p.duration("duration")
+    if p.d(st.booleans()):
+        p.duration("delay", zero_ok=True)
+    return ()
+
+
+def _exponential_profile(p: _Profile) -> tuple[tuple[float, float], ...]:
+    start, end = p.value(), p.value()
+    p.duration("time_constant")
+    scale = 1.0
+    if p.d(st.booleans()):
+        p.duration("rise_at")
+        scale = 1.0 / -math.expm1(-p.params["rise_at"] / p.params["time_constant"])
+    rise = _shrink_into(lambda r: [start, start + r * scale], (end - start) / scale, p.v.lo, p.v.hi)
+    p.raw["start"], p.raw["rise"] = start, rise
+    p.params.update(start=start, rise=rise)
+    return ()
+
+
+def _sine_profile(p: _Profile) -> tuple[tuple[float, float], ...]:
+    lo, hi = p.v.lo, p.v.hi
+    a, b = p.value(), p.value()
+    mean = a / 2 + b / 2
+    if not lo <= mean <= hi:
+        mean = a
+    amp = _shrink_into(lambda x: [mean - x, mean + x], abs(b - a) / 2, lo, hi)
+    p.raw.update(mean=mean, amplitude=amp)
+    p.params.update(mean=mean, amplitude=amp)
+    p.duration("period")
+    if p.d(st.booleans()):
+        p.raw["phase"] = p.params["phase"] = p.d(st.floats(-1e6, 1e6))
+    return ()
+
+
+def _table_profile(p: _Profile) -> tuple[tuple[float, float], ...]:
+    times = sorted(p.d(st.sets(st.integers(0, 10**15), min_size=2, max_size=6)))
+    values = [p.value() for _ in times]
+    p.raw["points"] = [[p.d(duration_spelling(t)), x] for t, x in zip(times, values, strict=True)]
+    return tuple((t / NS_PER_S, float(x)) for t, x in zip(times, values, strict=True))
+
+
+PROFILE_KINDS: dict[str, Callable[[_Profile], tuple[tuple[float, float], ...]]] = {
+    "constant": _constant_profile,
+    "ramp": _ramp_profile,
+    "exponential": _exponential_profile,
+    "sine": _sine_profile,
+    "table": _table_profile,
+}
+
+
+@st.composite
+def profile_in_range(d: st.DrawFn, v: Var) -> tuple[dict[str, Any], tuple[str, dict[str, float], tuple]]:
+    """A profile whose values stay inside v's range: (TOML table, expected (kind, params, table))."""
+    kind = d(st.sampled_from(list(PROFILE_KINDS)))
+    p = _Profile(d, v, {"profile": kind})
+    table = PROFILE_KINDS[kind](p)
     if d(st.booleans()):
-        raw["source"] = d(st.text(TOML_SAFE, max_size=10))
-    return raw, (kind, params, table)
+        p.raw["source"] = d(st.text(TOML_SAFE, max_size=10))
+    return p.raw, (kind, p.params, table)
 
 
 @st.composite
@@ -507,153 +546,215 @@ MUTATION_KINDS = [
 ]
 
 
+@dataclass(frozen=True)
+class _Mutating:
+    """What a mutation of one kind is drawn with."""
+
+    d: st.DrawFn
+    kind: str
+    step: int  # the base scenario's step, ns
+    duration: int  # and its duration, ns
+    inst: str = ""  # the instance a per-instance mutation is about
+
+    @property
+    def spec(self) -> frozenset[str]:
+        return frozenset({f"spec:{self.inst}"})  # the instance is usable: its inputs are checked
+
+    @property
+    def model(self) -> frozenset[str]:
+        return frozenset({f"model:{self.inst}"})  # its model is known: its period and parameters are checked
+
+
+MutationFn = Callable[[_Mutating], Mutation]
+
+# ---- mistakes in [scenario]
+
+
+def _scenario_value(
+    key: str, values: st.SearchStrategy[Any], breaks: frozenset[str] = frozenset()
+) -> MutationFn:
+    """A wrong value drawn from ``values`` at scenario.<key>."""
+    return lambda m: Mutation(
+        f"scenario.{key}", _setter("scenario", key, value=m.d(values)), m.kind, breaks=breaks
+    )
+
+
+def _duration_mutation(m: _Mutating) -> Mutation:
+    if m.kind == "duration":
+        value = m.d(st.one_of(bad_durations, st.sampled_from(["367 d", "1000 d", 366 * 86400 + 1])))
+        needs: frozenset[str] = frozenset()
+    else:  # not a multiple of the step
+        k = m.d(st.integers(0, 10**6))
+        value, needs = f"{k * m.step + m.d(st.integers(1, m.step - 1))} ns", frozenset({"step"})
+    return Mutation(
+        "scenario.duration",
+        _setter("scenario", "duration", value=value),
+        m.kind,
+        also=(r"fmu\.\w+\.period", r"event\[0\]\.at"),  # an event at 1 s is late for a run of -1 s
+        needs=needs,
+        breaks=frozenset({"duration"}),
+    )
+
+
+def _interval_multiple(m: _Mutating) -> Mutation:
+    step = m.step
+    if m.d(st.booleans()):  # longer than the run
+        value, needs = f"{m.duration + step * m.d(st.integers(1, 10**6))} ns", frozenset({"duration", "step"})
+    else:
+        value, needs = (
+            f"{step * m.d(st.integers(0, 10**6)) + m.d(st.integers(1, step - 1))} ns",
+            frozenset({"step"}),
+        )
+    return Mutation(
+        "scenario.output_interval", _setter("scenario", "output_interval", value=value), m.kind, needs=needs
+    )
+
+
+not_a_string = toml_values.filter(lambda x: not isinstance(x, str))
+
+SCENARIO_MUTATIONS: dict[str, MutationFn] = {
+    "step": _scenario_value("step", bad_durations, breaks=frozenset({"step"})),
+    "duration": _duration_mutation,
+    "duration-multiple": _duration_mutation,
+    "interval": _scenario_value("output_interval", bad_durations),
+    "interval-multiple": _interval_multiple,
+    "seed": _scenario_value(
+        "seed", st.one_of(st.integers(max_value=-1), st.integers(min_value=2**31), st.floats(), not_a_number)
+    ),
+    "drift": _scenario_value("drift_window", bad_durations),
+    "name": _scenario_value("name", st.one_of(st.just(""), not_a_string)),
+    "description": _scenario_value("description", not_a_string),
+}
+
+# ---- mistakes in one [fmu.<inst>]
+
+
+def _period_mutation(m: _Mutating) -> Mutation:
+    value = m.d(bad_durations)
+    try:
+        parse_duration(value)
+        breaks = frozenset()
+    except ValueError:
+        breaks = m.spec  # an unusable instance: its inputs are no longer checked
+    return Mutation(
+        f"fmu.{m.inst}.period",
+        _setter("fmu", m.inst, "period", value=value),
+        m.kind,
+        needs=m.model,
+        breaks=breaks,
+    )
+
+
+def _period_multiple(m: _Mutating) -> Mutation:
+    value = f"{m.step * m.d(st.integers(0, 100)) + m.d(st.integers(1, m.step - 1))} ns"
+    return Mutation(
+        f"fmu.{m.inst}.period",
+        _setter("fmu", m.inst, "period", value=value),
+        m.kind,
+        needs=m.model | {"step"},
+    )
+
+
+def _period_divides(m: _Mutating) -> Mutation:
+    k = m.d(st.sampled_from([k for k in range(2, 2000) if m.duration % (k * m.step)]))
+    return Mutation(
+        f"fmu.{m.inst}.period",
+        _setter("fmu", m.inst, "period", value=f"{k * m.step} ns"),
+        m.kind,
+        needs=m.model | {"step", "duration"},
+    )
+
+
+def _unknown_parameter(m: _Mutating) -> Mutation:
+    others = [o for o in _vars("output") + _vars("input") if o.inst == m.inst]
+    name = m.d(
+        st.one_of(
+            st.sampled_from([o.name for o in others]),
+            st.from_regex(r"[a-z][a-z_]{0,15}", fullmatch=True),
+        ).filter(lambda n: n not in {p.name for p in PARAMETERS if p.inst == m.inst})
+    )
+    return Mutation(
+        f"fmu.{m.inst}.parameters.{name}",
+        _setter("fmu", m.inst, "parameters", name, value=1.0),
+        m.kind,
+        needs=m.model,
+    )
+
+
+def _parameter_mutation(m: _Mutating) -> Mutation:
+    v = m.d(st.sampled_from([p for p in PARAMETERS if p.inst == m.inst]))
+    if m.kind == "parameter-unknown":
+        return _unknown_parameter(m)
+    value = m.d(out_of_range(v) if m.kind == "parameter-range" else wrong_type(v))
+    if m.d(st.booleans()):
+        value = {"value": value, "source": "prop"}
+    return Mutation(
+        f"fmu.{m.inst}.parameters.{v.name}",
+        _setter("fmu", m.inst, "parameters", v.name, value=value),
+        m.kind,
+        needs=m.model,
+    )
+
+
+def _unknown_key(m: _Mutating) -> Mutation:
+    table = m.d(st.sampled_from(["", "scenario.", f"fmu.{m.inst}."]))
+    allowed = {
+        "": {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"},
+        "scenario.": {"name", "description", "duration", "step", "output_interval", "seed", "drift_window"},
+        f"fmu.{m.inst}.": {"model", "period", "parameters", "parameter_files"},
+    }[table]
+    name = m.d(st.from_regex(r"[a-z][a-z_]{0,12}", fullmatch=True).filter(lambda n: n not in allowed))
+    path = [*table.rstrip(".").split("."), name] if table else [name]
+    return Mutation(f"{table}{name}", _setter(*path, value=m.d(toml_values)), m.kind)
+
+
+def _missing(m: _Mutating) -> Mutation:
+    """A required value left out."""
+    which = m.d(st.sampled_from(["step", "duration", "output_interval", "period", "model"]))
+    if which in ("period", "model"):
+        breaks = m.spec | m.model if which == "model" else m.spec
+        needs = frozenset() if which == "model" else m.model
+        return Mutation(
+            f"fmu.{m.inst}.{which}", _deleter("fmu", m.inst, which), m.kind, needs=needs, breaks=breaks
+        )
+    return Mutation(
+        f"scenario.{which}",
+        _deleter("scenario", which),
+        m.kind,
+        breaks=frozenset({which}) if which in ("step", "duration") else frozenset(),
+    )
+
+
+INSTANCE_MUTATIONS: dict[str, MutationFn] = {
+    "period": _period_mutation,
+    "period-multiple": _period_multiple,
+    "period-divides": _period_divides,
+    "parameter-range": _parameter_mutation,
+    "parameter-type": _parameter_mutation,
+    "parameter-unknown": _parameter_mutation,
+    "profile": lambda m: m.d(bad_profile()),
+    "event": lambda m: m.d(bad_event(m.duration)),
+    "unknown-key": _unknown_key,
+    "missing": _missing,
+}
+
+
 @st.composite
 def mutation(d: st.DrawFn) -> Mutation:
     base = base_data()
     step = _step_ns(base)
     duration = parse_duration(base["scenario"]["duration"])
     kind = d(st.sampled_from(MUTATION_KINDS))
-    sc_key = lambda k: f"scenario.{k}"  # noqa: E731
-    if kind == "step":
-        return Mutation(
-            sc_key("step"),
-            _setter("scenario", "step", value=d(bad_durations)),
-            kind,
-            breaks=frozenset({"step"}),
-        )
-    if kind in ("duration", "duration-multiple"):
-        if kind == "duration":
-            value = d(st.one_of(bad_durations, st.sampled_from(["367 d", "1000 d", 366 * 86400 + 1])))
-            needs: frozenset[str] = frozenset()
-        else:
-            k = d(st.integers(0, 10**6))
-            value, needs = f"{k * step + d(st.integers(1, step - 1))} ns", frozenset({"step"})
-        return Mutation(
-            sc_key("duration"),
-            _setter("scenario", "duration", value=value),
-            kind,
-            also=(r"fmu\.\w+\.period", r"event\[0\]\.at"),  # an event at 1 s is late for a run of -1 s
-            needs=needs,
-            breaks=frozenset({"duration"}),
-        )
-    if kind == "interval":
-        return Mutation(
-            sc_key("output_interval"), _setter("scenario", "output_interval", value=d(bad_durations)), kind
-        )
-    if kind == "interval-multiple":
-        if d(st.booleans()):  # longer than the run
-            value, needs = f"{duration + step * d(st.integers(1, 10**6))} ns", frozenset({"duration", "step"})
-        else:
-            value, needs = (
-                f"{step * d(st.integers(0, 10**6)) + d(st.integers(1, step - 1))} ns",
-                frozenset({"step"}),
-            )
-        return Mutation(
-            sc_key("output_interval"), _setter("scenario", "output_interval", value=value), kind, needs=needs
-        )
-    if kind == "seed":
-        value = d(
-            st.one_of(st.integers(max_value=-1), st.integers(min_value=2**31), st.floats(), not_a_number)
-        )
-        return Mutation(sc_key("seed"), _setter("scenario", "seed", value=value), kind)
-    if kind == "drift":
-        return Mutation(
-            sc_key("drift_window"), _setter("scenario", "drift_window", value=d(bad_durations)), kind
-        )
-    if kind == "name":
-        value = d(st.one_of(st.just(""), toml_values.filter(lambda x: not isinstance(x, str))))
-        return Mutation(sc_key("name"), _setter("scenario", "name", value=value), kind)
-    if kind == "description":
-        value = d(toml_values.filter(lambda x: not isinstance(x, str)))
-        return Mutation(sc_key("description"), _setter("scenario", "description", value=value), kind)
+    if kind in SCENARIO_MUTATIONS:
+        return SCENARIO_MUTATIONS[kind](_Mutating(d, kind, step, duration))
+    # the instance is drawn for every per-instance kind (profiles and events draw their own)
     inst = d(st.sampled_from(sorted(INSTANCES)))
-    spec = frozenset({f"spec:{inst}"})  # the instance is usable: its inputs are checked
-    model = frozenset({f"model:{inst}"})  # its model is known: its period and parameters are checked
-    if kind == "period":
-        value = d(bad_durations)
-        try:
-            parse_duration(value)
-            breaks = frozenset()
-        except ValueError:
-            breaks = spec  # an unusable instance: its inputs are no longer checked
-        return Mutation(
-            f"fmu.{inst}.period",
-            _setter("fmu", inst, "period", value=value),
-            kind,
-            needs=model,
-            breaks=breaks,
-        )
-    if kind == "period-multiple":
-        value = f"{step * d(st.integers(0, 100)) + d(st.integers(1, step - 1))} ns"
-        return Mutation(
-            f"fmu.{inst}.period", _setter("fmu", inst, "period", value=value), kind, needs=model | {"step"}
-        )
-    if kind == "period-divides":
-        m = d(st.sampled_from([m for m in range(2, 2000) if duration % (m * step)]))
-        return Mutation(
-            f"fmu.{inst}.period",
-            _setter("fmu", inst, "period", value=f"{m * step} ns"),
-            kind,
-            needs=model | {"step", "duration"},
-        )
-    if kind.startswith("parameter"):
-        v = d(st.sampled_from([p for p in PARAMETERS if p.inst == inst]))
-        key = f"fmu.{inst}.parameters.{v.name}"
-        if kind == "parameter-range":
-            value = d(out_of_range(v))
-        elif kind == "parameter-type":
-            value = d(wrong_type(v))
-        else:
-            others = [o for o in _vars("output") + _vars("input") if o.inst == inst]
-            name = d(
-                st.one_of(
-                    st.sampled_from([o.name for o in others]),
-                    st.from_regex(r"[a-z][a-z_]{0,15}", fullmatch=True),
-                ).filter(lambda n: n not in {p.name for p in PARAMETERS if p.inst == inst})
-            )
-            key, value = f"fmu.{inst}.parameters.{name}", 1.0
-            return Mutation(key, _setter("fmu", inst, "parameters", name, value=value), kind, needs=model)
-        if d(st.booleans()):
-            value = {"value": value, "source": "prop"}
-        return Mutation(key, _setter("fmu", inst, "parameters", v.name, value=value), kind, needs=model)
-    if kind == "profile":
-        return d(bad_profile())
-    if kind == "event":
-        return d(bad_event(duration))
-    if kind == "unknown-key":
-        table = d(st.sampled_from(["", "scenario.", f"fmu.{inst}."]))
-        allowed = {
-            "": {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"},
-            "scenario.": {
-                "name",
-                "description",
-                "duration",
-                "step",
-                "output_interval",
-                "seed",
-                "drift_window",
-            },
-            f"fmu.{inst}.": {"model", "period", "parameters", "parameter_files"},
-        }[table]
-        name = d(st.from_regex(r"[a-z][a-z_]{0,12}", fullmatch=True).filter(lambda n: n not in allowed))
-        path = [*table.rstrip(".").split("."), name] if table else [name]
-        return Mutation(
-            f"{table}{name}",
-            _setter(*path, value=d(toml_values)),
-            kind,
-        )
-    # missing required values
-    which = d(st.sampled_from(["step", "duration", "output_interval", "period", "model"]))
-    if which in ("period", "model"):
-        breaks = spec | model if which == "model" else spec
-        needs = frozenset() if which == "model" else model
-        return Mutation(f"fmu.{inst}.{which}", _deleter("fmu", inst, which), kind, needs=needs, breaks=breaks)
-    return Mutation(
-        sc_key(which),
-        _deleter("scenario", which),
-        kind,
-        breaks=frozenset({which}) if which in ("step", "duration") else frozenset(),
-    )
+    return INSTANCE_MUTATIONS[kind](_Mutating(d, kind, step, duration, inst))
+
+
+def test_every_mutation_kind_has_its_strategy() -> None:
+    assert set(MUTATION_KINDS) == set(SCENARIO_MUTATIONS) | set(INSTANCE_MUTATIONS)
+    assert not set(SCENARIO_MUTATIONS) & set(INSTANCE_MUTATIONS)
 
 
 def out_of_range(v: Var, *, finite: bool = False) -> st.SearchStrategy[Any]:
@@ -687,150 +788,143 @@ def wrong_type(v: Var) -> st.SearchStrategy[Any]:
     )
 
 
-@st.composite
-def bad_profile(d: st.DrawFn) -> Mutation:
-    v = d(st.sampled_from(FREE_INPUTS))
-    key = f"input.{v.ref}"
-    spec = frozenset({f"spec:{v.inst}"})
+# One function per way to get an input's profile wrong, given the free input v it is drawn for.
+
+
+def _input_profile(inst: str, name: str, raw: dict[str, Any], how: str, key: str = "") -> Mutation:
+    """The profile ``raw`` at [input.<inst>.<name>], reported at input.<inst>.<name>[.key]."""
+    return Mutation(
+        f"input.{inst}.{name}" + (f".{key}" if key else ""),
+        _setter("input", inst, name, value=raw),
+        how,
+        needs=frozenset({f"spec:{inst}"}),
+    )
+
+
+def _profile_out_of_range(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    return _input_profile(
+        v.inst, v.name, {"profile": "constant", "value": d(out_of_range(v, finite=True))}, how
+    )
+
+
+def _profile_sine_reach(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    mean = d(st.floats(v.lo, v.hi))  # an amplitude of twice the range leaves it, however it rounds
+    amp = d(st.floats(min_value=2 * (v.hi - v.lo), max_value=1e300))
+    return _input_profile(
+        v.inst, v.name, {"profile": "sine", "mean": mean, "amplitude": amp, "period": "1 min"}, how
+    )
+
+
+def _profile_nan_value(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    value = d(st.one_of(st.sampled_from([math.nan, math.inf, -math.inf]), not_a_number))
+    return _input_profile(v.inst, v.name, {"profile": "constant", "value": value}, how, "value")
+
+
+def _profile_zero_duration(d: st.DrawFn, v: Var, how: str) -> Mutation:
     ok_value = st.floats(v.lo, v.hi)
-    how = d(
+    k = d(st.sampled_from(["duration", "time_constant", "period"]))
+    raw = {
+        "duration": {"profile": "ramp", "start": d(ok_value), "end": d(ok_value)},
+        "time_constant": {"profile": "exponential", "start": d(ok_value), "rise": 0.0},
+        "period": {"profile": "sine", "mean": d(ok_value), "amplitude": 0.0},
+    }[k]
+    raw[k] = d(bad_durations)
+    return _input_profile(v.inst, v.name, raw, how, k)
+
+
+def _profile_unknown_kind(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    kind = d(toml_values.filter(lambda x: x not in ("constant", "ramp", "exponential", "sine", "table")))
+    return _input_profile(v.inst, v.name, {"profile": kind, "value": 1.0}, how, "profile")
+
+
+def _profile_missing(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    kind, required = d(
         st.sampled_from(
             [
-                "out-of-range",
-                "sine-reach",
-                "nan-value",
-                "zero-duration",
-                "unknown-kind",
-                "missing",
-                "unknown-key",
-                "points",
-                "fed",
-                "no-such-input",
-                "an-output",
+                ("ramp", ["start", "end", "duration"]),
+                ("sine", ["mean", "amplitude", "period"]),
+                ("exponential", ["start", "rise", "time_constant"]),
             ]
         )
     )
-    if how == "out-of-range":
-        return Mutation(
-            key,
-            _setter(
-                "input",
-                v.inst,
-                v.name,
-                value={"profile": "constant", "value": d(out_of_range(v, finite=True))},
-            ),
-            how,
-            needs=spec,
+    gone = d(st.sampled_from(required))
+    raw = {
+        "profile": kind,
+        **{
+            k: ("1 s" if k in ("duration", "period", "time_constant") else v.lo)
+            for k in required
+            if k != gone
+        },
+    }
+    return _input_profile(v.inst, v.name, raw, how, gone)
+
+
+def _profile_unknown_key(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    extra = d(
+        st.from_regex(r"[a-z][a-z_]{0,10}", fullmatch=True).filter(
+            lambda n: n not in {"profile", "value", "source"}
         )
-    if how == "sine-reach":
-        mean = d(ok_value)  # an amplitude of twice the range leaves it, however it rounds
-        amp = d(st.floats(min_value=2 * (v.hi - v.lo), max_value=1e300))
-        raw = {"profile": "sine", "mean": mean, "amplitude": amp, "period": "1 min"}
-        return Mutation(key, _setter("input", v.inst, v.name, value=raw), how, needs=spec)
-    if how == "nan-value":
-        value = d(st.one_of(st.sampled_from([math.nan, math.inf, -math.inf]), not_a_number))
-        return Mutation(
-            f"{key}.value",
-            _setter("input", v.inst, v.name, value={"profile": "constant", "value": value}),
-            how,
-            needs=spec,
+    )
+    return _input_profile(v.inst, v.name, {"profile": "constant", "value": v.lo, extra: 1}, how, extra)
+
+
+def _profile_points(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    pts = d(
+        st.one_of(
+            st.lists(
+                st.tuples(st.integers(0, 100), st.floats(v.lo, v.hi)).map(list), max_size=1
+            ),  # fewer than two
+            st.lists(st.integers(0, 100), min_size=2, max_size=4).map(
+                lambda ts: [[t, v.lo] for t in sorted(ts, reverse=True)]
+            ),  # not increasing
+            st.just([[0, math.nan], [1, v.lo]]),
+            st.just([["soon", v.lo], [1, v.lo]]),
+            toml_values.filter(lambda x: not isinstance(x, list)),
         )
-    if how == "zero-duration":
-        k = d(st.sampled_from(["duration", "time_constant", "period"]))
-        raw = {
-            "duration": {"profile": "ramp", "start": d(ok_value), "end": d(ok_value)},
-            "time_constant": {"profile": "exponential", "start": d(ok_value), "rise": 0.0},
-            "period": {"profile": "sine", "mean": d(ok_value), "amplitude": 0.0},
-        }[k]
-        raw[k] = d(bad_durations)
-        return Mutation(f"{key}.{k}", _setter("input", v.inst, v.name, value=raw), how, needs=spec)
-    if how == "unknown-kind":
-        kind = d(toml_values.filter(lambda x: x not in ("constant", "ramp", "exponential", "sine", "table")))
-        return Mutation(
-            f"{key}.profile",
-            _setter("input", v.inst, v.name, value={"profile": kind, "value": 1.0}),
-            how,
-            needs=spec,
-        )
-    if how == "missing":
-        kind, required = d(
-            st.sampled_from(
-                [
-                    ("ramp", ["start", "end", "duration"]),
-                    ("sine", ["mean", "amplitude", "period"]),
-                    ("exponential", ["start", "rise", "time_constant"]),
-                ]
-            )
-        )
-        gone = d(st.sampled_from(required))
-        raw = {
-            "profile": kind,
-            **{
-                k: ("1 s" if k in ("duration", "period", "time_constant") else v.lo)
-                for k in required
-                if k != gone
-            },
-        }
-        return Mutation(f"{key}.{gone}", _setter("input", v.inst, v.name, value=raw), how, needs=spec)
-    if how == "unknown-key":
-        extra = d(
-            st.from_regex(r"[a-z][a-z_]{0,10}", fullmatch=True).filter(
-                lambda n: n not in {"profile", "value", "source"}
-            )
-        )
-        return Mutation(
-            f"{key}.{extra}",
-            _setter("input", v.inst, v.name, value={"profile": "constant", "value": v.lo, extra: 1}),
-            how,
-            needs=spec,
-        )
-    if how == "points":
-        pts = d(
-            st.one_of(
-                st.lists(st.tuples(st.integers(0, 100), ok_value).map(list), max_size=1),  # fewer than two
-                st.lists(st.integers(0, 100), min_size=2, max_size=4).map(
-                    lambda ts: [[t, v.lo] for t in sorted(ts, reverse=True)]
-                ),  # not increasing
-                st.just([[0, math.nan], [1, v.lo]]),
-                st.just([["soon", v.lo], [1, v.lo]]),
-                toml_values.filter(lambda x: not isinstance(x, list)),
-            )
-        )
-        return Mutation(
-            f"{key}.points",
-            _setter("input", v.inst, v.name, value={"profile": "table", "points": pts}),
-            how,
-            needs=spec,
-        )
-    if how == "fed":
-        f = d(st.sampled_from(FED_INPUTS))
-        raw = {"profile": "constant", "value": (f.lo + f.hi) / 2}
-        return Mutation(
-            f"input.{f.ref}",
-            _setter("input", f.inst, f.name, value=raw),
-            how,
-            needs=frozenset({f"spec:{f.inst}"}),
-        )
-    inst = v.inst
-    if how == "an-output":
-        o = d(st.sampled_from([o for o in OUTPUTS if o.inst == inst] or OUTPUTS))
-        return Mutation(
-            f"input.{o.ref}",
-            _setter("input", o.inst, o.name, value={"profile": "constant", "value": 0.0}),
-            how,
-            needs=frozenset({f"spec:{o.inst}"}),
-        )
+    )
+    return _input_profile(v.inst, v.name, {"profile": "table", "points": pts}, how, "points")
+
+
+def _profile_fed(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    """A profile on an input a connection already feeds."""
+    f = d(st.sampled_from(FED_INPUTS))
+    return _input_profile(f.inst, f.name, {"profile": "constant", "value": (f.lo + f.hi) / 2}, how)
+
+
+def _profile_no_such_input(d: st.DrawFn, v: Var, how: str) -> Mutation:
     name = d(
         st.from_regex(r"[a-z][a-z_]{0,10}", fullmatch=True).filter(
-            lambda n: n not in model_variables(INSTANCES[inst])
+            lambda n: n not in model_variables(INSTANCES[v.inst])
         )
     )
-    return Mutation(
-        f"input.{inst}.{name}",
-        _setter("input", inst, name, value={"profile": "constant", "value": 0.0}),
-        how,
-        needs=spec,
-    )
+    return _input_profile(v.inst, name, {"profile": "constant", "value": 0.0}, how)
+
+
+def _profile_an_output(d: st.DrawFn, v: Var, how: str) -> Mutation:
+    o = d(st.sampled_from([o for o in OUTPUTS if o.inst == v.inst] or OUTPUTS))
+    return _input_profile(o.inst, o.name, {"profile": "constant", "value": 0.0}, how)
+
+
+BAD_PROFILES: dict[str, Callable[[st.DrawFn, Var, str], Mutation]] = {
+    "out-of-range": _profile_out_of_range,
+    "sine-reach": _profile_sine_reach,
+    "nan-value": _profile_nan_value,
+    "zero-duration": _profile_zero_duration,
+    "unknown-kind": _profile_unknown_kind,
+    "missing": _profile_missing,
+    "unknown-key": _profile_unknown_key,
+    "points": _profile_points,
+    "fed": _profile_fed,
+    "no-such-input": _profile_no_such_input,
+    "an-output": _profile_an_output,
+}
+
+
+@st.composite
+def bad_profile(d: st.DrawFn) -> Mutation:
+    v = d(st.sampled_from(FREE_INPUTS))
+    how = d(st.sampled_from(list(BAD_PROFILES)))
+    return BAD_PROFILES[how](d, v, how)
 
 
 @st.composite
