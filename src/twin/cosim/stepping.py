@@ -1,0 +1,179 @@
+"""The stepping loop: runs a batch of ticks of the plan over the exchange state.
+
+Two implementations behind one small interface, :class:`Stepping` (libcosim's "algorithm"):
+the compiled stepper (:class:`twin.cosim.native.NativeLoop`, ``loop="fast"``) and
+:class:`PythonLoop` here (``loop="python"``), which does the same ticks in plain Python on the
+same arrays; a test checks that both give byte-identical signals.
+
+Order within a tick ``k`` at ``t = k * step``: (1) the outputs that become visible at ``k``
+are committed, (2) the inputs of the instances due at ``k`` are gathered and set, (3) the row
+of an output tick is recorded, (4) the due instances step from ``t`` to ``t + period`` and
+their outputs become pending (visible at ``k + period``: Jacobi exchange, zero-order hold).
+Scenario events are applied between batches (:mod:`twin.cosim.events`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal, Protocol
+
+import numpy as np
+
+from twin.config.spec import NS_PER_S
+from twin.cosim.plan import ColumnKind, InputKind, Plan, PlannedInstance
+from twin.cosim.state import Buffers, State
+from twin.errors import ConfigError, FMUError
+from twin.fmu.slot import FMUSlot
+
+Loop = Literal["fast", "python"]
+LOOPS: tuple[Loop, ...] = ("fast", "python")
+
+
+class Stepping(Protocol):
+    """Runs ticks of a plan over its state."""
+
+    def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
+        """Run the ticks ``k0`` to ``k1 - 1``.
+
+        ``driven`` holds one row of driven values per tick; each recorded row goes to
+        ``rows[counters.rows]`` and counts in ``counters.rows``. Raises
+        :class:`~twin.errors.FMUError` when an FMU fails (the state is then at that tick).
+        """
+        ...
+
+
+def gather(
+    inst: PlannedInstance, buffers: Sequence[Buffers], drow: Sequence[float], *, exchange: bool
+) -> None:
+    """Set the input buffer of ``inst`` from its sources.
+
+    A connection reads the visible output of its source, a driven input its column of
+    ``drow``; a delayed input takes the value of the previous exchange, and with ``exchange``
+    (every exchange but initialization, where its source may not be initialized yet) keeps
+    its source's visible value for the next one.
+    """
+    buf = buffers[inst.index]
+    vals = buf.in_port.values
+    for j, i in enumerate(inst.inputs):
+        if i.kind == InputKind.CONNECTION:
+            vals[j] = buffers[i.src].cur[i.idx]
+        elif i.kind == InputKind.DELAYED:
+            vals[j] = buf.delay_buf[j]
+            if exchange:
+                buf.delay_buf[j] = buffers[i.src].cur[i.idx]
+        else:
+            vals[j] = drow[i.src]
+
+
+def row_values(plan: Plan, state: State) -> list[float]:
+    """The recorded columns now: visible outputs and the driven inputs last set."""
+    b = state.buffers
+    return [
+        b[c.instance].cur[c.idx] if c.kind == ColumnKind.OUTPUT else b[c.instance].in_port.values[c.idx]
+        for c in plan.columns
+    ]
+
+
+def non_finite(inst: PlannedInstance, slot: FMUSlot, buf: Buffers, j: int) -> FMUError:
+    """The error for an output that is NaN or infinite although the step reported success."""
+    value = buf.out_port.values[j]
+    return FMUError(
+        inst.name,
+        "fmi2GetReal",
+        slot.time,
+        f"output '{inst.outputs[j]}' is {value} after fmi2DoStep returned fmi2OK",
+    )
+
+
+def final_tick(plan: Plan, state: State) -> tuple[np.ndarray, np.ndarray] | None:
+    """The end of the run, tick ``n_ticks``: its outputs become visible, the driven inputs take
+    their values, and its row (times, rows) is returned if it is an output tick. No FMU steps."""
+    n = plan.n_ticks
+    for i, buf in enumerate(state.buffers):
+        if state.pending_at[i] == n:
+            buf.commit()
+    t_s = n * plan.step_ns / NS_PER_S
+    values = state.driven.row(t_s)
+    for inst, buf in zip(plan.instances, state.buffers, strict=True):
+        for k, i in enumerate(inst.inputs):
+            if i.kind == InputKind.DRIVEN:
+                buf.in_port.values[k] = values[i.src]
+    if n % plan.out_every:
+        return None
+    return np.array([t_s]), np.array([row_values(plan, state)]).reshape(1, len(plan.columns))
+
+
+class PythonLoop:
+    """The ticks in plain Python: the same arithmetic as ``native/stepper.c``, through
+    :class:`~twin.fmu.slot.FMUSlot`'s calls (slower; for checking the compiled stepper)."""
+
+    def __init__(self, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
+        self.plan = plan
+        self.state = state
+        self.slots = list(slots)
+
+    def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
+        plan, c = self.plan, self.state.counters
+        n_cols = len(plan.columns)
+        for k in range(k0, k1):
+            t = k * plan.step_ns / NS_PER_S
+            self._commit(k)
+            due = [inst for inst in plan.instances if k % inst.period_ticks == 0]
+            for inst in due:
+                gather(inst, self.state.buffers, driven[k - k0], exchange=True)
+                self.slots[inst.index].time = t  # an error in fmi2SetReal names this time
+                self.slots[inst.index].write(self.state.buffers[inst.index].in_port)
+            if k % plan.out_every == 0:
+                rows[c.rows, :n_cols] = row_values(plan, self.state)
+                c.rows += 1
+            for inst in due:
+                self._step(inst, k, t)
+            c.macro_steps += 1
+
+    def _commit(self, k: int) -> None:
+        pending_at = self.state.pending_at
+        for i, buf in enumerate(self.state.buffers):
+            if pending_at[i] == k:
+                buf.commit()
+                pending_at[i] = -1
+
+    def _step(self, inst: PlannedInstance, k: int, t: float) -> None:
+        slot, buf = self.slots[inst.index], self.state.buffers[inst.index]
+        slot.do_step(t, inst.period_ns / NS_PER_S)
+        slot.read(buf.out_port)
+        bad = np.flatnonzero(~np.isfinite(buf.out_port.values[: len(inst.outputs)]))
+        if bad.size:
+            slot.time = t
+            raise non_finite(inst, slot, buf, int(bad[0]))
+        self.state.pending_at[inst.index] = k + inst.period_ticks
+        self.state.counters.fmu_steps += 1
+
+
+def check_loop(loop: str) -> Loop:
+    """``loop`` if it names a loop; a :class:`~twin.errors.ConfigError` otherwise."""
+    if loop not in LOOPS:
+        raise ConfigError(f"unknown master loop {loop!r} (expected one of: {', '.join(LOOPS)})", key="loop")
+    return loop  # type: ignore[return-value]
+
+
+def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> Stepping:
+    """The loop named ``loop`` over ``state`` (the compiled one is built on first use)."""
+    if check_loop(loop) == "python":
+        return PythonLoop(plan, state, slots)
+    from twin.cosim.native import NativeLoop
+
+    return NativeLoop(plan, state, slots)
+
+
+__all__ = [
+    "LOOPS",
+    "Loop",
+    "PythonLoop",
+    "Stepping",
+    "check_loop",
+    "final_tick",
+    "gather",
+    "make_stepping",
+    "non_finite",
+    "row_values",
+]
