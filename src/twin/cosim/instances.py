@@ -13,7 +13,7 @@ from pathlib import Path
 
 from twin.cosim.plan import Plan
 from twin.cosim.state import State
-from twin.cosim.stepping import gather
+from twin.cosim.stepping import Gather
 from twin.fmu.build import ensure_fmu
 from twin.fmu.slot import FMUSlot
 
@@ -41,7 +41,7 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         inst, slot, buf = plan.instances[i], slots[i], state.buffers[i]
         slot.enter_initialization()
         # a delayed input keeps its initial value: its source may not be initialized yet
-        gather(inst, state.buffers, drow, exchange=False)
+        Gather(inst, state.buffers)(drow, exchange=False)
         slot.write(buf.in_port)
         slot.exit_initialization()
         slot.read(buf.out_port)

@@ -91,10 +91,10 @@ class Driven:
             out[:, d] = fn(t)
         return out
 
-    def row(self, t_s: float) -> list[float]:
+    def row(self, t_s: float) -> np.ndarray:
         """The driven values at the time ``t_s`` (s)."""
         t = np.array([t_s])
-        return [fn(t)[0] for fn in self.functions]
+        return np.array([fn(t)[0] for fn in self.functions], dtype=np.float64)
 
 
 @dataclass

@@ -20,7 +20,7 @@ from typing import Literal, Protocol
 import numpy as np
 
 from twin.config.spec import NS_PER_S
-from twin.cosim.plan import ColumnKind, InputKind, Plan, PlannedInstance
+from twin.cosim.plan import ColumnKind, InputKind, Plan, PlannedInput, PlannedInstance
 from twin.cosim.state import Buffers, State
 from twin.errors import ConfigError, FMUError
 from twin.fmu.slot import FMUSlot
@@ -42,27 +42,36 @@ class Stepping(Protocol):
         ...
 
 
-def gather(
-    inst: PlannedInstance, buffers: Sequence[Buffers], drow: Sequence[float], *, exchange: bool
-) -> None:
-    """Set the input buffer of ``inst`` from its sources.
+class Gather:
+    """Sets the input buffer of one instance from its sources (the switch of ``stepper.c``).
 
-    A connection reads the visible output of its source, a driven input its column of
-    ``drow``; a delayed input takes the value of the previous exchange, and with ``exchange``
-    (every exchange but initialization, where its source may not be initialized yet) keeps
-    its source's visible value for the next one.
+    A connection reads the visible output of its source, a driven input its column of the
+    driven row; a delayed input takes the value of the previous exchange, and with
+    ``exchange`` (every exchange but initialization, where its source may not be initialized
+    yet) keeps its source's visible value for the next one. The inputs are grouped by kind
+    once, so an exchange is two short loops and one numpy assignment.
     """
-    buf = buffers[inst.index]
-    vals = buf.in_port.values
-    for j, i in enumerate(inst.inputs):
-        if i.kind == InputKind.CONNECTION:
-            vals[j] = buffers[i.src].cur[i.idx]
-        elif i.kind == InputKind.DELAYED:
-            vals[j] = buf.delay_buf[j]
+
+    def __init__(self, inst: PlannedInstance, buffers: Sequence[Buffers]) -> None:
+        self.buf = buffers[inst.index]
+        by_kind: dict[InputKind, list[tuple[int, PlannedInput]]] = {kind: [] for kind in InputKind}
+        for j, i in enumerate(inst.inputs):
+            by_kind[i.kind].append((j, i))
+        # the source buffers are never reallocated (a restore writes into them): keep them
+        self.connected = [(j, buffers[i.src].cur, i.idx) for j, i in by_kind[InputKind.CONNECTION]]
+        self.delayed = [(j, buffers[i.src].cur, i.idx) for j, i in by_kind[InputKind.DELAYED]]
+        self.driven_at = np.array([j for j, _ in by_kind[InputKind.DRIVEN]], dtype=np.intp)
+        self.driven_column = np.array([i.src for _, i in by_kind[InputKind.DRIVEN]], dtype=np.intp)
+
+    def __call__(self, drow: np.ndarray, *, exchange: bool) -> None:
+        vals, delay_buf = self.buf.in_port.values, self.buf.delay_buf
+        for j, cur, idx in self.connected:
+            vals[j] = cur[idx]
+        for j, cur, idx in self.delayed:
+            vals[j] = delay_buf[j]
             if exchange:
-                buf.delay_buf[j] = buffers[i.src].cur[i.idx]
-        else:
-            vals[j] = drow[i.src]
+                delay_buf[j] = cur[idx]
+        vals[self.driven_at] = drow[self.driven_column]
 
 
 def row_values(plan: Plan, state: State) -> list[float]:
@@ -103,6 +112,18 @@ def final_tick(plan: Plan, state: State) -> tuple[np.ndarray, np.ndarray] | None
     return np.array([t_s]), np.array([row_values(plan, state)]).reshape(1, len(plan.columns))
 
 
+class _Unit:
+    """One instance as the Python loop steps it."""
+
+    def __init__(self, inst: PlannedInstance, slot: FMUSlot, state: State) -> None:
+        self.inst = inst
+        self.slot = slot
+        self.buf = state.buffers[inst.index]
+        self.gather = Gather(inst, state.buffers)
+        self.period_ticks = inst.period_ticks
+        self.h = inst.period_ns / NS_PER_S
+
+
 class PythonLoop:
     """The ticks in plain Python: the same arithmetic as ``native/stepper.c``, through
     :class:`~twin.fmu.slot.FMUSlot`'s calls (slower; for checking the compiled stepper)."""
@@ -110,42 +131,41 @@ class PythonLoop:
     def __init__(self, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         self.plan = plan
         self.state = state
-        self.slots = list(slots)
+        self.units = [_Unit(inst, slot, state) for inst, slot in zip(plan.instances, slots, strict=True)]
 
     def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
         plan, c = self.plan, self.state.counters
-        n_cols = len(plan.columns)
+        step, out_every, n_cols = plan.step_ns, plan.out_every, len(plan.columns)
         for k in range(k0, k1):
-            t = k * plan.step_ns / NS_PER_S
+            t = k * step / NS_PER_S
             self._commit(k)
-            due = [inst for inst in plan.instances if k % inst.period_ticks == 0]
-            for inst in due:
-                gather(inst, self.state.buffers, driven[k - k0], exchange=True)
-                self.slots[inst.index].time = t  # an error in fmi2SetReal names this time
-                self.slots[inst.index].write(self.state.buffers[inst.index].in_port)
-            if k % plan.out_every == 0:
+            due = [u for u in self.units if k % u.period_ticks == 0]
+            for u in due:
+                u.gather(driven[k - k0], exchange=True)
+                u.slot.time = t  # an error in fmi2SetReal names this time
+                u.slot.write(u.buf.in_port)
+            if k % out_every == 0:
                 rows[c.rows, :n_cols] = row_values(plan, self.state)
                 c.rows += 1
-            for inst in due:
-                self._step(inst, k, t)
+            for u in due:
+                self._step(u, k, t)
             c.macro_steps += 1
 
     def _commit(self, k: int) -> None:
         pending_at = self.state.pending_at
-        for i, buf in enumerate(self.state.buffers):
+        for i, u in enumerate(self.units):
             if pending_at[i] == k:
-                buf.commit()
+                u.buf.commit()
                 pending_at[i] = -1
 
-    def _step(self, inst: PlannedInstance, k: int, t: float) -> None:
-        slot, buf = self.slots[inst.index], self.state.buffers[inst.index]
-        slot.do_step(t, inst.period_ns / NS_PER_S)
-        slot.read(buf.out_port)
-        bad = np.flatnonzero(~np.isfinite(buf.out_port.values[: len(inst.outputs)]))
-        if bad.size:
-            slot.time = t
-            raise non_finite(inst, slot, buf, int(bad[0]))
-        self.state.pending_at[inst.index] = k + inst.period_ticks
+    def _step(self, u: _Unit, k: int, t: float) -> None:
+        u.slot.do_step(t, u.h)
+        u.slot.read(u.buf.out_port)
+        values = u.buf.out_port.values[: len(u.inst.outputs)]
+        if not np.isfinite(values).all():
+            u.slot.time = t
+            raise non_finite(u.inst, u.slot, u.buf, int(np.flatnonzero(~np.isfinite(values))[0]))
+        self.state.pending_at[u.inst.index] = k + u.period_ticks
         self.state.counters.fmu_steps += 1
 
 
@@ -167,12 +187,12 @@ def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]
 
 __all__ = [
     "LOOPS",
+    "Gather",
     "Loop",
     "PythonLoop",
     "Stepping",
     "check_loop",
     "final_tick",
-    "gather",
     "make_stepping",
     "non_finite",
     "row_values",
