@@ -14,7 +14,10 @@ The master's clock process (:meth:`twin.cosim.master.Master._clock`) asks simpy 
 of these is due (``env.peek()``) and runs every tick up to it as one batch of the stepping
 loop, then sleeps until then itself. Its timeout is always scheduled after the others', so at
 a time ``T`` every process due at ``T`` runs after the ticks before ``T`` and before those
-from ``T``: the order the semantics need, without priorities.
+from ``T``: the order the semantics need, without priorities. Processes due at the same time
+run in the order they went to sleep, and none depends on that order: a checkpoint taken just
+before or just after an event at its time resumes to the same run, because it counts the
+events it includes (``events_applied``) and keeps the driven inputs they changed.
 
 Why the hot loop is not inside simpy: a tick is a few microseconds of FMU work and the
 compiled stepper runs one in a fraction of a microsecond, while one simpy event costs

@@ -140,12 +140,13 @@ class NativeLoop:
         self.state = state
         self.fmus = list(slots)
         self._run = getattr(stepper(), entry()[0])  # built (first use) before the clock starts
-        # the plan's per-input indices as the int32 arrays C reads (kept alive with the loop)
-        self._index = [
-            {
-                name: np.array([getattr(i, attr) for i in inst.inputs] or [0], dtype=np.int32)
-                for name, attr in (("in_kind", "kind"), ("in_src", "src"), ("in_idx", "idx"))
-            }
+        # the plan's per-input kinds, sources and indices as the int32 arrays C reads (kept
+        # alive with the loop)
+        self._inputs = [
+            tuple(
+                np.array([getattr(i, a) for i in inst.inputs] or [0], dtype=np.int32)
+                for a in ("kind", "src", "idx")
+            )
             for inst in plan.instances
         ]
         self.slots = (TwinSlot * len(plan.instances))()
@@ -163,7 +164,7 @@ class NativeLoop:
         s.n_in, s.n_out = len(inst.inputs), len(inst.outputs)
         s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
         s.in_val, s.out_pending = _address(buf.in_port.values), _address(buf.out_port.values)
-        s.in_kind, s.in_src, s.in_idx = (_address(a) for a in self._index[i].values())
+        s.in_kind, s.in_src, s.in_idx = map(_address, self._inputs[i])
         s.delay_buf, s.out_raw, s.out_cur, s.bias = map(_address, (buf.delay_buf, buf.raw, buf.cur, buf.bias))
         s.pending_at = _address(self.state.pending_at) + i * self.state.pending_at.itemsize
 

@@ -71,7 +71,11 @@ class Gather:
             vals[j] = delay_buf[j]
             if exchange:
                 delay_buf[j] = cur[idx]
-        vals[self.driven_at] = drow[self.driven_column]
+        self.drive(drow)
+
+    def drive(self, drow: np.ndarray) -> None:
+        """The driven inputs alone: each takes its column of ``drow``."""
+        self.buf.in_port.values[self.driven_at] = drow[self.driven_column]
 
 
 def row_values(plan: Plan, state: State) -> list[float]:
@@ -103,10 +107,8 @@ def final_tick(plan: Plan, state: State) -> tuple[np.ndarray, np.ndarray] | None
             buf.commit()
     t_s = n * plan.step_ns / NS_PER_S
     values = state.driven.row(t_s)
-    for inst, buf in zip(plan.instances, state.buffers, strict=True):
-        for k, i in enumerate(inst.inputs):
-            if i.kind == InputKind.DRIVEN:
-                buf.in_port.values[k] = values[i.src]
+    for inst in plan.instances:
+        Gather(inst, state.buffers).drive(values)
     if n % plan.out_every:
         return None
     return np.array([t_s]), np.array([row_values(plan, state)]).reshape(1, len(plan.columns))
