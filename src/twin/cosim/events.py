@@ -23,7 +23,9 @@ Why the hot loop is not inside simpy: a tick is a few microseconds of FMU work a
 compiled stepper runs one in a fraction of a microsecond, while one simpy event costs
 several microseconds of Python. Scheduling every tick (or every output row, which may be
 every tick) would make the scheduler the cost of the run; what happens at every tick in the
-same order (commit, inputs, row, step) is a loop, not an event. simpy gets what is genuinely
+same order (commit, inputs, row, step) is a loop, not an event. The instances' own periods
+(multi-rate) stay in the loop for the same reason: a ``k % period`` test per instance and tick
+costs nanoseconds in C, a wake-up per instance step would cost microseconds. simpy gets what is genuinely
 event-like: sparse, irregular points in time that change the state, each written as a small
 process instead of being merged by hand into one list of marks.
 """
