@@ -1,5 +1,10 @@
-"""The co-simulation master: simpy-scheduled, integer-nanosecond clock, multi-rate Jacobi."""
+"""The co-simulation master: integer-nanosecond clock, multi-rate Jacobi, simpy for events.
+
+:class:`Master` composes the parts (see :mod:`twin.cosim.master`); :func:`make_plan` builds the
+static plan of a scenario on its own (no FMU loaded).
+"""
 
 from twin.cosim.master import Master, RunResult
+from twin.cosim.plan import Plan, make_plan
 
-__all__ = ["Master", "RunResult"]
+__all__ = ["Master", "Plan", "RunResult", "make_plan"]

@@ -1,7 +1,10 @@
-"""The compiled stepper (``native/stepper.c``): building, loading and its ctypes structures.
+"""The compiled stepper (``native/stepper.c``): building it, loading it, and running ticks with it.
 
-Built with cmake like the FMUs and cached by a hash of its sources, so a fresh clone builds it
-on first use. The master falls back to its Python reference loop only when asked to.
+Built with cmake like the FMUs, together with the header generated from
+:mod:`twin.cosim.layout`, and cached by a hash of all of them, so a fresh clone builds it on
+first use and a changed layout rebuilds it. :class:`NativeLoop` is the fast implementation of
+:class:`~twin.cosim.stepping.Stepping`: it points the stepper's structures at the arrays of
+the exchange state and calls the FMUs' FMI functions directly from C.
 """
 
 from __future__ import annotations
@@ -12,100 +15,82 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
 
-from twin.errors import BuildError
+import numpy as np
+
+from twin.config.spec import NS_PER_S
+from twin.cosim.layout import (
+    HEADER,
+    Call,
+    Status,
+    TwinColumn,
+    TwinSlot,
+    c_header,
+    entry,
+    entry_argtypes,
+)
+from twin.cosim.plan import Plan
+from twin.cosim.state import State
+from twin.cosim.stepping import non_finite
+from twin.errors import BuildError, FMUError, RunError
 from twin.fmu.build import _check_tools, cache_dir
+from twin.fmu.slot import FMUSlot
 
 SOURCES = Path(__file__).parent / "native"
 LIBRARY = "twin_stepper"
 
-
-class TwinSlot(ctypes.Structure):
-    _fields_ = [
-        ("comp", ctypes.c_void_p),
-        ("set_real", ctypes.c_void_p),
-        ("get_real", ctypes.c_void_p),
-        ("do_step", ctypes.c_void_p),
-        ("period_ticks", ctypes.c_int64),
-        ("period_ns", ctypes.c_int64),
-        ("n_in", ctypes.c_int32),
-        ("n_out", ctypes.c_int32),
-        ("in_vr", ctypes.c_void_p),
-        ("in_val", ctypes.c_void_p),
-        ("in_kind", ctypes.c_void_p),
-        ("in_src", ctypes.c_void_p),
-        ("in_idx", ctypes.c_void_p),
-        ("delay_buf", ctypes.c_void_p),
-        ("out_vr", ctypes.c_void_p),
-        ("out_raw", ctypes.c_void_p),
-        ("out_cur", ctypes.c_void_p),
-        ("out_pending", ctypes.c_void_p),
-        ("bias", ctypes.c_void_p),
-        ("pending_at", ctypes.c_int64),
-    ]
+#: the FMI call a failure is reported under
+CALL_NAMES = {Call.SET_REAL: "fmi2SetReal", Call.DO_STEP: "fmi2DoStep", Call.GET_REAL: "fmi2GetReal"}
 
 
-class TwinColumn(ctypes.Structure):
-    _fields_ = [
-        ("slot", ctypes.c_int32),
-        ("kind", ctypes.c_int32),
-        ("idx", ctypes.c_int32),
-        ("pad", ctypes.c_int32),
-    ]
+def stepper_sources() -> dict[str, bytes]:
+    """What the stepper is built from: the files in ``native/`` and the generated header."""
+    files = {p.name: p.read_bytes() for p in sorted(SOURCES.iterdir()) if p.is_file()}
+    files[HEADER] = c_header().encode()
+    return files
 
 
-class TwinCounters(ctypes.Structure):
-    _fields_ = [
-        ("macro_steps", ctypes.c_int64),
-        ("fmu_steps", ctypes.c_int64),
-        ("rows", ctypes.c_int64),
-        ("fail_tick", ctypes.c_int64),
-        ("fail_slot", ctypes.c_int32),
-        ("fail_call", ctypes.c_int32),
-        ("fail_status", ctypes.c_int32),
-        ("pad", ctypes.c_int32),
-    ]
-
-
-CALLS = {1: "fmi2SetReal", 2: "fmi2DoStep", 3: "fmi2GetReal", 4: "fmi2GetReal"}
-NON_FINITE = 4
-
-
-def _digest() -> str:
+def _digest(files: dict[str, bytes]) -> str:
     h = hashlib.sha256(b"stepper-1")
-    for p in sorted(SOURCES.iterdir()):
-        if p.is_file():
-            h.update(p.name.encode() + b"\0" + p.read_bytes())
+    for name in sorted(files):
+        h.update(name.encode() + b"\0" + files[name])
     return h.hexdigest()[:16]
 
 
+def _cmake_build(src: Path, build: Path, out: Path) -> None:
+    _, cmake = _check_tools()
+    configure = [
+        cmake,
+        "-S",
+        str(src),
+        "-B",
+        str(build),
+        "-DCMAKE_BUILD_TYPE=Release",
+        f"-DTWIN_OUT_DIR={out}",
+    ]
+    for cmd in (configure, [cmake, "--build", str(build), "--target", "install"]):
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-25:])
+            raise BuildError(f"building the stepper failed:\n{tail}")
+
+
 def ensure_stepper() -> Path:
-    """Path of the built stepper library, building it when its sources changed."""
-    target = cache_dir() / f"{LIBRARY}-{_digest()}.so"
+    """Path of the built stepper library, building it when its sources or its layout changed."""
+    files = stepper_sources()
+    target = cache_dir() / f"{LIBRARY}-{_digest(files)}.so"
     if target.is_file():
         return target
-    _, cmake = _check_tools()
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="twin-stepper-") as tmp:
-        out = Path(tmp) / "out"
-        for cmd in (
-            [
-                cmake,
-                "-S",
-                str(SOURCES),
-                "-B",
-                str(Path(tmp) / "build"),
-                "-DCMAKE_BUILD_TYPE=Release",
-                f"-DTWIN_OUT_DIR={out}",
-            ],
-            [cmake, "--build", str(Path(tmp) / "build"), "--target", "install"],
-        ):
-            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            if proc.returncode != 0:
-                tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-25:])
-                raise BuildError(f"building the stepper failed:\n{tail}")
+        src, out = Path(tmp) / "src", Path(tmp) / "out"
+        src.mkdir()
+        for name, data in files.items():
+            (src / name).write_bytes(data)
+        _cmake_build(src, Path(tmp) / "build", out)
         built = next(out.glob(f"{LIBRARY}*"))
         tmp_target = target.with_name(target.name + f".{os.getpid()}.tmp")
         shutil.copyfile(built, tmp_target)
@@ -115,23 +100,103 @@ def ensure_stepper() -> Path:
 
 @lru_cache(maxsize=1)
 def stepper() -> ctypes.CDLL:
-    """The loaded library with ``twin_run_ticks`` typed."""
+    """The loaded library with its entry point typed from the layout."""
     lib = ctypes.CDLL(str(ensure_stepper()))
-    fn = lib.twin_run_ticks
-    fn.argtypes = [
-        ctypes.POINTER(TwinSlot),
-        ctypes.c_int32,
-        ctypes.c_int64,
-        ctypes.c_int64,
-        ctypes.c_int64,
-        ctypes.c_int64,
-        ctypes.c_void_p,
-        ctypes.c_int32,
-        ctypes.c_void_p,
-        ctypes.c_int64,
-        ctypes.POINTER(TwinColumn),
-        ctypes.c_int32,
-        ctypes.POINTER(TwinCounters),
-    ]
+    fn = getattr(lib, entry()[0])
+    fn.argtypes = entry_argtypes()
     fn.restype = ctypes.c_int
     return lib
+
+
+# ---------------------------------------------------------------------------- the FMUs' side
+# The one place that reaches into FMUSlot's private fmpy internals (the raw FMI function
+# pointers and the component, the error built from a status): at merge, FMUSlot's public
+# accessor for them replaces these two functions' bodies.
+
+
+def _fmi_functions(slot: FMUSlot) -> tuple[int | None, ...]:
+    """(fmi2Component, fmi2SetReal, fmi2GetReal, fmi2DoStep) of ``slot`` as addresses."""
+    f = slot._slave._functions
+
+    def address(name: str) -> int | None:
+        return ctypes.cast(f[name], ctypes.c_void_p).value
+
+    return slot._c, address("fmi2SetReal"), address("fmi2GetReal"), address("fmi2DoStep")
+
+
+def _fmi_error(slot: FMUSlot, call: str, status: int) -> FMUError:
+    return slot._fail(call, status)
+
+
+def _address(a: np.ndarray | ctypes.Array) -> int:
+    return ctypes.addressof(a) if isinstance(a, ctypes.Array) else int(a.ctypes.data)
+
+
+class NativeLoop:
+    """The ticks in the compiled stepper, on the arrays of the exchange state."""
+
+    def __init__(self, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
+        self.plan = plan
+        self.state = state
+        self.fmus = list(slots)
+        self._run = getattr(stepper(), entry()[0])  # built (first use) before the clock starts
+        # the plan's per-input kinds, sources and indices as the int32 arrays C reads (kept
+        # alive with the loop)
+        self._inputs = [
+            tuple(
+                np.array([getattr(i, a) for i in inst.inputs] or [0], dtype=np.int32)
+                for a in ("kind", "src", "idx")
+            )
+            for inst in plan.instances
+        ]
+        self.slots = (TwinSlot * len(plan.instances))()
+        for i, s in enumerate(self.slots):
+            self._point(i, s)
+        cols = plan.columns
+        self.cols = (TwinColumn * max(len(cols), 1))(
+            *[TwinColumn(c.instance, c.kind, c.idx, 0) for c in cols]
+        )
+
+    def _point(self, i: int, s: TwinSlot) -> None:
+        inst, buf = self.plan.instances[i], self.state.buffers[i]
+        s.comp, s.set_real, s.get_real, s.do_step = _fmi_functions(self.fmus[i])
+        s.period_ticks, s.period_ns = inst.period_ticks, inst.period_ns
+        s.n_in, s.n_out = len(inst.inputs), len(inst.outputs)
+        s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
+        s.in_val, s.out_pending = _address(buf.in_port.values), _address(buf.out_port.values)
+        s.in_kind, s.in_src, s.in_idx = map(_address, self._inputs[i])
+        s.delay_buf, s.out_raw, s.out_cur, s.bias = map(_address, (buf.delay_buf, buf.raw, buf.cur, buf.bias))
+        s.pending_at = _address(self.state.pending_at) + i * self.state.pending_at.itemsize
+
+    def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
+        plan, c = self.plan, self.state.counters
+        status = self._run(
+            self.slots,
+            len(plan.instances),
+            k0,
+            k1,
+            plan.step_ns,
+            plan.out_every,
+            driven.ctypes.data,
+            len(self.state.driven),
+            rows.ctypes.data,
+            rows.shape[0],
+            self.cols,
+            len(plan.columns),
+            ctypes.byref(c),
+        )
+        if status == Status.OVERFLOW:
+            raise RunError("the stepper's row buffer was too small (a bug in the master)")
+        if status != Status.OK:
+            raise self._failure()
+
+    def _failure(self) -> FMUError:
+        c = self.state.counters
+        inst, slot = self.plan.instances[c.fail_slot], self.fmus[c.fail_slot]
+        slot.time = c.fail_tick * self.plan.step_ns / NS_PER_S
+        if c.fail_call == Call.NON_FINITE:
+            return non_finite(inst, slot, self.state.buffers[inst.index], c.fail_status)
+        return _fmi_error(slot, CALL_NAMES.get(c.fail_call, "?"), c.fail_status)
+
+
+__all__ = ["SOURCES", "NativeLoop", "ensure_stepper", "stepper", "stepper_sources"]

@@ -2,7 +2,7 @@
  * stepper.c -- the master's hot loop in C: runs whole batches of macro steps over a static
  * exchange plan, calling the FMUs' FMI functions directly.
  *
- * It does exactly what the Python reference loop in twin/cosim/master.py does, tick by tick:
+ * It does exactly what the Python loop in twin/cosim/stepping.py does, tick by tick:
  *   (1) outputs that became valid at this tick are committed (pending -> raw, raw + bias -> cur),
  *   (2) the inputs of the FMUs due at this tick are gathered and set (connections read the
  *       visible outputs; a delayed connection gives the value of the previous exchange; a
@@ -13,66 +13,20 @@
  * integers, identical to Python's t_ns / 1_000_000_000.
  */
 #include <math.h>
-#include <stddef.h>
-#include <stdint.h>
 #include <string.h>
 
-typedef int (*set_real_fn)(void *, const unsigned int *, size_t, const double *);
-typedef int (*get_real_fn)(void *, const unsigned int *, size_t, double *);
-typedef int (*do_step_fn)(void *, double, double, int);
-
-enum { IN_CONNECTION = 0, IN_DELAYED = 1, IN_DRIVEN = 2 };
-enum { CALL_SET_REAL = 1, CALL_DO_STEP = 2, CALL_GET_REAL = 3, CALL_NON_FINITE = 4 };
-
-typedef struct {
-    void *comp;
-    set_real_fn set_real;
-    get_real_fn get_real;
-    do_step_fn do_step;
-    int64_t period_ticks;
-    int64_t period_ns;
-    int32_t n_in;
-    int32_t n_out;
-    const unsigned int *in_vr;
-    double *in_val;
-    const int32_t *in_kind;
-    const int32_t *in_src; /* source slot (connection, delayed) or driven column */
-    const int32_t *in_idx; /* source output index (connection, delayed) */
-    double *delay_buf;
-    const unsigned int *out_vr;
-    double *out_raw;
-    double *out_cur;
-    double *out_pending;
-    const double *bias;
-    int64_t pending_at;
-} TwinSlot;
-
-typedef struct {
-    int32_t slot;
-    int32_t kind; /* 0 output (visible value), 1 input (value last set) */
-    int32_t idx;
-    int32_t pad;
-} TwinColumn;
-
-typedef struct {
-    int64_t macro_steps;
-    int64_t fmu_steps;
-    int64_t rows;
-    int64_t fail_tick;
-    int32_t fail_slot;
-    int32_t fail_call;
-    int32_t fail_status;
-    int32_t pad;
-} TwinCounters;
+/* the structures, the enumerations and this file's entry point: generated from
+ * twin/cosim/layout.py at build time, so that C and the ctypes side cannot disagree */
+#include "twin_layout.h"
 
 static void commit(TwinSlot *s, int64_t k) {
     int32_t j;
-    if (s->pending_at != k) return;
+    if (*s->pending_at != k) return;
     for (j = 0; j < s->n_out; j++) {
         s->out_raw[j] = s->out_pending[j];
         s->out_cur[j] = s->out_raw[j] + s->bias[j];
     }
-    s->pending_at = -1;
+    *s->pending_at = -1;
 }
 
 int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int64_t step_ns, int64_t out_every,
@@ -101,16 +55,16 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
             }
             if (s->n_in && (status = s->set_real(s->comp, s->in_vr, (size_t)s->n_in, s->in_val)) > 1) {
                 c->fail_slot = i, c->fail_call = CALL_SET_REAL, c->fail_tick = k, c->fail_status = status;
-                return -1;
+                return STEP_FAILED;
             }
         }
         if (k % out_every == 0) {
             double *row;
-            if (c->rows >= rec_capacity) return -2; /* the caller sized the buffer: cannot happen */
+            if (c->rows >= rec_capacity) return STEP_OVERFLOW; /* the caller sized the buffer: cannot happen */
             row = rec + c->rows * (int64_t)n_cols;
             for (j = 0; j < n_cols; j++) {
                 const TwinSlot *s = &slots[cols[j].slot];
-                row[j] = cols[j].kind == 0 ? s->out_cur[cols[j].idx] : s->in_val[cols[j].idx];
+                row[j] = cols[j].kind == COL_OUTPUT ? s->out_cur[cols[j].idx] : s->in_val[cols[j].idx];
             }
             c->rows++;
         }
@@ -121,23 +75,23 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
             status = s->do_step(s->comp, t, (double)s->period_ns / 1e9, 1);
             if (status > 1) {
                 c->fail_slot = i, c->fail_call = CALL_DO_STEP, c->fail_tick = k, c->fail_status = status;
-                return -1;
+                return STEP_FAILED;
             }
             if (s->n_out && (status = s->get_real(s->comp, s->out_vr, (size_t)s->n_out, s->out_pending)) > 1) {
                 c->fail_slot = i, c->fail_call = CALL_GET_REAL, c->fail_tick = k, c->fail_status = status;
-                return -1;
+                return STEP_FAILED;
             }
             /* an FMU that reports success with NaN/Inf must not poison the others */
             for (j = 0; j < s->n_out; j++) {
                 if (!isfinite(s->out_pending[j])) {
                     c->fail_slot = i, c->fail_call = CALL_NON_FINITE, c->fail_tick = k, c->fail_status = j;
-                    return -1;
+                    return STEP_FAILED;
                 }
             }
-            s->pending_at = k + s->period_ticks;
+            *s->pending_at = k + s->period_ticks;
             c->fmu_steps++;
         }
         c->macro_steps++;
     }
-    return 0;
+    return STEP_OK;
 }

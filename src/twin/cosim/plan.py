@@ -1,0 +1,301 @@
+"""The static plan of a run: which instance steps when, what feeds each input, what is recorded.
+
+Built once from the :class:`~twin.config.spec.Scenario` by :func:`make_plan`, without loading
+any FMU: it reads each model's ``modelDescription.xml`` (value references, outputs, start
+values, units) and resolves every "instance.variable" name to indices, so the loops, the
+events and the checkpoint work on indices only. This is the master's counterpart of
+libcosim's ``system_structure``: the checked, resolved description of the system.
+
+Each input of an instance is of one :class:`InputKind`: fed by a connection (the visible
+output of another instance at the same exchange), by a delayed connection (that output one
+exchange late, its declared initial value first: the only way a loop is allowed), or driven
+by a function of time (a profile, or its start value until a set/ramp event changes it).
+Driven inputs are numbered across the whole plan: they are the columns of the driven matrix
+the master evaluates for a batch of ticks at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Any
+
+from twin.config.load import model_variables, variable_unit
+from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
+from twin.errors import ConfigError
+from twin.signals.table import Signal as SignalMeta
+
+#: ticks per batch at most: bounds the driven matrix and the row buffer (memory flat in run length)
+BATCH_TICKS = 32_768
+
+#: how often a run reports its progress: at every hundredth of its ticks
+PROGRESS_MARKS = 100
+
+#: how a driven column is driven: ("constant", v), ("profile", index in scenario.profiles) or
+#: ("ramp", v0, v1, t0_s, duration_s); data, not a function, so that a checkpoint can keep it
+DrivenSpec = tuple[Any, ...]
+
+
+class InputKind(IntEnum):
+    """What feeds an input (the values are shared with ``native/stepper.c``)."""
+
+    CONNECTION = 0
+    DELAYED = 1
+    DRIVEN = 2
+
+
+class ColumnKind(IntEnum):
+    """What a recorded column shows (the values are shared with ``native/stepper.c``)."""
+
+    OUTPUT = 0  # the visible value of an output (its bias included)
+    INPUT = 1  # the value last set on a driven input
+
+
+@dataclass(frozen=True)
+class PlannedInput:
+    """One input of an instance.
+
+    ``src`` is the source instance (connection, delayed) or the driven column (driven); ``idx``
+    the output index in the source instance; ``initial`` the value the input holds before the
+    first exchange (a delayed connection's initial value, a driven input's start value).
+    """
+
+    name: str
+    vr: int
+    kind: InputKind
+    src: int
+    idx: int
+    initial: float
+
+
+@dataclass(frozen=True)
+class PlannedInstance:
+    """One FMU instance: its model, its period, its Real outputs and the inputs it is given."""
+
+    index: int
+    name: str
+    model: str
+    period_ns: int
+    period_ticks: int
+    outputs: tuple[str, ...]
+    out_vrs: tuple[int, ...]
+    inputs: tuple[PlannedInput, ...]
+    #: set after fmi2SetupExperiment, in this order (a generated noise seed first)
+    parameters: tuple[tuple[str, ParameterValue], ...]
+
+    @property
+    def in_names(self) -> list[str]:
+        return [i.name for i in self.inputs]
+
+
+@dataclass(frozen=True)
+class PlannedEvent:
+    """A scenario event resolved to indices.
+
+    ``index`` is the output index (bias) or the input index (set, ramp) in ``instance``;
+    ``column`` the driven column a set or ramp changes (-1 for a bias).
+    """
+
+    at_ns: int
+    action: str
+    instance: int
+    index: int
+    column: int
+    value: float
+    duration_ns: int
+
+
+@dataclass(frozen=True)
+class Column:
+    """One recorded column: an output's visible value or a driven input's value."""
+
+    instance: int
+    kind: ColumnKind
+    idx: int
+    meta: SignalMeta
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything about a run that does not change while it runs."""
+
+    scenario: Scenario
+    instances: tuple[PlannedInstance, ...]
+    #: how each driven column is driven when the run starts
+    driven: tuple[DrivenSpec, ...]
+    columns: tuple[Column, ...]
+    events: tuple[PlannedEvent, ...]
+    #: instances in dependency order of their undelayed connections (initialization)
+    init_order: tuple[int, ...]
+
+    @property
+    def step_ns(self) -> int:
+        return self.scenario.step_ns
+
+    @property
+    def n_ticks(self) -> int:
+        return self.scenario.duration_ns // self.scenario.step_ns
+
+    @property
+    def out_every(self) -> int:
+        """Ticks between two recorded rows."""
+        return self.scenario.output_interval_ns // self.scenario.step_ns
+
+    def progress_ticks(self) -> list[int]:
+        """The ticks after which the run reports its progress (the last one is the end)."""
+        return sorted({self.n_ticks * j // PROGRESS_MARKS for j in range(1, PROGRESS_MARKS + 1)})
+
+    def batch_limit_ticks(self) -> range:
+        """The ticks a batch never runs past, so that its buffers stay bounded."""
+        return range(BATCH_TICKS, self.n_ticks, BATCH_TICKS)
+
+    def checkpoint_ticks(self, every_ns: int | None) -> range:
+        """The ticks a checkpoint is taken at (never at the end: the run is complete then)."""
+        every = (every_ns or 0) // self.step_ns
+        return range(every, self.n_ticks, every) if every > 0 else range(0)
+
+
+def instance_seed(scenario_seed: int, index: int) -> int:
+    """Distinct, reproducible noise streams per instance from the one scenario seed."""
+    return (scenario_seed * 1_000_003 + 7919 * (index + 1)) % (2**31 - 1)
+
+
+def _real_outputs(model: str) -> tuple[str, ...]:
+    variables = model_variables(model)
+    return tuple(n for n, v in variables.items() if v.causality == "output" and v.type == "Real")
+
+
+def _input_names(scenario: Scenario, instance: str) -> list[str]:
+    """Every input something feeds or drives: connections, profiles, set and ramp events."""
+    targets = [c.dst for c in scenario.connections] + [p.target for p in scenario.profiles]
+    targets += [e.target for e in scenario.events if e.action != "bias"]
+    return sorted({t.split(".")[1] for t in targets if t.split(".")[0] == instance})
+
+
+class _Builder:
+    """Resolves the scenario's names to indices, numbering the driven columns as it goes."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.index = {f.name: i for i, f in enumerate(scenario.fmus)}
+        self.outputs = {f.name: _real_outputs(f.model) for f in scenario.fmus}
+        self.feeds: dict[str, Connection] = {c.dst: c for c in scenario.connections}
+        self.profiles = {p.target: n for n, p in enumerate(scenario.profiles)}
+        self.driven: list[DrivenSpec] = []
+
+    def input(self, target: str, variables: Mapping[str, Any]) -> PlannedInput:
+        name = target.split(".")[1]
+        vr = int(variables[name].valueReference)
+        c = self.feeds.get(target)
+        if c is not None:
+            src, out = c.src.split(".")
+            kind = InputKind.DELAYED if c.delay else InputKind.CONNECTION
+            initial = float(c.initial or 0.0) if c.delay else 0.0
+            return PlannedInput(name, vr, kind, self.index[src], self.outputs[src].index(out), initial)
+        start = variables[name].start
+        initial = float(start) if start is not None else 0.0
+        profile = self.profiles.get(target)
+        self.driven.append(("constant", initial) if profile is None else ("profile", profile))
+        return PlannedInput(name, vr, InputKind.DRIVEN, len(self.driven) - 1, 0, initial)
+
+    def instance(self, i: int, spec: FMUSpec) -> PlannedInstance:
+        variables = model_variables(spec.model)
+        params: list[tuple[str, ParameterValue]] = [(n, p.value) for n, p in spec.parameters.items()]
+        if "seed" in variables and "seed" not in spec.parameters:
+            params.insert(0, ("seed", instance_seed(self.scenario.seed, i)))
+        outputs = self.outputs[spec.name]
+        return PlannedInstance(
+            index=i,
+            name=spec.name,
+            model=spec.model,
+            period_ns=spec.period_ns,
+            period_ticks=spec.period_ns // self.scenario.step_ns,
+            outputs=outputs,
+            out_vrs=tuple(int(variables[n].valueReference) for n in outputs),
+            inputs=tuple(
+                self.input(f"{spec.name}.{n}", variables) for n in _input_names(self.scenario, spec.name)
+            ),
+            parameters=tuple(params),
+        )
+
+    def event(self, e: Event, instances: Sequence[PlannedInstance]) -> PlannedEvent:
+        step = self.scenario.step_ns
+        if e.at_ns % step:
+            raise ConfigError(
+                f"an event at {e.at_ns / NS_PER_S:g} s is not on the step grid ({step / NS_PER_S:g} s)",
+                source=self.scenario.source_path,
+                key="event",
+            )
+        name, var = e.target.split(".")
+        inst = instances[self.index[name]]
+        if e.action == "bias":
+            return PlannedEvent(e.at_ns, "bias", inst.index, inst.outputs.index(var), -1, e.value, 0)
+        k = inst.in_names.index(var)
+        if inst.inputs[k].kind != InputKind.DRIVEN:
+            raise ConfigError(
+                f"{e.action} needs a free input, {e.target} is fed by a connection", key="event"
+            )
+        return PlannedEvent(e.at_ns, e.action, inst.index, k, inst.inputs[k].src, e.value, e.duration_ns)
+
+
+def _columns(instances: Sequence[PlannedInstance]) -> tuple[Column, ...]:
+    """Every output of every instance, then its driven inputs, instance by instance."""
+    cols = []
+    for inst in instances:
+        variables = model_variables(inst.model)
+
+        def meta(name: str, inst: PlannedInstance = inst, variables: Any = variables) -> SignalMeta:
+            v = variables[name]
+            return SignalMeta(f"{inst.name}.{name}", variable_unit(v), inst.name, v.description or "")
+
+        cols += [Column(inst.index, ColumnKind.OUTPUT, k, meta(n)) for k, n in enumerate(inst.outputs)]
+        cols += [
+            Column(inst.index, ColumnKind.INPUT, k, meta(i.name))
+            for k, i in enumerate(inst.inputs)
+            if i.kind == InputKind.DRIVEN
+        ]
+    return tuple(cols)
+
+
+def _init_order(instances: Sequence[PlannedInstance]) -> tuple[int, ...]:
+    """Instances in dependency order of undelayed connections (the loader excluded loops)."""
+    deps = {inst.index: {i.src for i in inst.inputs if i.kind == InputKind.CONNECTION} for inst in instances}
+    order: list[int] = []
+    while len(order) < len(instances):
+        before = len(order)
+        for i, needs in deps.items():
+            if i not in order and needs <= set(order):
+                order.append(i)
+        if len(order) == before:
+            raise ConfigError("the undelayed connections form a loop", key="connections")
+    return tuple(order)
+
+
+def make_plan(scenario: Scenario) -> Plan:
+    """The plan of ``scenario`` (reads the models' descriptions; loads no FMU)."""
+    b = _Builder(scenario)
+    instances = tuple(b.instance(i, spec) for i, spec in enumerate(scenario.fmus))
+    return Plan(
+        scenario=scenario,
+        instances=instances,
+        driven=tuple(b.driven),
+        columns=_columns(instances),
+        events=tuple(b.event(e, instances) for e in scenario.events),
+        init_order=_init_order(instances),
+    )
+
+
+__all__ = [
+    "BATCH_TICKS",
+    "Column",
+    "ColumnKind",
+    "DrivenSpec",
+    "InputKind",
+    "Plan",
+    "PlannedEvent",
+    "PlannedInput",
+    "PlannedInstance",
+    "instance_seed",
+    "make_plan",
+]

@@ -1,0 +1,125 @@
+"""The exchange state of a run: every value that changes while it runs, in one place.
+
+The loops (Python and compiled), the scenario events and the checkpoint all work on this one
+:class:`State`. Its buffers are numpy arrays that the compiled stepper reads and writes
+through pointers (see :mod:`twin.cosim.native`), so the state is never copied between the two
+sides; the input and output buffers are the :class:`~twin.fmu.slot.RealPort` values the FMI
+calls use directly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin.config.spec import NS_PER_S, Profile
+from twin.cosim.layout import TwinCounters
+from twin.cosim.plan import DrivenSpec, InputKind, Plan, PlannedInstance
+from twin.cosim.profiles import Signal, constant, profile_function, ramp_from
+from twin.fmu.slot import RealPort
+
+
+@dataclass
+class Buffers:
+    """One instance's exchange buffers (every array has at least one element, for C)."""
+
+    in_port: RealPort  # values: the inputs last set
+    out_port: RealPort  # values: the outputs of the last step, pending until they become visible
+    delay_buf: np.ndarray  # the value each delayed input takes at its next exchange
+    raw: np.ndarray  # the visible outputs without their bias
+    cur: np.ndarray  # the visible outputs: raw + bias
+    bias: np.ndarray  # bias events added to each output
+
+    @classmethod
+    def of(cls, inst: PlannedInstance) -> Buffers:
+        in_port = RealPort([i.vr for i in inst.inputs])
+        in_port.values[: len(inst.inputs)] = [i.initial for i in inst.inputs]
+        n_out = max(len(inst.outputs), 1)
+        return cls(
+            in_port=in_port,
+            out_port=RealPort(inst.out_vrs),
+            delay_buf=np.array(
+                [i.initial if i.kind == InputKind.DELAYED else 0.0 for i in inst.inputs] or [0.0]
+            ),
+            raw=np.zeros(n_out),
+            cur=np.zeros(n_out),
+            bias=np.zeros(n_out),
+        )
+
+    def commit(self) -> None:
+        """The pending outputs become the visible ones (their bias added)."""
+        n = self.out_port.n
+        self.raw[:n] = self.out_port.values[:n]
+        np.add(self.raw, self.bias, out=self.cur)
+
+
+class Driven:
+    """The functions of time driving the driven inputs, one per column, with the data that
+    rebuilds each (a checkpoint keeps the data, not the function)."""
+
+    def __init__(self, profiles: Sequence[Profile], specs: Sequence[DrivenSpec]) -> None:
+        self._profiles = profiles
+        self.specs: list[DrivenSpec] = []
+        self.functions: list[Signal] = []
+        for spec in specs:
+            self.specs.append(tuple(spec))
+            self.functions.append(self._function(tuple(spec)))
+
+    def _function(self, spec: DrivenSpec) -> Signal:
+        if spec[0] == "constant":
+            return constant(spec[1])
+        if spec[0] == "profile":
+            return profile_function(self._profiles[int(spec[1])])
+        return ramp_from(*map(float, spec[1:]))
+
+    def set(self, column: int, spec: DrivenSpec) -> None:
+        """Drive ``column`` by ``spec`` from now on."""
+        self.specs[column] = tuple(spec)
+        self.functions[column] = self._function(tuple(spec))
+
+    def __len__(self) -> int:
+        return len(self.functions)
+
+    def matrix(self, k0: int, k1: int, step_ns: int) -> np.ndarray:
+        """The driven values at ticks ``k0`` to ``k1 - 1``, one row per tick."""
+        t = np.arange(k0, k1, dtype=np.int64) * step_ns / NS_PER_S
+        out = np.empty((k1 - k0, max(len(self.functions), 1)))
+        for d, fn in enumerate(self.functions):
+            out[:, d] = fn(t)
+        return out
+
+    def row(self, t_s: float) -> np.ndarray:
+        """The driven values at the time ``t_s`` (s)."""
+        t = np.array([t_s])
+        return np.array([fn(t)[0] for fn in self.functions], dtype=np.float64)
+
+
+@dataclass
+class State:
+    """Everything a run changes: buffers, visibility ticks, counters, driven inputs."""
+
+    buffers: list[Buffers]
+    #: per instance, the tick its pending outputs become visible (-1: nothing pending)
+    pending_at: np.ndarray
+    counters: Any  # TwinCounters, shared with the compiled stepper
+    driven: Driven
+    #: how many of the plan's events have been applied
+    events_applied: int = 0
+
+
+def make_state(plan: Plan) -> State:
+    """The state before initialization: start values, delays' initial values, no outputs yet."""
+    counters = TwinCounters()
+    counters.fail_slot = -1
+    return State(
+        buffers=[Buffers.of(inst) for inst in plan.instances],
+        pending_at=np.full(len(plan.instances), -1, dtype=np.int64),
+        counters=counters,
+        driven=Driven(plan.scenario.profiles, plan.driven),
+    )
+
+
+__all__ = ["Buffers", "Driven", "State", "make_state"]
