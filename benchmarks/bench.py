@@ -45,6 +45,7 @@ from twin import __version__ as twin_version
 from twin.config.load import load_scenario, model_variables
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Master
+from twin.cosim.plan import instance_seed
 from twin.fmu.build import ensure_fmu
 from twin.fmu.slot import FMUSlot
 
@@ -448,7 +449,7 @@ def _libcosim_initial_value(execution: Any, idx: int, ref: int, vtype: int, valu
 
 
 def _libcosim_add_slaves(
-    execution: Any, scenario: Scenario, seeder: Master
+    execution: Any, scenario: Scenario
 ) -> tuple[list[Any], dict[str, int], dict[str, Any]]:
     """Every FMU of the scenario as a libcosim slave with its parameters (and the master's seeds).
 
@@ -468,7 +469,7 @@ def _libcosim_add_slaves(
         refs[spec.name] = {v.name.decode(): (v.reference, v.type) for v in execution.slave_variables(idx)}
         values: dict[str, Any] = {k: p.value for k, p in spec.parameters.items()}
         if "seed" in refs[spec.name] and "seed" not in values:
-            values["seed"] = seeder._instance_seed(i)
+            values["seed"] = instance_seed(scenario.seed, i)
         for name, value in values.items():
             if not _libcosim_initial_value(execution, idx, *refs[spec.name][name], value):
                 raise RuntimeError(f"libcosim refused {spec.name}.{name} = {value!r}")
@@ -533,10 +534,9 @@ def libcosim_run(scenario: Scenario, init_outputs: dict[str, float], mode: str) 
     if scenario.events:
         raise RuntimeError("scenario events are not translated to libcosim")
     unsafe = set(zero_unsafe(scenario)) if mode == "initial" else set()
-    seeder = Master(scenario)  # only for its per-instance seed rule
     t0 = time.perf_counter()
     execution = CosimExecution.from_step_size(step_size=scenario.step_ns)
-    _keep, index, refs = _libcosim_add_slaves(execution, scenario, seeder)
+    _keep, index, refs = _libcosim_add_slaves(execution, scenario)
     _libcosim_wire(execution, scenario, index, refs, unsafe, init_outputs)
     observer = CosimObserver.create_last_value()
     execution.add_observer(observer)
