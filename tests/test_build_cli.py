@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from twin.cli import main
-from twin.fmu.build import model_names, source_hash
+from twin.fmu.build import source_hash
+from twin.fmu.catalog import model_names, sources_dir
 
 
 def test_build_writes_every_fmu_into_out(tmp_path: Path, capsys) -> None:
@@ -41,10 +42,8 @@ def test_missing_compiler_and_cmake_give_one_line_and_exit_2(tmp_path: Path) -> 
 def test_source_hash_changes_with_any_source(tmp_path: Path) -> None:
     import shutil
 
-    from twin.fmu.build import fmu_sources_dir
-
     copy = tmp_path / "fmus"
-    shutil.copytree(fmu_sources_dir(), copy)
+    shutil.copytree(sources_dir(), copy)
     before = source_hash("ThermalNetwork", copy)
     (copy / "common" / "linalg.c").write_text(
         (copy / "common" / "linalg.c").read_text() + "\n/* changed */\n"

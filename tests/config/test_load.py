@@ -11,7 +11,6 @@ import pytest
 
 from twin.config.load import (
     MAX_DURATION_NS,
-    _split_key,
     apply_overrides,
     default_scenario_path,
     format_duration,
@@ -19,6 +18,7 @@ from twin.config.load import (
     load_scenario_data,
     parse_duration,
 )
+from twin.config.overrides import split_key
 from twin.config.spec import NS_PER_S, Connection
 from twin.errors import ConfigError, ConfigErrors
 
@@ -141,14 +141,14 @@ def test_format_duration_round_trips(ns: int) -> None:
         ('a"b.c"d', ["ab.cd"]),  # quotes may sit inside a part; they only protect the dots
     ],
 )
-def test_split_key(key: str, parts: list[str]) -> None:
-    assert _split_key(key) == parts
+def testsplit_key(key: str, parts: list[str]) -> None:
+    assert split_key(key) == parts
 
 
 @pytest.mark.parametrize("key", ['connections."thermal.t_clamp', "a..b", ".a", "a.", "", '""', 'a.""'])
 def test_split_key_rejects(key: str) -> None:
     with pytest.raises(ConfigError, match="malformed key") as info:
-        _split_key(key)
+        split_key(key)
     assert info.value.source == "--set"
 
 

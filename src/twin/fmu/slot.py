@@ -1,11 +1,14 @@
 """One instantiated FMU for the master: a thin FMI 2.0 co-simulation binding.
 
 The life cycle (instantiate, setup, initialization, terminate, free) goes through fmpy's
-:class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs,
-FMU state) use the raw ctypes functions fmpy loaded, with value-reference and value buffers
-allocated once, because fmpy's convenience wrappers allocate per call. Every status other
-than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the instance, the FMI
-call and the simulation time.
+:class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs)
+use the raw ctypes functions of the FMU's library (``FMU2Slave.dll``, typed by fmpy), with
+value-reference and value buffers allocated once, because fmpy's convenience wrappers
+allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to compiled code.
+Every status other than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the
+instance, the FMI call and the simulation time.
+
+The variables come from the catalog's reader (:func:`twin.fmu.catalog.describe`).
 """
 
 from __future__ import annotations
@@ -14,15 +17,16 @@ import contextlib
 import ctypes
 import shutil
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
-from fmpy import extract, read_model_description
+from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
 from twin.errors import FMUError
+from twin.fmu.catalog import Variable, describe
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
@@ -35,7 +39,11 @@ def _callbacks() -> Any:
     """One callbacks structure for every instance (fmpy's C logger proxy is process-global).
 
     The logger files each message under the instance that logged it, so an error can say
-    why; fmpy's proxy formats the printf-style message before it reaches Python.
+    why. This is the one adapter to fmpy's lower layer, because fmpy has no public API that
+    passes an instance's formatted messages to Python: an FMU logs printf-style with varargs,
+    which ctypes cannot receive, and only fmpy's native proxy (``fmpy.logging.addLoggerProxy``,
+    what ``fmpy.simulation.instantiate_fmu`` itself uses) formats them first.
+    ``instantiate_fmu`` cannot be used instead: it names every instance after its model.
     """
     global _CALLBACKS
     if _CALLBACKS is None:
@@ -79,6 +87,15 @@ class RealPort:
         self.ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
 
+class NativeHandles(NamedTuple):
+    """Addresses for compiled code driving an instance: its component and three FMI calls."""
+
+    component: int
+    set_real: int
+    get_real: int
+    do_step: int
+
+
 class FMUSlot:
     """An FMU instance with name-based setup and buffer-based stepping.
 
@@ -87,27 +104,36 @@ class FMUSlot:
 
     def __init__(self, fmu_path: Path, instance_name: str, *, unzipdir: str | None = None) -> None:
         self.name = instance_name
-        self.md = read_model_description(str(fmu_path))
+        self.description = describe(fmu_path)
         self._own_unzipdir = unzipdir is None
         self.unzipdir = unzipdir or extract(
             str(fmu_path), unzipdir=tempfile.mkdtemp(prefix=f"twin-{instance_name}-")
         )
-        self.variables: dict[str, Any] = {v.name: v for v in self.md.modelVariables}
+        self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self.time = 0.0
         self._slave = FMU2Slave(
-            guid=self.md.guid,
+            guid=self.description.guid,
             unzipDirectory=self.unzipdir,
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            modelIdentifier=self.description.model_identifier,
             instanceName=instance_name,
         )
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=False)
-        f = self._slave._functions  # raw ctypes functions with argtypes set by fmpy
-        self._set_real = f["fmi2SetReal"]
-        self._get_real = f["fmi2GetReal"]
-        self._do_step = f["fmi2DoStep"]
+        dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
+        self._set_real = dll.fmi2SetReal
+        self._get_real = dll.fmi2GetReal
+        self._do_step = dll.fmi2DoStep
         self._c = self._slave.component
-        self._state = ctypes.c_void_p()
+
+    def native_handles(self) -> NativeHandles:
+        """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints."""
+
+        def address(fn: Any) -> int:
+            return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
+
+        return NativeHandles(
+            int(self._c or 0), address(self._set_real), address(self._get_real), address(self._do_step)
+        )
 
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
@@ -124,7 +150,8 @@ class FMUSlot:
     # -- set-up ------------------------------------------------------------------------------
 
     def vr(self, name: str) -> int:
-        return int(self.variables[name].valueReference)
+        """The value reference of variable ``name``."""
+        return self.variables[name].value_reference
 
     def setup(self, start_time: float = 0.0) -> None:
         self.time = start_time
@@ -138,15 +165,13 @@ class FMUSlot:
 
     def set_value(self, name: str, value: float | int | bool) -> None:
         v = self.variables[name]
+        vr = [v.value_reference]
         if v.type == "Boolean":
-            self._call("fmi2SetBoolean", lambda: self._slave.setBoolean([v.valueReference], [bool(value)]))
+            self._call("fmi2SetBoolean", lambda: self._slave.setBoolean(vr, [bool(value)]))
         elif v.type == "Integer":
-            self._call("fmi2SetInteger", lambda: self._slave.setInteger([v.valueReference], [int(value)]))
+            self._call("fmi2SetInteger", lambda: self._slave.setInteger(vr, [int(value)]))
         else:
-            self._call("fmi2SetReal", lambda: self._slave.setReal([v.valueReference], [float(value)]))
-
-    def get_reals(self, names: Sequence[str]) -> list[float]:
-        return self._call("fmi2GetReal", lambda: self._slave.getReal([self.vr(n) for n in names]))
+            self._call("fmi2SetReal", lambda: self._slave.setReal(vr, [float(value)]))
 
     def _call(self, call: str, fn: Any) -> Any:
         from fmpy.fmi1 import FMICallException

@@ -1,0 +1,100 @@
+"""``[connections]`` and ``[[delay]]``: which output feeds which input.
+
+Checked before any run (as mosaik does): endpoints exist, an output feeds an input, units
+agree, no input is fed twice, and loops between FMUs go through an explicit delay with an
+initial value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from twin.config.endpoints import endpoint
+from twin.config.problems import Problems, array_of_tables, table
+from twin.config.spec import Connection, FMUSpec
+
+
+def _plain(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
+    """``"instance.output" = "instance.input"`` or a list of inputs."""
+    out = []
+    for src, dsts in table(p, data, "connections").items():
+        key = f'connections."{src}"'
+        if isinstance(dsts, str):
+            dsts = [dsts]
+        if isinstance(dsts, dict):
+            p.add(
+                key, f'expected an input name or a list of them (quote the output: "{src}.<variable>" = ...)'
+            )
+            continue
+        if not isinstance(dsts, list) or not all(isinstance(d, str) for d in dsts):
+            p.add(key, "expected an input name or a list of them")
+            continue
+        out.extend(Connection(src, dst) for dst in dsts)
+    return out
+
+
+def _delays(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
+    """``[[delay]]`` entries: from, to, initial."""
+    out = []
+    for _i, key, raw in array_of_tables(p, data, "delay", " with from, to, initial"):
+        p.unknown_keys(raw, {"from", "to", "initial"}, key + ".")
+        initial = p.number(raw, "initial", key + ".")
+        ends = isinstance(raw.get("from"), str) and isinstance(raw.get("to"), str)
+        if ends and initial is not None:
+            out.append(Connection(raw["from"], raw["to"], delay=True, initial=initial))
+        elif not ends:
+            p.add(key, "needs 'from' and 'to' as 'instance.variable'")
+    return out
+
+
+def _check_endpoints(p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]) -> None:
+    fed: dict[str, str] = {}
+    for c in connections:
+        key = f'connections."{c.src}"' if not c.delay else "delay"
+        vs = endpoint(p, fmus, c.src, key, "output")
+        vd = endpoint(p, fmus, c.dst, key, "input")
+        if vs is not None and vd is not None and vs.unit != vd.unit:
+            p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
+        if c.dst in fed:
+            p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
+        fed[c.dst] = c.src
+
+
+def check_loops(p: Problems, connections: Sequence[Connection]) -> None:
+    """Loops between instances must contain a delayed connection (no algebraic loops)."""
+    graph: dict[str, set[str]] = {}
+    for c in connections:
+        if not c.delay and "." in c.src and "." in c.dst:
+            a, b = c.src.split(".")[0], c.dst.split(".")[0]
+            graph.setdefault(a, set()).add(b)
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(n: str) -> list[str] | None:
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if state.get(m) == 1:
+                return [*stack[stack.index(m) :], m]
+            if m not in state and (cycle := visit(m)):
+                return cycle
+        state[n] = 2
+        stack.pop()
+        return None
+
+    for n in sorted(graph):
+        if n not in state and (cycle := visit(n)):
+            p.add(
+                "connections",
+                "algebraic loop " + " -> ".join(cycle) + ": break it with a [[delay]] (from, to, initial)",
+            )
+            return
+
+
+def load_connections(p: Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
+    """Every connection, plain then delayed, checked."""
+    out = _plain(p, data) + _delays(p, data)
+    _check_endpoints(p, fmus, out)
+    check_loops(p, out)
+    return out

@@ -1,0 +1,110 @@
+"""``[[event]]``: at a time, set or ramp an input, bias an output, or make an FMU fail."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from twin.config.endpoints import check_range, endpoint
+from twin.config.problems import Problems, array_of_tables
+from twin.config.spec import Connection, Event, FMUSpec
+from twin.fmu.catalog import variables as model_variables
+
+_EVENT_KEYS = {"at", "action", "target", "value", "duration", "fault"}
+_EVENT_ACTIONS = {"set", "ramp", "bias", "fault"}
+#: fault events: how the FMU fails (its fault_inject input)
+FAULTS = {"error": 1.0, "discard": 2.0, "nan": 3.0}
+
+
+@dataclass(frozen=True)
+class _Scope:
+    """What every event is checked against."""
+
+    p: Problems
+    fmus: Mapping[str, FMUSpec]
+    fed: set[str]  # inputs fed by a connection
+    duration_ns: int | None
+
+    def when(self, at: int | None, key: str) -> int | None:
+        """``at`` if it lies within the run (a problem if it does not), None if unknown."""
+        if at is not None and (at < 0 or (self.duration_ns is not None and at >= self.duration_ns)):
+            self.p.add(key + ".at", "must lie within the scenario's duration")
+            return None
+        return at
+
+
+def _fault(s: _Scope, raw: Mapping[str, Any], key: str, at: int | None) -> Event | None:
+    """A fault: a set event on the instance's fault_inject input."""
+    inst, fault = raw.get("target"), raw.get("fault")
+    if not isinstance(inst, str) or inst not in s.fmus:
+        s.p.add(
+            key + ".target",
+            f"a fault targets an FMU instance (one of: {', '.join(sorted(s.fmus))}), got {inst!r}",
+        )
+        return None
+    if not isinstance(fault, str) or fault not in FAULTS:
+        s.p.add(key + ".fault", f"expected one of {sorted(FAULTS)}, got {fault!r}")
+        return None
+    model = s.fmus[inst].model
+    if "fault_inject" not in model_variables(model):
+        s.p.add(key + ".target", f"model {model} has no fault_inject input")
+        return None
+    at = s.when(at, key)
+    return Event(at, "set", f"{inst}.fault_inject", FAULTS[fault], 0) if at is not None else None
+
+
+def _target_ok(s: _Scope, raw: Mapping[str, Any], key: str, action: str) -> bool:
+    """A bias needs an output, set and ramp an input no connection feeds."""
+    causality = "output" if action == "bias" else "input"
+    if endpoint(s.p, s.fmus, raw.get("target"), key + ".target", causality) is None:
+        return False
+    if action != "bias" and raw["target"] in s.fed:
+        s.p.add(
+            key + ".target", f"input {raw['target']!r} is fed by a connection; {action} needs a free input"
+        )
+        return False
+    return True
+
+
+def _change(s: _Scope, raw: Mapping[str, Any], key: str, at: int | None, action: str) -> Event | None:
+    """A set, ramp or bias event."""
+    if "fault" in raw:
+        s.p.add(key + ".fault", "only a 'fault' action takes a fault")
+    target_ok = _target_ok(s, raw, key, action)
+    value = s.p.number(raw, "value", key + ".")
+    dur = s.p.duration(raw, "duration", key + ".", required=action == "ramp")
+    if action == "ramp" and dur is not None and dur <= 0:
+        s.p.add(key + ".duration", "a ramp needs a positive duration")
+    at = s.when(at, key)
+    if value is None or not target_ok:
+        return None
+    if action != "bias":
+        check_range(s.p, s.fmus, raw["target"], [value], key + ".value")
+    return Event(at, action, raw["target"], value, dur or 0) if at is not None else None
+
+
+def load_events(
+    p: Problems,
+    data: Mapping[str, Any],
+    fmus: Mapping[str, FMUSpec],
+    duration_ns: int | None,
+    connections: Sequence[Connection],
+) -> list[Event]:
+    """Every event, checked, in time order."""
+    scope = _Scope(p, fmus, {c.dst for c in connections}, duration_ns)
+    out = []
+    for _i, key, raw in array_of_tables(p, data, "event", ""):
+        p.unknown_keys(raw, _EVENT_KEYS, key + ".")
+        at = p.duration(raw, "at", key + ".")
+        action = raw.get("action")
+        if not isinstance(action, str) or action not in _EVENT_ACTIONS:
+            p.add(
+                key + ".action",
+                f"unknown action {action!r} (expected one of: {', '.join(sorted(_EVENT_ACTIONS))})",
+            )
+            continue
+        event = _fault(scope, raw, key, at) if action == "fault" else _change(scope, raw, key, at, action)
+        if event is not None:
+            out.append(event)
+    return sorted(out, key=lambda e: e.at_ns)

@@ -1,0 +1,183 @@
+"""The ``[fmu.<instance>]`` tables: which model, how often it steps, its parameter values.
+
+Parameter values come from ``parameter_files`` (each a TOML file with a ``[parameters]``
+table, relative to the scenario) and then the table's own ``parameters``, the later winning;
+each is checked against the model's declared type and physical range.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from twin.config.durations import format_duration
+from twin.config.problems import Problems, read_toml, table
+from twin.config.spec import FMUSpec, Parameter
+from twin.errors import ConfigError
+from twin.fmu.catalog import Variable, model_names
+from twin.fmu.catalog import variables as model_variables
+
+_FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
+_EXPECTED = {"Boolean": "true or false", "Integer": "an integer"}
+
+
+def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
+    """(value, source) of a parameter given as a value or as ``{ value, source }``."""
+    if not isinstance(raw, dict):
+        return raw, ""
+    extra = set(raw) - {"value", "source"}
+    if extra:
+        p.add(key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source }})")
+        return None
+    if "value" not in raw:
+        p.add(key, "missing 'value'")
+        return None
+    return raw["value"], str(raw.get("source", ""))
+
+
+def _typed(p: Problems, var: Variable, raw: Any, key: str) -> float | int | bool | None:
+    """``raw`` as a value of the variable's type, or None and a problem."""
+    if var.type == "Boolean":
+        ok = isinstance(raw, bool)
+    elif var.type == "Integer":
+        ok = not isinstance(raw, bool) and isinstance(raw, int)
+    else:
+        ok = not isinstance(raw, bool) and isinstance(raw, int | float)
+    if not ok:
+        p.add(key, f"expected {_EXPECTED.get(var.type, 'a number')}, got {raw!r}")
+        return None
+    if var.type in _EXPECTED:
+        return raw
+    if not math.isfinite(raw):
+        p.add(key, f"expected a finite number, got {raw!r}")
+        return None
+    return float(raw)
+
+
+def _parameter_value(p: Problems, model: str, var: Variable, raw: Any, key: str) -> Parameter | None:
+    unwrapped = _unwrap(p, raw, key)
+    value = _typed(p, var, unwrapped[0], key) if unwrapped is not None else None
+    if unwrapped is None or value is None:
+        return None
+    if var.type != "Boolean" and not var.min <= value <= var.max:
+        p.add(
+            key,
+            f"{value!r} {var.unit} is outside the physical range [{var.min!r}, {var.max!r}] of {model}.{var.name}".replace(
+                "  ", " "
+            ),
+        )
+        return None
+    return Parameter(value, unwrapped[1])
+
+
+def _parameter_file(p: Problems, path: Path, key: str) -> dict[str, tuple[Any, str]]:
+    """The ``[parameters]`` of one parameter file as name -> (value, where it is written)."""
+    try:
+        fdata = read_toml(path, str(path))
+    except ConfigError as exc:
+        p.add(key, str(exc))
+        return {}
+    params = fdata.get("parameters", {})
+    if not isinstance(params, dict):
+        p.add(key, f"{path}: parameters: expected a [parameters] table")
+        return {}
+    return {k: (v, f"{path.name}: parameters.{k}") for k, v in params.items()}
+
+
+def _given_parameters(
+    p: Problems, raw: Mapping[str, Any], prefix: str, base_dir: Path
+) -> dict[str, tuple[Any, str]]:
+    """Every parameter value given to an instance: its files in order, then its own table."""
+    merged: dict[str, tuple[Any, str]] = {}
+    files = raw.get("parameter_files", [])
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        p.add(prefix + "parameter_files", "expected a list of file names")
+        files = []
+    for f in files:
+        merged.update(_parameter_file(p, (base_dir / f).resolve(), prefix + "parameter_files"))
+    own = raw.get("parameters", {})
+    if not isinstance(own, dict):
+        p.add(prefix + "parameters", "expected a table")
+        own = {}
+    merged.update({k: (v, f"{prefix}parameters.{k}") for k, v in own.items()})
+    return merged
+
+
+def _parameters(p: Problems, model: str, given: Mapping[str, tuple[Any, str]]) -> dict[str, Parameter]:
+    variables = model_variables(model)
+    params: dict[str, Parameter] = {}
+    for k, (v, where) in given.items():
+        var = variables.get(k)
+        if var is None or var.causality != "parameter":
+            p.add(where, f"{model} has no parameter '{k}'")
+            continue
+        param = _parameter_value(p, model, var, v, where)
+        if param is not None:
+            params[k] = param
+    return params
+
+
+def _model_of(p: Problems, name: str, raw: Any, known: list[str]) -> str | None:
+    """The model an instance table names, or None (and a problem) when it names none we have."""
+    if not isinstance(raw, dict):
+        p.add(f"fmu.{name}", "expected a table")
+        return None
+    if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+        p.add(f"fmu.{name}", "instance names are lower_snake (letters, digits, _)")
+    prefix = f"fmu.{name}."
+    p.unknown_keys(raw, _FMU_KEYS, prefix)
+    if "model" not in raw:
+        p.add(prefix + "model", f"missing (one of: {', '.join(known)})")
+        return None
+    if raw["model"] not in known:
+        p.add(prefix + "model", f"unknown model {raw['model']!r} (known: {', '.join(known)})")
+        return None
+    return str(raw["model"])
+
+
+def _period(p: Problems, raw: Mapping[str, Any], prefix: str, step_ns: int | None) -> int | None:
+    period = p.duration(raw, "period", prefix)
+    if period is not None and period <= 0:
+        p.add(prefix + "period", "must be positive")
+    elif period is not None and step_ns and period % step_ns:
+        p.add(
+            prefix + "period",
+            f"{format_duration(period)} is not a multiple of scenario.step ({format_duration(step_ns)})",
+        )
+    return period
+
+
+def _instance(
+    p: Problems, name: str, raw: Any, known: list[str], base_dir: Path, step_ns: int | None
+) -> FMUSpec | None:
+    """One instance, or None when it is unusable (its problems are in ``p``)."""
+    model = _model_of(p, name, raw, known)
+    if model is None:
+        return None
+    prefix = f"fmu.{name}."
+    period = _period(p, raw, prefix, step_ns)
+    params = _parameters(p, model, _given_parameters(p, raw, prefix, base_dir))
+    if period is None:
+        return None
+    return FMUSpec(name=name, model=model, period_ns=period, parameters=MappingProxyType(params))
+
+
+def load_fmus(p: Problems, data: Mapping[str, Any], base_dir: Path, step_ns: int | None) -> list[FMUSpec]:
+    """The ``[fmu.*]`` instances that can be used; the others are marked broken in ``p``."""
+    fmus_raw = table(p, data, "fmu")
+    if not fmus_raw:
+        p.add("fmu", "at least one [fmu.<name>] table is needed")
+        p.no_fmus = True
+    known = model_names()
+    out = []
+    for name, raw in fmus_raw.items():
+        spec = _instance(p, name, raw, known, base_dir, step_ns)
+        if spec is None:
+            p.broken.add(name)
+        else:
+            out.append(spec)
+    return out

@@ -1,0 +1,140 @@
+"""The one way the twin compiles C: cmake, and a cache keyed by a hash of the sources.
+
+Everything the twin builds (the FMUs of :mod:`twin.fmu.build`, the master's compiled
+stepper) goes through :func:`run_cmake` and :func:`cached`, so a fresh clone or a fresh
+``pip install`` builds on first use and a changed source file is rebuilt, never served stale.
+:func:`build_cached_library` is the whole recipe for a CMake project that builds one shared
+library::
+
+    from importlib.resources import files
+    from twin.fmu.toolchain import build_cached_library, folder_files
+
+    library = build_cached_library("twin_stepper", folder_files(files("twin.cosim") / "native"))
+
+The cache lives in ``TWIN_CACHE_DIR`` or ``$XDG_CACHE_HOME/twin/fmus``; an entry is written
+under a temporary name and renamed into place, so a concurrent reader never sees half a file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable, Mapping
+from importlib.resources.abc import Traversable
+from pathlib import Path
+
+from twin.errors import BuildError, ToolMissingError
+
+#: environment variable naming the cache folder
+CACHE_ENV = "TWIN_CACHE_DIR"
+#: file name suffix of a shared library on this platform
+LIBRARY_SUFFIX = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
+
+
+def cache_dir() -> Path:
+    """Where built files are kept: ``TWIN_CACHE_DIR`` or ``$XDG_CACHE_HOME/twin/fmus``."""
+    env = os.environ.get(CACHE_ENV)
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "twin" / "fmus"
+
+
+def find_tools() -> tuple[str, str]:
+    """The C compiler and cmake, or :class:`ToolMissingError` saying what to install."""
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if not cc:
+        raise ToolMissingError(
+            "no C compiler found: install one (Debian: apt-get install -y gcc) to build the FMUs",
+            source="build",
+        )
+    cmake = shutil.which("cmake")
+    if not cmake:
+        raise ToolMissingError(
+            "cmake not found: pip install cmake (it is a dependency of twin) or apt-get install -y cmake",
+            source="build",
+        )
+    return cc, cmake
+
+
+def content_hash(files: Mapping[str, bytes], salt: str = "") -> str:
+    """16 hex digits of a SHA-256 over ``salt`` and every (name, content) pair in order."""
+    h = hashlib.sha256(salt.encode())
+    for name, data in files.items():
+        h.update(name.encode() + b"\0" + data + b"\0")
+    return h.hexdigest()[:16]
+
+
+def folder_files(folder: Path | Traversable) -> dict[str, bytes]:
+    """The files directly in ``folder`` (a path or a package resource), by name, sorted."""
+    entries = sorted((p for p in folder.iterdir() if p.is_file()), key=lambda p: p.name)
+    return {p.name: p.read_bytes() for p in entries if not p.name.startswith(".")}
+
+
+def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] | None = None) -> None:
+    """Configure ``source`` into ``build`` and build its ``install`` target.
+
+    Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
+    naming ``what`` with the tail of the compiler output when a step fails.
+    """
+    _, cmake = find_tools()
+    flags = [f"-D{k}={v}" for k, v in (defines or {}).items()]
+    steps = {
+        "configure": [cmake, "-S", str(source), "-B", str(build), *flags],
+        "build": [cmake, "--build", str(build), "--target", "install"],
+    }
+    for step, cmd in steps.items():
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if proc.returncode != 0:
+            tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-25:])
+            raise BuildError(f"building {what} failed ({step}):\n{tail}")
+
+
+def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *, prune: bool = True) -> Path:
+    """The cache entry ``<name>-<digest><suffix>``, made by ``make(scratch_dir)`` when missing.
+
+    ``make`` returns the file it built inside the scratch folder (removed afterwards). With
+    ``prune``, the other entries of ``name`` (older sources) are deleted once the new one is in.
+    """
+    target = cache_dir() / f"{name}-{digest}{suffix}"
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f"twin-{name}-", dir=target.parent) as tmp:
+        os.replace(make(Path(tmp)), target)  # atomic: the scratch folder is on the same disk
+    if prune:
+        for stale in target.parent.glob(f"{name}-*{suffix}"):
+            if stale != target:
+                stale.unlink(missing_ok=True)
+    return target
+
+
+def build_cached_library(name: str, files: Mapping[str, bytes], *, salt: str = "") -> Path:
+    """A shared library built by cmake from ``files``, cached by a hash of their contents.
+
+    ``files`` maps relative paths to contents: a ``CMakeLists.txt`` and its sources. The
+    project must install a library whose file name contains ``name`` into
+    ``${TWIN_OUT_DIR}``; it is built in Release mode. Old entries are kept (several checkouts
+    may share the cache, each with its own sources). ``salt`` changes the key without
+    changing a file (bump it when the way of building changes).
+    """
+
+    def make(scratch: Path) -> Path:
+        source, out = scratch / "source", scratch / "out"
+        for rel, data in files.items():
+            (source / rel).parent.mkdir(parents=True, exist_ok=True)
+            (source / rel).write_bytes(data)
+        defines = {"CMAKE_BUILD_TYPE": "Release", "TWIN_OUT_DIR": str(out)}
+        run_cmake(source, scratch / "build", f"the {name} library", defines)
+        built = sorted(out.glob(f"*{name}*"))
+        if not built:
+            raise BuildError(
+                f"building the {name} library installed nothing named *{name}* into TWIN_OUT_DIR"
+            )
+        return built[0]
+
+    return cached(name, content_hash(files, salt), LIBRARY_SUFFIX, make, prune=False)
