@@ -42,11 +42,12 @@ from typing import Any
 import numpy as np
 
 from twin import __version__ as twin_version
-from twin.config.load import load_scenario, model_variables
+from twin.config.load import load_scenario
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Master
 from twin.cosim.plan import instance_seed
 from twin.fmu.build import ensure_fmu
+from twin.fmu.catalog import variables as model_variables
 from twin.fmu.slot import FMUSlot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -412,13 +413,6 @@ def _seconds(text: str) -> float:
     return parse_duration(text) / NS_PER_S
 
 
-def _declared_range(var: Any) -> tuple[float, float]:
-    declared = getattr(var, "declaredType", None)
-    lo = var.min if var.min is not None else (declared.min if declared is not None else None)
-    hi = var.max if var.max is not None else (declared.max if declared is not None else None)
-    return (float(lo) if lo is not None else -float("inf"), float(hi) if hi is not None else float("inf"))
-
-
 def zero_unsafe(scenario: Scenario) -> list[Any]:
     """Connections libcosim cannot initialize with our FMUs.
 
@@ -431,7 +425,8 @@ def zero_unsafe(scenario: Scenario) -> list[Any]:
     out = []
     for c in scenario.connections:
         (si, sv), (di, dv) = c.src.split("."), c.dst.split(".")
-        lo, hi = _declared_range(model_variables(models[di])[dv])
+        target = model_variables(models[di])[dv]
+        lo, hi = target.min, target.max
         if model_variables(models[si])[sv].start is None and not lo <= 0.0 <= hi:
             out.append(c)
     return out

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Parameter, Scenario
 from twin.errors import ConfigError
+from twin.fmu.catalog import variables as model_variables
 from twin.paper import EXPERIMENT_S, NODE_OUTPUTS, TEMPERATURE_RISE_K
 
 #: fitted parameters: (name, how) -- "factor": a factor on the estimate in [0.1, 10];

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from twin.cosim import layout, native
+from twin.fmu.toolchain import content_hash
 
 CC = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler")
@@ -69,6 +70,6 @@ def test_the_generated_header_is_part_of_the_build_and_of_its_hash(monkeypatch: 
     files = native.stepper_sources()
     assert files[layout.HEADER] == layout.c_header().encode()
     assert {"stepper.c", "CMakeLists.txt"} <= set(files)
-    before = native._digest(files)
+    before = content_hash(files)
     monkeypatch.setattr(native, "c_header", lambda: layout.c_header() + "/* changed */\n")
-    assert native._digest(native.stepper_sources()) != before
+    assert content_hash(native.stepper_sources()) != before

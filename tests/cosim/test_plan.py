@@ -8,6 +8,7 @@ import pytest
 
 import twin.cosim.instances
 import twin.fmu.build
+import twin.fmu.catalog
 from twin.config.load import load_scenario
 from twin.cosim.plan import BATCH_TICKS, ColumnKind, InputKind, instance_seed, make_plan
 from twin.errors import ConfigError
@@ -53,7 +54,7 @@ def test_plan_resolves_inputs_columns_and_events_without_loading_an_fmu(
 
     for module, name in (
         (twin.fmu.build, "ensure_fmu"),
-        (twin.cosim.instances, "ensure_fmu"),
+        (twin.fmu.catalog, "fmu"),
         (twin.cosim.instances, "FMUSlot"),
     ):
         monkeypatch.setattr(module, name, no_fmu)

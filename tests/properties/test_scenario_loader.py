@@ -35,12 +35,12 @@ from twin.config.load import (
     MAX_DURATION_NS,
     load_scenario,
     load_scenario_data,
-    model_variables,
     parse_duration,
 )
 from twin.config.spec import NS_PER_S
 from twin.errors import ConfigError, ConfigErrors
 from twin.fmu.build import model_names
+from twin.fmu.catalog import variables as model_variables
 
 from ..config.scenario_toml import PAPER, dumps, paper_data, write
 
@@ -98,10 +98,7 @@ class Var:
 
 
 def _range(v: Any) -> tuple[float, float]:
-    declared = getattr(v, "declaredType", None)
-    lo = v.min if v.min is not None else (declared.min if declared is not None else None)
-    hi = v.max if v.max is not None else (declared.max if declared is not None else None)
-    return (float(lo) if lo is not None else -math.inf, float(hi) if hi is not None else math.inf)
+    return (v.min, v.max)  # the catalog resolves declared types and missing bounds (+-inf)
 
 
 def _vars(causality: str) -> list[Var]:

@@ -25,8 +25,7 @@ from twin.config.problems import Problems, read_toml, table
 from twin.config.scenario_table import load_scenario_table
 from twin.config.spec import FMUSpec, Parameter, Scenario
 from twin.errors import ConfigError, ConfigErrors
-from twin.fmu.catalog import Variable, shipped_folder
-from twin.fmu.catalog import variables as model_variables
+from twin.fmu.catalog import shipped_folder
 
 __all__ = [
     "FAULTS",
@@ -36,19 +35,12 @@ __all__ = [
     "format_duration",
     "load_scenario",
     "load_scenario_data",
-    "model_variables",
     "parse_duration",
     "read_scenario_data",
     "scenarios_dir",
-    "variable_unit",
 ]
 
 _TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"}
-
-
-def variable_unit(v: Variable) -> str:
-    """Declared unit of a model's variable (kept for :mod:`twin.cosim.master`: use ``v.unit``)."""
-    return v.unit
 
 
 def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None) -> None:

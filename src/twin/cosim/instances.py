@@ -9,12 +9,11 @@ outputs visible.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 from twin.cosim.plan import Plan
 from twin.cosim.state import State
 from twin.cosim.stepping import Gather
-from twin.fmu.build import ensure_fmu
+from twin.fmu import catalog
 from twin.fmu.slot import FMUSlot
 
 
@@ -23,7 +22,7 @@ def open_slots(plan: Plan) -> list[FMUSlot]:
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:
-            slot = FMUSlot(Path(ensure_fmu(inst.model)), inst.name)
+            slot = FMUSlot(catalog.fmu(inst.model), inst.name)
             slots.append(slot)
             slot.setup(0.0)
             for name, value in inst.parameters:

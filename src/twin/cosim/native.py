@@ -10,11 +10,6 @@ the exchange state and calls the FMUs' FMI functions directly from C.
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
@@ -35,9 +30,9 @@ from twin.cosim.layout import (
 from twin.cosim.plan import Plan
 from twin.cosim.state import State
 from twin.cosim.stepping import non_finite
-from twin.errors import BuildError, FMUError, RunError
-from twin.fmu.build import _check_tools, cache_dir
+from twin.errors import FMUError, RunError
 from twin.fmu.slot import FMUSlot
+from twin.fmu.toolchain import build_cached_library
 
 SOURCES = Path(__file__).parent / "native"
 LIBRARY = "twin_stepper"
@@ -53,49 +48,9 @@ def stepper_sources() -> dict[str, bytes]:
     return files
 
 
-def _digest(files: dict[str, bytes]) -> str:
-    h = hashlib.sha256(b"stepper-1")
-    for name in sorted(files):
-        h.update(name.encode() + b"\0" + files[name])
-    return h.hexdigest()[:16]
-
-
-def _cmake_build(src: Path, build: Path, out: Path) -> None:
-    _, cmake = _check_tools()
-    configure = [
-        cmake,
-        "-S",
-        str(src),
-        "-B",
-        str(build),
-        "-DCMAKE_BUILD_TYPE=Release",
-        f"-DTWIN_OUT_DIR={out}",
-    ]
-    for cmd in (configure, [cmake, "--build", str(build), "--target", "install"]):
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-25:])
-            raise BuildError(f"building the stepper failed:\n{tail}")
-
-
 def ensure_stepper() -> Path:
     """Path of the built stepper library, building it when its sources or its layout changed."""
-    files = stepper_sources()
-    target = cache_dir() / f"{LIBRARY}-{_digest(files)}.so"
-    if target.is_file():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="twin-stepper-") as tmp:
-        src, out = Path(tmp) / "src", Path(tmp) / "out"
-        src.mkdir()
-        for name, data in files.items():
-            (src / name).write_bytes(data)
-        _cmake_build(src, Path(tmp) / "build", out)
-        built = next(out.glob(f"{LIBRARY}*"))
-        tmp_target = target.with_name(target.name + f".{os.getpid()}.tmp")
-        shutil.copyfile(built, tmp_target)
-        os.replace(tmp_target, target)
-    return target
+    return build_cached_library(LIBRARY, stepper_sources())
 
 
 @lru_cache(maxsize=1)
@@ -106,26 +61,6 @@ def stepper() -> ctypes.CDLL:
     fn.argtypes = entry_argtypes()
     fn.restype = ctypes.c_int
     return lib
-
-
-# ---------------------------------------------------------------------------- the FMUs' side
-# The one place that reaches into FMUSlot's private fmpy internals (the raw FMI function
-# pointers and the component, the error built from a status): at merge, FMUSlot's public
-# accessor for them replaces these two functions' bodies.
-
-
-def _fmi_functions(slot: FMUSlot) -> tuple[int | None, ...]:
-    """(fmi2Component, fmi2SetReal, fmi2GetReal, fmi2DoStep) of ``slot`` as addresses."""
-    f = slot._slave._functions
-
-    def address(name: str) -> int | None:
-        return ctypes.cast(f[name], ctypes.c_void_p).value
-
-    return slot._c, address("fmi2SetReal"), address("fmi2GetReal"), address("fmi2DoStep")
-
-
-def _fmi_error(slot: FMUSlot, call: str, status: int) -> FMUError:
-    return slot._fail(call, status)
 
 
 def _address(a: np.ndarray | ctypes.Array) -> int:
@@ -159,7 +94,7 @@ class NativeLoop:
 
     def _point(self, i: int, s: TwinSlot) -> None:
         inst, buf = self.plan.instances[i], self.state.buffers[i]
-        s.comp, s.set_real, s.get_real, s.do_step = _fmi_functions(self.fmus[i])
+        s.comp, s.set_real, s.get_real, s.do_step = self.fmus[i].native_handles()
         s.period_ticks, s.period_ns = inst.period_ticks, inst.period_ns
         s.n_in, s.n_out = len(inst.inputs), len(inst.outputs)
         s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
@@ -196,7 +131,7 @@ class NativeLoop:
         slot.time = c.fail_tick * self.plan.step_ns / NS_PER_S
         if c.fail_call == Call.NON_FINITE:
             return non_finite(inst, slot, self.state.buffers[inst.index], c.fail_status)
-        return _fmi_error(slot, CALL_NAMES.get(c.fail_call, "?"), c.fail_status)
+        return slot.error(CALL_NAMES.get(c.fail_call, "?"), c.fail_status)
 
 
 __all__ = ["SOURCES", "NativeLoop", "ensure_stepper", "stepper", "stepper_sources"]

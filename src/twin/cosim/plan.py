@@ -21,9 +21,9 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
-from twin.config.load import model_variables, variable_unit
 from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
 from twin.errors import ConfigError
+from twin.fmu.catalog import variables as model_variables
 from twin.signals.table import Signal as SignalMeta
 
 #: ticks per batch at most: bounds the driven matrix and the row buffer (memory flat in run length)
@@ -186,7 +186,7 @@ class _Builder:
 
     def input(self, target: str, variables: Mapping[str, Any]) -> PlannedInput:
         name = target.split(".")[1]
-        vr = int(variables[name].valueReference)
+        vr = int(variables[name].value_reference)
         c = self.feeds.get(target)
         if c is not None:
             src, out = c.src.split(".")
@@ -212,7 +212,7 @@ class _Builder:
             period_ns=spec.period_ns,
             period_ticks=spec.period_ns // self.scenario.step_ns,
             outputs=outputs,
-            out_vrs=tuple(int(variables[n].valueReference) for n in outputs),
+            out_vrs=tuple(int(variables[n].value_reference) for n in outputs),
             inputs=tuple(
                 self.input(f"{spec.name}.{n}", variables) for n in _input_names(self.scenario, spec.name)
             ),
@@ -247,7 +247,7 @@ def _columns(instances: Sequence[PlannedInstance]) -> tuple[Column, ...]:
 
         def meta(name: str, inst: PlannedInstance = inst, variables: Any = variables) -> SignalMeta:
             v = variables[name]
-            return SignalMeta(f"{inst.name}.{name}", variable_unit(v), inst.name, v.description or "")
+            return SignalMeta(f"{inst.name}.{name}", v.unit, inst.name, v.description or "")
 
         cols += [Column(inst.index, ColumnKind.OUTPUT, k, meta(n)) for k, n in enumerate(inst.outputs)]
         cols += [

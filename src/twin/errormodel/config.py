@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import fields
 from typing import Any
 
-from twin.config.load import model_variables
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, PARTS
@@ -24,6 +23,7 @@ from twin.errormodel.sources import (
     ThermalGeometry,
 )
 from twin.errors import ConfigError
+from twin.fmu.catalog import variables as model_variables
 
 _GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
 

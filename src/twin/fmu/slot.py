@@ -141,7 +141,8 @@ class FMUSlot:
         _MESSAGES[self.name] = self.messages
         return _callbacks()
 
-    def _fail(self, call: str, status: int) -> FMUError:
+    def error(self, call: str, status: int) -> FMUError:
+        """The :class:`FMUError` for ``call`` returning ``status``, with the FMU's last message."""
         why = (
             self.messages[-1] if self.messages else f"status fmi2{_STATUS[status] if status < 6 else status}"
         )
@@ -179,7 +180,7 @@ class FMUSlot:
         try:
             return fn()
         except FMICallException as exc:
-            raise self._fail(call, exc.status) from None
+            raise self.error(call, exc.status) from None
 
     # -- the hot path: preallocated buffers, raw calls ------------------------------------------
 
@@ -190,19 +191,19 @@ class FMUSlot:
         if port.n:
             status = self._set_real(self._c, port.vr, port.n, port.ptr)
             if status > 1:
-                raise self._fail("fmi2SetReal", status)
+                raise self.error("fmi2SetReal", status)
 
     def read(self, port: RealPort) -> None:
         if port.n:
             status = self._get_real(self._c, port.vr, port.n, port.ptr)
             if status > 1:
-                raise self._fail("fmi2GetReal", status)
+                raise self.error("fmi2GetReal", status)
 
     def do_step(self, t: float, h: float) -> None:
         self.time = t
         status = self._do_step(self._c, t, h, 1)
         if status > 1:
-            raise self._fail("fmi2DoStep", status)
+            raise self.error("fmi2DoStep", status)
         self.time = t + h
 
     # -- FMU state -------------------------------------------------------------------------------
