@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -76,6 +77,7 @@ def test_run_point_gives_the_runs_figures_and_writes_no_file(
     point = run_point(short_scenario())
     assert list(tmp_path.iterdir()) == []
     assert without_timing(point.figures()) == without_timing(summary.figures())
+    assert pickle.loads(pickle.dumps(point)).figures() == point.figures()  # a worker sends it back
 
 
 def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummary], tmp_path: Path) -> None:

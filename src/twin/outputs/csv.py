@@ -30,7 +30,7 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from twin.errors import ConfigError
-from twin.outputs.sink import ClosesOnExit
+from twin.outputs.sink import ClosesOnExit, OutcomeSink
 from twin.outputs.summary import write_summary
 from twin.signals.table import Block, Signal, SignalTable
 
@@ -258,7 +258,7 @@ class SignalsCsvSink:
             self._writer.close()
 
 
-class DerivedCsvSink:
+class DerivedCsvSink(OutcomeSink):
     """A CSV of the columns derived once the run is over (``errormodel.csv``: the error model's).
 
     Written whole when the sink closes, and only when the outcome has such columns.
@@ -266,22 +266,10 @@ class DerivedCsvSink:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self._written = False
 
-    def open(self, signals: list[Signal]) -> None:
-        """The recorded columns are not this file's."""
-
-    def write(self, block: Block) -> None:
-        """Rows of the recorded columns are not this file's."""
-
-    def close(self, outcome: Outcome) -> None:
-        if outcome.table is None or self._written:
-            return
-        write_signals_csv(outcome.table.subset(outcome.columns), self.path)
-        self._written = True
-
-    def fail(self, error: BaseException) -> None:
-        """Nothing was begun before the outcome: nothing to release."""
+    def write_outcome(self, outcome: Outcome) -> None:
+        if outcome.table is not None:
+            write_signals_csv(outcome.table.subset(outcome.columns), self.path)
 
 
 def _read_sidecar(csv_path: Path) -> dict[str, dict[str, str]]:

@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from twin.signals.table import Block, Signal, SignalTable
+from twin.outputs.sink import OutcomeSink
+from twin.signals.table import SignalTable
 
 if TYPE_CHECKING:
     from twin.outputs.sink import Outcome
@@ -140,7 +141,7 @@ def _draw(table: SignalTable, path: Path, columns: BudgetColumns, title: str) ->
     return path
 
 
-class ErrorBudgetSink:
+class ErrorBudgetSink(OutcomeSink):
     """``error_budget.png`` as a sink: drawn from the outcome's table when the run is over.
 
     Only when the error model ran (the plot shows its prediction); temperatures the table
@@ -151,21 +152,10 @@ class ErrorBudgetSink:
         self.path = path
         self.columns = columns
         self.title = title
-        self._drawn = False
 
-    def open(self, signals: list[Signal]) -> None:
-        """Nothing to prepare: the plot is drawn whole at the end."""
-
-    def write(self, block: Block) -> None:
-        """The plot is drawn from the outcome's table, not from the streamed rows."""
-
-    def close(self, outcome: Outcome) -> None:
-        if outcome.table is None or self._drawn:
-            return
+    def write_outcome(self, outcome: Outcome) -> None:
         table = outcome.table
+        if table is None:
+            return
         present = [name for name in self.columns.temperatures if name in table]
         _plot(table, self.path, dataclasses.replace(self.columns, temperatures=present), self.title)
-        self._drawn = True
-
-    def fail(self, error: BaseException) -> None:
-        """Nothing was begun before the outcome: nothing to release."""

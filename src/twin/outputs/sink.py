@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Protocol, Self
 if TYPE_CHECKING:
     from twin.signals.table import Block, Signal, SignalTable
 
-__all__ = ["ClosesOnExit", "Outcome", "Sink"]
+__all__ = ["ClosesOnExit", "Outcome", "OutcomeSink", "Sink"]
 
 
 class Outcome:
@@ -81,6 +81,33 @@ class Sink(Protocol):
     def fail(self, error: BaseException) -> None:
         """The run broke: keep what is written and release the file (also after close)."""
         ...
+
+
+class OutcomeSink:
+    """Base of the sinks that write only when the run is over, from its outcome (the error
+    model's CSV, the plot, the summary): the streamed rows are not theirs, and a run that
+    broke leaves them nothing begun to release. Subclasses implement :meth:`write_outcome`,
+    called on the first :meth:`close` only.
+    """
+
+    _done = False
+
+    def open(self, signals: list[Signal]) -> None:
+        """Nothing to prepare: the file is written whole at the end."""
+
+    def write(self, block: Block) -> None:
+        """The streamed rows are not this file's."""
+
+    def close(self, outcome: Outcome) -> None:
+        if not self._done:
+            self.write_outcome(outcome)
+            self._done = True
+
+    def fail(self, error: BaseException) -> None:
+        """Nothing was begun before the outcome: nothing to release, nothing written."""
+
+    def write_outcome(self, outcome: Outcome) -> None:
+        raise NotImplementedError
 
 
 class ClosesOnExit:

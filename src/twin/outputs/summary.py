@@ -19,12 +19,14 @@ import os
 import uuid
 from collections.abc import Mapping
 from pathlib import Path, PurePath
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.outputs.sink import Outcome
-from twin.signals.table import Block, Signal
+from twin.outputs.sink import OutcomeSink
+
+if TYPE_CHECKING:
+    from twin.outputs.sink import Outcome
 
 __all__ = ["SummarySink", "summary_text", "to_jsonable", "write_json_atomic", "write_summary"]
 
@@ -143,24 +145,16 @@ def write_summary(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path
     return write_json_atomic(path, summary_text(data))
 
 
-class SummarySink:
+class SummarySink(OutcomeSink):
     """``summary.json`` as a sink: written when the run's outcome is known, from its summary.
 
     Put it last among a run's sinks: a reader takes the file's presence as "the run is over",
-    and the summary's timings then count the writing of every other file.
+    and the summary's timings then count the writing of every other file. A run that broke
+    writes none (an old summary, or none, stays as it was).
     """
 
     def __init__(self, path: Path) -> None:
         self.path = path
 
-    def open(self, signals: list[Signal]) -> None:
-        """Nothing to prepare: the file is written whole at the end."""
-
-    def write(self, block: Block) -> None:
-        """Rows are not the summary's business."""
-
-    def close(self, outcome: Outcome) -> None:
+    def write_outcome(self, outcome: Outcome) -> None:
         write_summary(self.path, outcome.summary())
-
-    def fail(self, error: BaseException) -> None:
-        """No summary for a run that broke: an old one (or none) stays as it was."""

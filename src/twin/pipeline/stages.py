@@ -39,18 +39,6 @@ from twin.pipeline.run_summary import RunSummary, Timing
 from twin.signals.recorder import TeeRecorder
 from twin.signals.table import SignalTable
 
-__all__ = [
-    "Evaluated",
-    "Simulation",
-    "evaluate_run",
-    "resume_run",
-    "run",
-    "run_point",
-    "simulate",
-    "summarize",
-    "write_outputs",
-]
-
 
 @dataclass
 class Simulation:
