@@ -12,15 +12,16 @@ from pathlib import Path
 import pytest
 
 from twin.config.load import load_scenario, scenarios_dir
-from twin.pipeline import run
+from twin.pipeline import RunSummary, run
 
 pytestmark = pytest.mark.slow
 
 MIL_WEAR_LIMIT_MM = 0.152  # facts.md 4
 
 
-def check_summary(summary: dict) -> None:
-    assert summary["status"] == "completed"
+def check_summary(run_summary: RunSummary) -> None:
+    assert run_summary.status == "completed"
+    summary = run_summary.results
     for key in ("true", "compensated"):
         assert isinstance(summary["wear_mm"][key], float)
     for group, key in (("compensation", "residual_rms_um"), ("compensation", "residual_max_um"),
@@ -38,15 +39,16 @@ def test_compensation_removes_90_percent_of_the_detecting_error(name: str, tmp_p
     summary = run(load_scenario(scenarios_dir() / f"{name}.toml"), tmp_path)
     check_summary(summary)
     # every factor of the scenario is present
-    assert summary["error_parts_rms_um"]["thermal"] > 1.0
-    assert summary["error_parts_rms_um"]["fluctuating"] > 0.1
+    figures = summary.figures()
+    assert figures["error_parts_rms_um.thermal"] > 1.0
+    assert figures["error_parts_rms_um.fluctuating"] > 0.1
     if name in ("sine-load", "trapezoid-load"):
-        assert summary["error_parts_rms_um"]["loading"] > 5.0
+        assert figures["error_parts_rms_um.loading"] > 5.0
 
 
 def test_mil_endurance_run(tmp_path: Path) -> None:
     summary = run(load_scenario(scenarios_dir() / "mil-endurance.toml"), tmp_path)
     check_summary(summary)
-    assert 0.0 < summary["wear_mm"]["true"] < MIL_WEAR_LIMIT_MM
-    assert summary["compensation"]["residual_rms_um"]["after"] <= 2.0
-    assert summary["timing"]["macro_steps"] == 1_500_000  # the swing resolved at 0.1 s
+    assert 0.0 < summary.results["wear_mm"]["true"] < MIL_WEAR_LIMIT_MM
+    assert summary.results["compensation"]["residual_rms_um"]["after"] <= 2.0
+    assert summary.timing.macro_steps == 1_500_000  # the swing resolved at 0.1 s

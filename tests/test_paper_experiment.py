@@ -26,7 +26,8 @@ pytestmark = pytest.mark.slow
 def paper_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("paper")
     summary = run(load_scenario(default_scenario_path()), out)
-    return out, summary
+    assert (out / "summary.json").read_text(encoding="utf-8") == summary.to_json()
+    return out, summary.to_dict()
 
 
 def test_run_writes_the_four_files(paper_run: tuple[Path, dict]) -> None:

@@ -82,18 +82,16 @@ def thermal_only(scenario: Scenario, params: Mapping[str, float]) -> Scenario:
 
 def node_rises(scenario: Scenario, params: Mapping[str, float]) -> dict[str, float]:
     """Rise of each measured node over the run."""
-    from twin.cosim.master import run_scenario
+    from twin.pipeline import simulate
 
     sub = thermal_only(scenario, params)
-    result = run_scenario(sub)
-    if result.error:
-        raise result.error
     name = sub.fmus[0].name
-    table = result.table
-    return {
-        body: float(table[f"{name}.{NODE_OUTPUTS[body]}"][-1] - table[f"{name}.{NODE_OUTPUTS[body]}"][0])
-        for body in BODIES
-    }
+    columns = {body: f"{name}.{NODE_OUTPUTS[body]}" for body in BODIES}
+    simulation = simulate(sub, keep=columns.values())
+    if simulation.result.error:
+        raise simulation.result.error
+    table = simulation.table
+    return {body: float(table[col][-1] - table[col][0]) for body, col in columns.items()}
 
 
 def _start_values(scenario: Scenario) -> dict[str, float]:

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from twin import __version__
 from twin.errors import ConfigError, TwinError
+
+if TYPE_CHECKING:
+    from twin.pipeline import RunSummary
 
 
 class _Parser(argparse.ArgumentParser):
@@ -75,67 +79,73 @@ def _stop_on_signals():
     return lambda: caught.get("name")
 
 
-def _finish(summary: dict, out: Path, quiet: bool) -> int:
-    from twin.pipeline import summary_line
+def _supervised(quiet: bool, stage: Callable[..., RunSummary]) -> RunSummary:
+    """Call a run stage with a progress bar and SIGINT/SIGTERM asking it to stop."""
+    stop = _stop_on_signals()
+    update, done = _progress_bar(quiet)
+    try:
+        return stage(progress=update, stop=stop)
+    finally:
+        done()
 
+
+def _finish(summary: RunSummary, out: Path, quiet: bool) -> int:
     if not quiet:
-        print(summary_line(summary))
+        print(summary.line())
         print(f"outputs: {out}")
-    if summary["status"] == "interrupted":
-        why = summary.get("error", "")
+    if summary.status == "interrupted":
+        why = summary.error or ""
         print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
         return _EXIT_ON_SIGNAL.get(why.rsplit(" ", 1)[-1], 130)
     return 0
 
 
+def _checkpoint_every(text: str | None, step_ns: int) -> int | None:
+    """--checkpoint-every as nanoseconds of simulated time, a multiple of the scenario's step."""
+    if text is None:
+        return None
+    from twin.config.load import parse_duration
+
+    try:
+        every = parse_duration(text)
+    except ValueError as exc:
+        raise ConfigError(str(exc), source="--checkpoint-every") from None
+    if every <= 0 or every % step_ns:
+        raise ConfigError("must be a positive multiple of scenario.step", source="--checkpoint-every")
+    return every
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
+    import functools
     import time
 
-    from twin.config.load import parse_duration
     from twin.pipeline import run
 
     start = time.perf_counter()
     scenario = _load(args)
     out = Path(args.out) if args.out else Path("runs") / scenario.name
-    every = None
-    if args.checkpoint_every is not None:
-        try:
-            every = parse_duration(args.checkpoint_every)
-        except ValueError as exc:
-            raise ConfigError(str(exc), source="--checkpoint-every") from None
-        if every <= 0 or every % scenario.step_ns:
-            raise ConfigError("must be a positive multiple of scenario.step", source="--checkpoint-every")
-    stop = _stop_on_signals()
-    update, done = _progress_bar(args.quiet)
-    try:
-        summary = run(
-            scenario,
-            out,
-            progress=update,
-            process_start=args.process_start or start,
-            overrides=args.set or [],
-            stop=stop,
-            checkpoint_every_ns=every,
-        )
-    finally:
-        done()
-    return _finish(summary, out, args.quiet)
+    every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
+    stage = functools.partial(
+        run,
+        scenario,
+        out,
+        process_start=args.process_start or start,
+        overrides=args.set or [],
+        checkpoint_every_ns=every,
+    )
+    return _finish(_supervised(args.quiet, stage), out, args.quiet)
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
+    import functools
     import time
 
     from twin.pipeline import resume_run
 
     start = time.perf_counter()
     out = Path(args.run_dir)
-    stop = _stop_on_signals()
-    update, done = _progress_bar(args.quiet)
-    try:
-        summary = resume_run(out, progress=update, stop=stop, process_start=start)
-    finally:
-        done()
-    return _finish(summary, out, args.quiet)
+    stage = functools.partial(resume_run, out, process_start=start)
+    return _finish(_supervised(args.quiet, stage), out, args.quiet)
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:

@@ -1,5 +1,9 @@
 """Output sinks of a run: ``signals.csv``, ``summary.json``, ``recording.rrd``, the error-budget PNG.
 
+Every output is a :class:`~twin.outputs.sink.Sink` (open / write block / close with the
+run's outcome / fail), one module per file format; :mod:`twin.outputs.run_folder` names the
+files of a run folder and makes its sinks.
+
 The CSV and JSON writers are imported eagerly; the rerun recording and the plot are loaded
 on first use (PEP 562 ``__getattr__``) because importing rerun and matplotlib takes about a
 second each, which commands that never write them should not pay.
@@ -11,6 +15,8 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from twin.outputs.csv import SignalsCsvWriter, read_signals_csv, units_sidecar_path, write_signals_csv
+from twin.outputs.run_folder import RunFolder
+from twin.outputs.sink import Outcome, Sink
 from twin.outputs.summary import to_jsonable, write_summary
 
 if TYPE_CHECKING:
@@ -18,8 +24,11 @@ if TYPE_CHECKING:
     from twin.outputs.rerun_rec import RecordingWriter, read_recording, write_recording
 
 __all__ = [
+    "Outcome",
     "RecordingWriter",
+    "RunFolder",
     "SignalsCsvWriter",
+    "Sink",
     "error_budget_png",
     "read_recording",
     "read_signals_csv",

@@ -25,16 +25,21 @@ import os
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import TracebackType
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
 from twin.errors import ConfigError
+from twin.outputs.sink import ClosesOnExit, OutcomeSink
 from twin.outputs.summary import write_summary
-from twin.signals.table import Signal, SignalTable
+from twin.signals.table import Block, Signal, SignalTable
+
+if TYPE_CHECKING:
+    from twin.outputs.sink import Outcome
 
 __all__ = [
+    "DerivedCsvSink",
+    "SignalsCsvSink",
     "SignalsCsvWriter",
     "read_signals_csv",
     "units_sidecar_path",
@@ -72,7 +77,7 @@ def _check_names(names: Sequence[str]) -> None:
         seen.add(name)
 
 
-class SignalsCsvWriter:
+class SignalsCsvWriter(ClosesOnExit):
     """Stream a run's signals to ``path`` chunk by chunk.
 
     The header (and the units sidecar) are written on construction; each :meth:`append`
@@ -203,14 +208,6 @@ class SignalsCsvWriter:
             self._file.close()
             self._file = None
 
-    def __enter__(self) -> SignalsCsvWriter:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
-
 
 def write_units_sidecar(csv_path: str | os.PathLike[str], signals: Sequence[Signal]) -> Path:
     """Write ``<stem>.units.json``: name -> {unit, subsystem, description}, time first."""
@@ -226,6 +223,53 @@ def write_signals_csv(table: SignalTable, path: str | os.PathLike[str], *, sidec
     with SignalsCsvWriter.for_signals(path, signals, sidecar=sidecar) as writer:
         writer.append(table.time, table.columns)
     return Path(path)
+
+
+class SignalsCsvSink:
+    """``signals.csv`` as a sink: every recorded row, appended block by block as the run goes.
+
+    ``resume_at`` (a checkpoint's ``csv_position``) continues the file of a resumed run.
+    """
+
+    def __init__(self, path: Path, *, resume_at: tuple[int, float] | None = None) -> None:
+        self.path = path
+        self.resume_at = resume_at
+        self._writer: SignalsCsvWriter | None = None
+
+    def open(self, signals: list[Signal]) -> None:
+        self._writer = SignalsCsvWriter.for_signals(self.path, signals, resume_at=self.resume_at)
+
+    def write(self, block: Block) -> None:
+        assert self._writer is not None, "write before open"
+        self._writer.append(block.time, block.columns)
+
+    def checkpoint(self) -> dict[str, Any]:
+        """Where the file stands: (bytes written, last time), for a resumed run to continue."""
+        assert self._writer is not None, "checkpoint before open"
+        return {"csv_position": list(self._writer.position())}
+
+    def close(self, outcome: Outcome) -> None:
+        if self._writer is not None:
+            self._writer.close()
+
+    def fail(self, error: BaseException) -> None:
+        # every appended row is already flushed to the OS: closing is all there is to do
+        if self._writer is not None:
+            self._writer.close()
+
+
+class DerivedCsvSink(OutcomeSink):
+    """A CSV of the columns derived once the run is over (``errormodel.csv``: the error model's).
+
+    Written whole when the sink closes, and only when the outcome has such columns.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def write_outcome(self, outcome: Outcome) -> None:
+        if outcome.table is not None:
+            write_signals_csv(outcome.table.subset(outcome.columns), self.path)
 
 
 def _read_sidecar(csv_path: Path) -> dict[str, dict[str, str]]:
@@ -257,12 +301,36 @@ def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
     """
     path = Path(path)
     source = str(path)
+    lines = _read_lines(path)
+    header = _header(lines, source)
+    data = _rows(_complete_lines(lines, source), header, source)
+    time = data[:, 0]
+    _check_time(time, source)
+    sidecar = _read_sidecar(path)
+    table = SignalTable(time=np.ascontiguousarray(time))
+    for j, name in enumerate(header[1:], start=1):
+        info = sidecar.get(name, {})
+        signal = Signal(
+            name=name,
+            unit=str(info.get("unit", "")),
+            subsystem=str(info.get("subsystem") or _default_subsystem(name)),
+            description=str(info.get("description", "")),
+        )
+        table.add(signal, np.ascontiguousarray(data[:, j]))
+    return table
+
+
+def _read_lines(path: Path) -> list[str]:
     try:
         # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
         with open(path, encoding="utf-8-sig", newline=None) as f:
-            lines = f.readlines()
+            return f.readlines()
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read signals CSV: {exc}", source=source) from None
+        raise ConfigError(f"cannot read signals CSV: {exc}", source=str(path)) from None
+
+
+def _header(lines: list[str], source: str) -> list[str]:
+    """The column names of line 1, ``time`` first, checked."""
     if not lines or not lines[0].strip():
         raise ConfigError("empty file, expected a header 'time,<name>,...'", source=source)
     if not lines[0].endswith("\n"):
@@ -270,23 +338,29 @@ def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
     header = [h.strip().strip('"').strip() for h in lines[0].split(",")]
     if header[0] != TIME:
         raise ConfigError(f"line 1: first column must be 'time', got {header[0]!r}", source=source)
-    names = header[1:]
-    for name in names:
-        if not name:
-            raise ConfigError("line 1: empty column name", source=source)
+    if not all(header[1:]):
+        raise ConfigError("line 1: empty column name", source=source)
     if len(set(header)) != len(header):
         dup = next(n for n in header if header.count(n) > 1)
         raise ConfigError(f"line 1: column {dup!r} appears twice", source=source)
+    return header
 
-    if len(lines) > 1 and not lines[-1].endswith("\n"):
-        if lines[-1].strip():
-            warnings.warn(
-                f"{source}: ignored incomplete last line {len(lines)} (no line break: interrupted write?)",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        lines = lines[:-1]
 
+def _complete_lines(lines: list[str], source: str) -> list[str]:
+    """The lines without a last one that has no line break (the partial row of a killed run)."""
+    if len(lines) < 2 or lines[-1].endswith("\n"):
+        return lines
+    if lines[-1].strip():
+        warnings.warn(
+            f"{source}: ignored incomplete last line {len(lines)} (no line break: interrupted write?)",
+            RuntimeWarning,
+            stacklevel=3,  # the caller of read_signals_csv
+        )
+    return lines[:-1]
+
+
+def _rows(lines: list[str], header: list[str], source: str) -> np.ndarray:
+    """The numbers of every data line (blank lines skipped), one row per line."""
     ncol = len(header)
     rows: list[list[float]] = []
     for lineno, line in enumerate(lines[1:], start=2):
@@ -304,28 +378,16 @@ def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
             raise ConfigError(
                 f"line {lineno}, column '{col}': {bad.strip()!r} is not a number", source=source
             ) from None
+    return np.array(rows, dtype=np.float64).reshape(len(rows), ncol)
 
-    data = np.array(rows, dtype=np.float64).reshape(len(rows), ncol)
-    time = data[:, 0]
+
+def _check_time(time: np.ndarray, source: str) -> None:
     if not np.all(np.isfinite(time)):
         raise ConfigError("column 'time' holds a non-finite value", source=source)
     steps = np.diff(time)
     if np.any(steps <= 0):
         k = int(np.argmax(steps <= 0))
         raise ConfigError(f"time is not strictly increasing after t = {float(time[k])!r} s", source=source)
-
-    sidecar = _read_sidecar(path)
-    table = SignalTable(time=np.ascontiguousarray(time))
-    for j, name in enumerate(names, start=1):
-        info = sidecar.get(name, {})
-        signal = Signal(
-            name=name,
-            unit=str(info.get("unit", "")),
-            subsystem=str(info.get("subsystem") or _default_subsystem(name)),
-            description=str(info.get("description", "")),
-        )
-        table.add(signal, np.ascontiguousarray(data[:, j]))
-    return table
 
 
 def _is_float(text: str) -> bool:

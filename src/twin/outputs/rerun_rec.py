@@ -24,17 +24,22 @@ import os
 import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import TracebackType
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from twin.signals.table import Signal, SignalTable
+from twin.outputs.sink import ClosesOnExit
+from twin.signals.table import Block, Signal, SignalTable
+
+if TYPE_CHECKING:
+    from twin.outputs.sink import Outcome
 
 __all__ = [
     "BUDGET_VIEW_NAME",
     "TIMELINE",
+    "RecordingSink",
     "RecordingWriter",
     "entity_path",
     "read_recording",
@@ -90,7 +95,7 @@ def _to_duration(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64).astype("timedelta64[ns]")
 
 
-class RecordingWriter:
+class RecordingWriter(ClosesOnExit):
     """Stream a run to an ``.rrd`` file chunk by chunk (memory flat in run length).
 
     The blueprint needs every signal up front, hence ``signals``; each :meth:`append`
@@ -185,13 +190,67 @@ class RecordingWriter:
             # disconnect() closes the file sink, which writes the footer `rerun rrd verify` checks.
             rec.disconnect()
 
-    def __enter__(self) -> RecordingWriter:
-        return self
 
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+class RecordingSink:
+    """``recording.rrd`` as a sink: the recorded rows streamed as the run goes, then the
+    columns derived after it (the error model's) on the same timeline.
+
+    ``late_signals`` are those derived columns, declared up front because the blueprint
+    needs every entity when the file is created; ``budget_columns`` go to the error-budget
+    view. ``replay`` (a resumed run's signals.csv, already cut back to its checkpoint) is
+    sent first: a killed run never wrote its recording's footer, so the recording is
+    written anew from the rows the CSV kept.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        recording_name: str,
+        late_signals: Sequence[Signal] = (),
+        budget_columns: Sequence[str] | None = None,
+        replay: Path | None = None,
     ) -> None:
-        self.close()
+        self.path = path
+        self.recording_name = recording_name
+        self.late_signals = list(late_signals)
+        self.budget_columns = budget_columns
+        self.replay = replay
+        self._writer: RecordingWriter | None = None
+
+    def open(self, signals: list[Signal]) -> None:
+        self._writer = RecordingWriter(
+            self.path,
+            [*signals, *self.late_signals],
+            recording_name=self.recording_name,
+            budget_columns=self.budget_columns,
+        )
+        if self.replay is not None:
+            from twin.outputs.csv import read_signals_csv
+
+            before = read_signals_csv(self.replay)
+            self._writer.append(before.time, {s.name: before[s.name] for s in signals}, partial=True)
+
+    def write(self, block: Block) -> None:
+        assert self._writer is not None, "write before open"
+        self._writer.append(block.time, block.columns, partial=True)
+
+    def close(self, outcome: Outcome) -> None:
+        if self._writer is None:
+            return
+        if outcome.table is not None:
+            table = outcome.table
+            self._writer.append(table.time, {n: table[n] for n in outcome.columns}, partial=True)
+        self._release()
+
+    def fail(self, error: BaseException) -> None:
+        self._release()
+
+    def _release(self) -> None:
+        # closing writes the footer: what was sent stays a valid recording
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
 
 
 def write_recording(

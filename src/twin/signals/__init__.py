@@ -1,5 +1,5 @@
 """The signal table the master records: time plus named SI columns."""
 
-from twin.signals.table import Signal, SignalTable
+from twin.signals.table import Block, Signal, SignalTable
 
-__all__ = ["Signal", "SignalTable"]
+__all__ = ["Block", "Signal", "SignalTable"]

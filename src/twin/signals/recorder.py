@@ -1,19 +1,25 @@
-"""Recorders: where the master's rows go while a run goes.
+"""The recorder the master writes a run's rows to: a tee over sinks, plus the kept columns.
 
-:class:`RunFolderRecorder` streams every chunk to ``signals.csv`` and ``recording.rrd`` as it
-arrives (rows flushed to disk chunk by chunk, so a killed run keeps what was recorded and
-memory stays flat in run length) and keeps in memory only the columns the error model needs.
+:class:`TeeRecorder` hands every chunk of rows to each of its sinks (signals.csv and
+recording.rrd for a run folder, none for a sweep point) as it arrives, so a killed run keeps
+what was recorded and memory stays flat in run length, and keeps in memory only the columns
+the error model reads (``keep``).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
-from pathlib import Path
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.signals.table import Signal, SignalTable
+from twin.signals.table import Block, Signal, SignalTable
+
+if TYPE_CHECKING:
+    from twin.outputs.sink import Sink
+
+__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "TeeRecorder"]
 
 #: rows are written to disk at least this often (rows) ...
 FLUSH_ROWS = 4096
@@ -21,34 +27,35 @@ FLUSH_ROWS = 4096
 FLUSH_SECONDS = 5.0
 
 
-class RunFolderRecorder:
-    """Tee of the rows to the run folder's CSV and rerun files, plus a kept subset in memory.
+def _keep_nothing(name: str) -> bool:
+    return False
 
-    Rows are buffered and written every :data:`FLUSH_ROWS` rows or :data:`FLUSH_SECONDS` of
-    wall time, whichever comes first (each write to the recording costs per column, so
-    writing every small batch would cost more than the simulation). ``extra_signals`` are
-    declared to the recording up front (the error model's columns, sent after the run on the
-    same timeline with :meth:`append_extra`).
+
+class TeeRecorder:
+    """Rows to every sink, in chunks, and the kept columns in memory (:meth:`table`).
+
+    Rows are buffered and handed on every :data:`FLUSH_ROWS` rows or :data:`FLUSH_SECONDS`
+    of wall time, whichever comes first (each write to the recording costs per column, so
+    writing every small batch would cost more than the simulation). ``resume`` is a
+    checkpoint's recorder part: the kept rows up to the checkpoint (the sinks were made to
+    continue their files). :attr:`write_s` is the wall time the sinks took.
+
+    The sinks are opened here and handed rows, but not closed: :meth:`close` (the master's
+    end of the run) only hands on what is buffered, the sinks close with the run's outcome.
     """
 
     def __init__(
         self,
-        out_dir: Path,
+        sinks: Sequence[Sink] = (),
         *,
-        keep: Callable[[str], bool],
-        recording_name: str,
-        extra_signals: Sequence[Signal] = (),
-        budget_columns: Sequence[str] | None = None,
-        resume: dict | None = None,
+        keep: Callable[[str], bool] = _keep_nothing,
+        resume: Mapping[str, Any] | None = None,
     ) -> None:
-        self.out_dir = out_dir
+        self.sinks = list(sinks)
         self.keep = keep
-        self.recording_name = recording_name
-        self.extra_signals = list(extra_signals)
-        self.budget_columns = budget_columns
+        self.resume = resume
         self.signals: list[Signal] = []
-        self._csv = None
-        self._rrd = None
+        self.write_s = 0.0
         self._kept: list[int] = []
         self._times: list[np.ndarray] = []
         self._rows: list[np.ndarray] = []
@@ -56,94 +63,64 @@ class RunFolderRecorder:
         self._pending: list[np.ndarray] = []
         self._pending_n = 0
         self._last_flush = time.monotonic()
-        self.write_s = 0.0  # wall time spent writing files
-        self.resume = resume  # a checkpoint's recorder part: continue the files it describes
 
     def open(self, signals: list[Signal]) -> None:
+        """The master's columns: open every sink with them, pick the kept ones."""
         start = time.perf_counter()
-        from twin.outputs import RecordingWriter, SignalsCsvWriter
-
         self.signals = list(signals)
-        resume = self.resume
-        csv_path = self.out_dir / "signals.csv"
-        if resume is not None:
-            # the CSV is cut back to the checkpoint and continued; the recording (whose footer a
-            # killed run never wrote) is written anew from the CSV's rows up to the checkpoint
-            self._csv = SignalsCsvWriter.for_signals(
-                csv_path, self.signals, resume_at=tuple(resume["csv_position"])
-            )
-        else:
-            self._csv = SignalsCsvWriter.for_signals(csv_path, self.signals)
-        self._rrd = RecordingWriter(
-            self.out_dir / "recording.rrd",
-            [*self.signals, *self.extra_signals],
-            recording_name=self.recording_name,
-            budget_columns=self.budget_columns,
-        )
+        for sink in self.sinks:
+            sink.open(self.signals)
         self._kept = [c for c, s in enumerate(self.signals) if self.keep(s.name)]
-        if resume is not None:
-            from twin.outputs import read_signals_csv
-
-            before = read_signals_csv(csv_path)
-            self._rrd.append(before.time, {s.name: before[s.name] for s in self.signals}, partial=True)
-            self._times = [np.array(resume["kept_time"])]
-            self._rows = [np.array(resume["kept_rows"])]
+        if self.resume is not None:
+            self._times = [np.array(self.resume["kept_time"])]
+            self._rows = [np.array(self.resume["kept_rows"])]
         self.write_s += time.perf_counter() - start
 
     def append(self, times: np.ndarray, rows: np.ndarray) -> None:
-        self._pending_t.append(np.array(times))
-        self._pending.append(np.array(rows))
-        self._pending_n += len(times)
+        """One batch of rows from the master (its arrays are reused: copy what is kept)."""
+        if self.sinks:
+            self._pending_t.append(np.array(times))
+            self._pending.append(np.array(rows))
+            self._pending_n += len(times)
         self._times.append(np.array(times))
         self._rows.append(np.array(rows[:, self._kept]))
         if self._pending_n >= FLUSH_ROWS or time.monotonic() - self._last_flush >= FLUSH_SECONDS:
             self.flush()
 
     def flush(self) -> None:
-        """Write the buffered rows to both files."""
+        """Hand the buffered rows to every sink as one block."""
         if not self._pending_n:
             return
         start = time.perf_counter()
-        times = np.concatenate(self._pending_t)
         rows = np.concatenate(self._pending)
-        columns = {s.name: rows[:, c] for c, s in enumerate(self.signals)}
-        assert self._csv is not None and self._rrd is not None
-        self._csv.append(times, columns)
-        self._rrd.append(times, columns, partial=True)
+        block = Block(
+            np.concatenate(self._pending_t), {s.name: rows[:, c] for c, s in enumerate(self.signals)}
+        )
+        for sink in self.sinks:
+            sink.write(block)
         self._pending_t, self._pending, self._pending_n = [], [], 0
         self._last_flush = time.monotonic()
         self.write_s += time.perf_counter() - start
 
-    def checkpoint(self) -> dict:
-        """Flush and describe where the files stand (a checkpoint's recorder part)."""
-        self.flush()
-        assert self._csv is not None
-        table = self.table()
-        return {
-            "csv_position": list(self._csv.position()),
-            "kept_time": table.time,
-            "kept_rows": np.column_stack([table[n] for n in table.names()])
-            if table.names()
-            else np.zeros((len(table), 0)),
-        }
-
     def close(self) -> None:
-        """Write what is buffered and close the CSV (the recording stays open for the error
-        model's columns)."""
-        if self._csv is not None:
-            self.flush()
-            start = time.perf_counter()
-            self._csv.close()
-            self.write_s += time.perf_counter() - start
+        """The master is done: hand on what is buffered (the sinks stay open for the outcome)."""
+        self.flush()
 
-    def append_extra(self, table: SignalTable, names: Sequence[str]) -> None:
-        assert self._rrd is not None
-        self._rrd.append(table.time, {n: table[n] for n in names}, partial=True)
-
-    def finish(self) -> None:
-        if self._rrd is not None:
-            self._rrd.close()
-            self._rrd = None
+    def checkpoint(self) -> dict[str, Any]:
+        """Flush, and describe where every file stands and the kept rows (a checkpoint's
+        recorder part): each sink that can continue its file says where it stands."""
+        self.flush()
+        part: dict[str, Any] = {}
+        for sink in self.sinks:
+            where = getattr(sink, "checkpoint", None)
+            if where is not None:
+                part.update(where())
+        table = self.table()
+        part["kept_time"] = table.time
+        part["kept_rows"] = (
+            np.column_stack([table[n] for n in table.names()]) if table.names() else np.zeros((len(table), 0))
+        )
+        return part
 
     def table(self) -> SignalTable:
         """The kept columns of every row recorded so far."""

@@ -7,7 +7,7 @@ and the subsystem it belongs to (used to group series in plots and recordings).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,9 +64,30 @@ class SignalTable:
     def names(self) -> list[str]:
         return list(self.columns)
 
+    def subset(self, names: Iterable[str]) -> SignalTable:
+        """A table of the same time axis with only ``names`` (in that order); arrays are shared."""
+        out = SignalTable(self.time)
+        for name in names:
+            out.add(self.meta[name], self.columns[name])
+        return out
+
     def subsystems(self) -> Mapping[str, list[str]]:
         """Column names grouped by subsystem, in insertion order."""
         groups: dict[str, list[str]] = {}
         for name in self.columns:
             groups.setdefault(self.meta[name].subsystem, []).append(name)
         return groups
+
+
+@dataclass(frozen=True)
+class Block:
+    """A chunk of rows on the run's time axis: ``time`` (s) and one array per column name.
+
+    What a recorder hands its sinks while a run goes (see :mod:`twin.outputs.sink`).
+    """
+
+    time: np.ndarray
+    columns: Mapping[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])

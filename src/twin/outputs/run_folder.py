@@ -1,0 +1,202 @@
+"""The run folder: the files a run writes, their names, and the folder's life.
+
+A run folder holds
+
+====================  ==========================================================
+``signals.csv``       every recorded row, streamed while the run goes (FMPy reads it)
+``recording.rrd``     the same rows and the error model's columns, for the rerun viewer
+``errormodel.csv``    the error model's columns, once the run is over
+``error_budget.png``  the predicted error and its parts beside the probe's drift
+``summary.json``      the run's numbers; written last, so its presence means "over"
+``run.json``          how the run was started (for ``twin resume``)
+``checkpoint.pkl``    the whole twin at the last checkpoint (with ``--checkpoint-every``)
+====================  ==========================================================
+
+This module is the one place that knows those names, makes the sinks that write them
+(:meth:`RunFolder.run_sinks`, :meth:`RunFolder.result_sinks`) and reads and writes the
+checkpoint. The checkpoint is a pickle of ``{"master", "recorder", "scenario"}``: it is only
+ever read back from a folder this twin wrote (a later issue replaces it by a checked format).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from twin.errors import ConfigError
+from twin.outputs.summary import write_json_atomic
+
+if TYPE_CHECKING:
+    from twin.outputs.plots import BudgetColumns
+    from twin.outputs.sink import Sink
+    from twin.signals.table import Signal
+
+__all__ = [
+    "CHECKPOINT_FILE",
+    "ERRORMODEL_CSV",
+    "ERROR_BUDGET_PNG",
+    "RECORDING",
+    "RUN_FILE",
+    "SIGNALS_CSV",
+    "SUMMARY_JSON",
+    "Checkpoint",
+    "RunFolder",
+    "RunMeta",
+]
+
+SIGNALS_CSV = "signals.csv"
+RECORDING = "recording.rrd"
+ERRORMODEL_CSV = "errormodel.csv"
+ERROR_BUDGET_PNG = "error_budget.png"
+SUMMARY_JSON = "summary.json"
+RUN_FILE = "run.json"
+CHECKPOINT_FILE = "checkpoint.pkl"
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """``run.json``: how a run was started, so that ``twin resume`` can start it the same way."""
+
+    scenario: str  # the scenario file, absolute
+    overrides: tuple[str, ...] = ()
+    loop: str = "fast"
+    checkpoint_every_ns: int | None = None
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """The whole twin at one instant: the master's state, where the recorder's files stand
+    (``csv_position``) with the rows it keeps in memory, and the scenario's name."""
+
+    master: dict[str, Any]
+    recorder: dict[str, Any]
+    scenario: str
+
+
+class RunFolder:
+    """One run's folder (``path``) and the files in it."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+
+    def file(self, name: str) -> Path:
+        """The path of one of the folder's files (a name of this module)."""
+        return self.path / name
+
+    # -- the folder's life ---------------------------------------------------------------
+
+    def make(self) -> None:
+        """Make the folder (and its parents) if it is not there."""
+        self.path.mkdir(parents=True, exist_ok=True)
+
+    def start(self, meta: RunMeta) -> None:
+        """Make the folder for a new run: drop an old checkpoint, write ``run.json``."""
+        self.make()
+        self.file(CHECKPOINT_FILE).unlink(missing_ok=True)
+        text = json.dumps(
+            {
+                "scenario": meta.scenario,
+                "overrides": list(meta.overrides),
+                "loop": meta.loop,
+                "checkpoint_every_ns": meta.checkpoint_every_ns,
+            },
+            indent=2,
+        )
+        write_json_atomic(self.file(RUN_FILE), text)
+
+    def resumable(self) -> RunMeta:
+        """``run.json`` of a folder that can be resumed; :class:`ConfigError` if it cannot."""
+        if not self.file(RUN_FILE).is_file():
+            raise ConfigError(f"no {RUN_FILE}: not a run folder", source=str(self.path))
+        if not self.file(CHECKPOINT_FILE).is_file():
+            raise ConfigError(
+                f"no {CHECKPOINT_FILE}: the run saved no checkpoint (use --checkpoint-every)",
+                source=str(self.path),
+            )
+        data = json.loads(self.file(RUN_FILE).read_text())
+        return RunMeta(
+            scenario=data["scenario"],
+            overrides=tuple(data.get("overrides", [])),
+            loop=data.get("loop", "fast"),
+            checkpoint_every_ns=data.get("checkpoint_every_ns"),
+        )
+
+    # -- the checkpoint ------------------------------------------------------------------
+
+    def save_checkpoint(self, checkpoint: Checkpoint) -> None:
+        """Write the checkpoint atomically: a kill never leaves half of one."""
+        data = {"master": checkpoint.master, "recorder": checkpoint.recorder, "scenario": checkpoint.scenario}
+        path = self.file(CHECKPOINT_FILE)
+        tmp = path.with_name(CHECKPOINT_FILE + ".tmp")
+        with open(tmp, "wb") as f:
+            pickle.dump(data, f, protocol=5)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+
+    def load_checkpoint(self, scenario: str) -> Checkpoint:
+        """The folder's checkpoint, which must belong to the scenario named ``scenario``."""
+        path = self.file(CHECKPOINT_FILE)
+        with open(path, "rb") as f:
+            data = pickle.load(f)
+        if data.get("scenario") != scenario:
+            raise ConfigError("the checkpoint belongs to another scenario", source=str(path))
+        return Checkpoint(data["master"], data["recorder"], data["scenario"])
+
+    # -- the sinks -----------------------------------------------------------------------
+
+    def run_sinks(
+        self,
+        *,
+        name: str,
+        late_signals: Sequence[Signal],
+        budget_view: Sequence[str],
+        plot: BudgetColumns,
+        resume: Checkpoint | None = None,
+    ) -> list[Sink]:
+        """Every output of a twin run, in the order they close.
+
+        ``name`` names the recording and titles the plot; ``late_signals`` are the columns
+        the error model adds after the run (declared to the recording up front) and
+        ``budget_view`` those of the recording's error-budget view; ``plot`` the plot's.
+        With ``resume``, signals.csv is cut back to the checkpoint and continued, and the
+        recording is written anew from the rows the CSV kept.
+        """
+        from twin.outputs.csv import SignalsCsvSink
+        from twin.outputs.rerun_rec import RecordingSink
+
+        csv_path = self.file(SIGNALS_CSV)
+        position = None
+        if resume is not None:
+            position = tuple(resume.recorder["csv_position"])
+            with open(csv_path, "r+b") as f:  # before the recording replays the CSV's rows
+                f.truncate(position[0])
+        return [
+            SignalsCsvSink(csv_path, resume_at=position),
+            RecordingSink(
+                self.file(RECORDING),
+                recording_name=name,
+                late_signals=late_signals,
+                budget_columns=budget_view,
+                replay=csv_path if resume is not None else None,
+            ),
+            *self.result_sinks(name=name, plot=plot),
+        ]
+
+    def result_sinks(self, *, name: str, plot: BudgetColumns) -> list[Sink]:
+        """The outputs written once the error model has run: errormodel.csv, the plot
+        (titled after ``name``) and summary.json, last."""
+        from twin.outputs.csv import DerivedCsvSink
+        from twin.outputs.plots import ErrorBudgetSink
+        from twin.outputs.summary import SummarySink
+
+        return [
+            DerivedCsvSink(self.file(ERRORMODEL_CSV)),
+            ErrorBudgetSink(self.file(ERROR_BUDGET_PNG), plot, f"{name}: predicted error and its parts"),
+            SummarySink(self.file(SUMMARY_JSON)),
+        ]

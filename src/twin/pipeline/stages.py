@@ -1,0 +1,289 @@
+"""The stages of a run, each callable alone, and :func:`run` that composes them.
+
+::
+
+    load_scenario ─> simulate ─────────> evaluate_run ─> summarize ─> write_outputs
+    (twin.config)    (the master plans    (the error      RunSummary   (close every sink
+                      and steps; rows     model on the                  with the outcome)
+                      stream to sinks)    kept columns)
+
+A run folder's sinks (:mod:`twin.outputs.run_folder`) are opened by :func:`simulate` and
+receive the rows while the co-simulation goes, so a killed run keeps what it recorded;
+:func:`write_outputs` closes them with the run's outcome. :func:`run_point` is a run without
+a folder (a sweep's point): simulate, evaluate, summarize, all in memory.
+
+A run that fails part way (an FMU error) still evaluates and writes everything recorded
+up to the failure, with a summary saying ``"status": "failed"`` and why; :func:`run` then
+raises :class:`~twin.errors.RunError`.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from twin.config.spec import NS_PER_S, Scenario
+from twin.cosim.master import Loop, Master, RunResult
+from twin.errormodel.config import evaluation_config, input_columns
+from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate, evaluation_signals
+from twin.errors import ConfigError, RunError
+from twin.outputs.plots import BudgetColumns
+from twin.outputs.run_folder import Checkpoint, RunFolder, RunMeta
+from twin.outputs.sink import Outcome, Sink
+from twin.paper import DRIFT_M, TEMPERATURE_RISE_K
+from twin.pipeline.run_summary import RunSummary, Timing
+from twin.signals.recorder import TeeRecorder
+from twin.signals.table import SignalTable
+
+
+@dataclass
+class Simulation:
+    """What the co-simulation hands on: the master's result, the kept columns of every
+    recorded row, and the wall time the sinks took while it ran."""
+
+    scenario: Scenario
+    result: RunResult
+    table: SignalTable
+    write_s: float = 0.0
+
+
+@dataclass
+class Evaluated:
+    """What the error model made of a run.
+
+    ``table`` is the simulation's table with the error model's columns added and
+    ``columns`` names those (in the order the files list them); ``results`` are its numbers
+    for the summary. When the model did not run (fewer than two rows, a column it needs
+    missing), ``table`` is None and ``error`` says why where there was a reason.
+    """
+
+    table: SignalTable | None
+    columns: tuple[str, ...] = ()
+    results: dict[str, Any] = field(default_factory=dict)
+    error: str | None = None
+
+
+def simulate(
+    scenario: Scenario,
+    *,
+    sinks: Sequence[Sink] = (),
+    keep: Collection[str] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    loop: Loop = "fast",
+    stop: Callable[[], str | None] | None = None,
+    checkpoint_every_ns: int | None = None,
+    on_checkpoint: Callable[[Checkpoint], None] | None = None,
+    resume: Checkpoint | None = None,
+) -> Simulation:
+    """Co-simulate ``scenario``: rows stream to ``sinks`` (opened here, closed by
+    :func:`write_outputs`), the ``keep`` columns stay in memory (default: those the
+    scenario's error model reads).
+
+    ``stop`` is polled between batches (a signal name ends the run as "interrupted").
+    With ``checkpoint_every_ns``, ``on_checkpoint`` receives the whole twin at that
+    interval; ``resume`` continues from such a checkpoint. An FMU failure does not raise: it
+    ends the run with ``result.status == "failed"`` and the rows up to it recorded.
+    """
+    if keep is None:
+        keep = input_columns(evaluation_config(scenario))
+    recorder = TeeRecorder(
+        sinks, keep=frozenset(keep).__contains__, resume=resume.recorder if resume else None
+    )
+
+    def save(snapshot: dict[str, Any]) -> None:
+        assert on_checkpoint is not None
+        on_checkpoint(Checkpoint(snapshot, recorder.checkpoint(), scenario.name))
+
+    master = Master(
+        scenario,
+        progress=progress,
+        loop=loop,
+        recorder=recorder,
+        stop=stop,
+        checkpoint_every_ns=checkpoint_every_ns,
+        on_checkpoint=save if checkpoint_every_ns and on_checkpoint else None,
+        resume=resume.master if resume else None,
+    )
+    result = master.run()
+    return Simulation(scenario, result, recorder.table(), recorder.write_s)
+
+
+def evaluate_run(simulation: Simulation, cfg: EvaluationConfig) -> Evaluated:
+    """The error model on the simulation's kept columns (adds its columns to that table)."""
+    table = simulation.table
+    if len(table) < 2:
+        return Evaluated(None)
+    try:
+        evaluation = evaluate(table, cfg)
+    except ConfigError as exc:
+        return Evaluated(None, error=str(exc))
+    columns = tuple(s.name for s in evaluation_signals(with_true_wear=bool(cfg.true_wear)) if s.name in table)
+    results = dict(evaluation.summary)
+    # the paper's measured values beside the twin's, to read one against the other
+    results["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
+    results["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
+    return Evaluated(table, columns, results)
+
+
+def summarize(simulation: Simulation, evaluated: Evaluated, *, process_start: float) -> RunSummary:
+    """The run's summary; ``process_start`` (``time.perf_counter()``) starts its total time."""
+    result, sc = simulation.result, simulation.scenario
+    error = str(result.error) if result.error is not None else None
+    if result.status == "interrupted":
+        error = f"interrupted by {result.info.get('interrupted_by')}"
+    end_s = result.end_ns / NS_PER_S
+    cosim_s = result.cosim_s - simulation.write_s
+    timing = Timing(
+        cosim_s=cosim_s,
+        write_s=simulation.write_s,
+        total_s=time.perf_counter() - process_start,
+        macro_steps=result.macro_steps,
+        fmu_steps=result.fmu_steps,
+        realtime_factor=end_s / cosim_s if cosim_s > 0 else None,
+    )
+    return RunSummary(
+        scenario=sc.name,
+        scenario_file=sc.source_path,
+        status=result.status,
+        seed=sc.seed,
+        sim_end_s=end_s,
+        timing=timing,
+        error=error,
+        errormodel_error=evaluated.error,
+        results=evaluated.results,
+    )
+
+
+def write_outputs(
+    sinks: Sequence[Sink], evaluated: Evaluated, summary: Callable[[], Mapping[str, Any]]
+) -> None:
+    """Close every sink, in order, with the run's outcome.
+
+    ``summary`` is called once, when the first sink asks for it (the summary sink, last),
+    so the summary's total time counts the writing of every other file.
+    """
+    outcome = Outcome(evaluated.table, evaluated.columns, summary)
+    for sink in sinks:
+        sink.close(outcome)
+
+
+def budget_columns(cfg: EvaluationConfig) -> BudgetColumns:
+    """What the error-budget plot draws for an error model configured as ``cfg``."""
+    return BudgetColumns(
+        reading=cfg.reading,
+        predicted="errormodel.e_z",
+        parts={p: f"errormodel.e_{p}" for p in PARTS},
+        temperatures=list(cfg.temperatures.values()),
+    )
+
+
+def run(
+    scenario: Scenario,
+    out_dir: Path,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    process_start: float | None = None,
+    loop: Loop = "fast",
+    overrides: Sequence[str] = (),
+    stop: Callable[[], str | None] | None = None,
+    checkpoint_every_ns: int | None = None,
+    resume: Checkpoint | None = None,
+) -> RunSummary:
+    """Run ``scenario`` into the run folder ``out_dir``; returns the summary written there.
+
+    Raises before the run starts (a bad error-model configuration), or :class:`RunError`
+    after writing everything recorded up to a failure. ``stop``, ``checkpoint_every_ns``
+    and ``resume`` as for :func:`simulate` (checkpoints go to the folder's checkpoint file).
+    """
+    process_start = process_start or time.perf_counter()
+    cfg = evaluation_config(scenario)  # checked before anything runs
+    folder = RunFolder(out_dir)
+    if resume is None:
+        meta = RunMeta(str(Path(scenario.source_path).resolve()), tuple(overrides), loop, checkpoint_every_ns)
+        folder.start(meta)
+    else:
+        folder.make()
+    sinks = folder.run_sinks(
+        name=scenario.name,
+        late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
+        budget_view=["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"],
+        plot=budget_columns(cfg),
+        resume=resume,
+    )
+    try:
+        simulation = simulate(
+            scenario,
+            sinks=sinks,
+            keep=input_columns(cfg),
+            progress=progress,
+            loop=loop,
+            stop=stop,
+            checkpoint_every_ns=checkpoint_every_ns,
+            on_checkpoint=folder.save_checkpoint,
+            resume=resume,
+        )
+        evaluated = evaluate_run(simulation, cfg)
+        summary = functools.cache(lambda: summarize(simulation, evaluated, process_start=process_start))
+        write_outputs(sinks, evaluated, lambda: summary().to_dict())
+    except BaseException as exc:
+        _fail(sinks, exc)
+        raise
+    if simulation.result.error is not None:
+        raise RunError(f"{simulation.result.error} (everything recorded up to it is in {out_dir})")
+    return summary()
+
+
+def _fail(sinks: Sequence[Sink], error: BaseException) -> None:
+    for sink in sinks:
+        try:
+            sink.fail(error)
+        except Exception as other:  # the run's own error is the one to report
+            error.add_note(f"{type(sink).__name__} could not release its file either: {other}")
+
+
+def run_point(
+    scenario: Scenario,
+    *,
+    loop: Loop = "fast",
+    progress: Callable[[int, int], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
+) -> RunSummary:
+    """Simulate and evaluate ``scenario`` in memory, no file written (a sweep's point).
+
+    A failing FMU does not raise: the summary says ``"failed"`` and why, with the figures
+    of the rows recorded up to the failure. A bad scenario raises :class:`ConfigError`.
+    """
+    start = time.perf_counter()
+    cfg = evaluation_config(scenario)
+    simulation = simulate(scenario, keep=input_columns(cfg), loop=loop, progress=progress, stop=stop)
+    return summarize(simulation, evaluate_run(simulation, cfg), process_start=start)
+
+
+def resume_run(
+    run_dir: Path,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
+    process_start: float | None = None,
+) -> RunSummary:
+    """Continue a killed or interrupted run from its last checkpoint."""
+    from twin.config.load import load_scenario
+
+    folder = RunFolder(run_dir)
+    meta = folder.resumable()
+    scenario = load_scenario(meta.scenario, list(meta.overrides))
+    return run(
+        scenario,
+        run_dir,
+        progress=progress,
+        process_start=process_start,
+        loop=meta.loop,  # type: ignore[arg-type]
+        overrides=meta.overrides,
+        stop=stop,
+        checkpoint_every_ns=meta.checkpoint_every_ns,
+        resume=folder.load_checkpoint(scenario.name),
+    )

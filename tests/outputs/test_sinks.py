@@ -1,0 +1,198 @@
+"""The sinks of a run and the tee that feeds them, without a co-simulation.
+
+The sample table plays a run: its recorded columns stream through a TeeRecorder in the
+master's batches, its ``errormodel.*`` columns are the outcome's derived columns.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import twin.signals.recorder as recorder_module
+from twin.outputs.csv import DerivedCsvSink, SignalsCsvSink, read_signals_csv, write_signals_csv
+from twin.outputs.plots import BudgetColumns, ErrorBudgetSink
+from twin.outputs.rerun_rec import RecordingSink, entity_path, read_recording
+from twin.outputs.sink import Outcome
+from twin.outputs.summary import SummarySink
+from twin.signals.recorder import TeeRecorder
+from twin.signals.table import Block, Signal, SignalTable
+
+from .sample import PARTS, make_table
+
+DERIVED = ("errormodel.e_total", *PARTS.values())
+PLOT = BudgetColumns("probe.reading", "errormodel.e_total", PARTS, ["thermal.t_base", "thermal.no_such"])
+
+
+class Log:
+    """A sink that writes down what it is told."""
+
+    def __init__(self, events: list[tuple[str, Any]] | None = None, name: str = "log") -> None:
+        self.events = events if events is not None else []
+        self.name = name
+
+    def open(self, signals: list[Signal]) -> None:
+        self.events.append((self.name, "open", [s.name for s in signals]))
+
+    def write(self, block: Block) -> None:
+        self.events.append((self.name, "write", block.time.copy(), dict(block.columns)))
+
+    def close(self, outcome: Outcome) -> None:
+        self.events.append((self.name, "close", outcome.summary()))
+
+    def fail(self, error: BaseException) -> None:
+        self.events.append((self.name, "fail", error))
+
+
+def recorded(table: SignalTable) -> tuple[list[Signal], SignalTable]:
+    """The sample's recorded part (what a master would record) and its derived part."""
+    names = [n for n in table.names() if n not in DERIVED]
+    return [table.meta[n] for n in names], table.subset(names)
+
+
+def stream(rec: TeeRecorder, table: SignalTable, batch: int = 50) -> None:
+    """Feed ``table`` to ``rec`` as the master does: open, batches of rows (in a reused array), close."""
+    rec.open([table.meta[n] for n in table.names()])
+    rows = np.empty((batch, len(table.names())))
+    for start in range(0, len(table), batch):
+        stop = min(start + batch, len(table))
+        for j, name in enumerate(table.names()):
+            rows[: stop - start, j] = table[name][start:stop]
+        rec.append(table.time[start:stop], rows[: stop - start])
+    rec.close()
+
+
+def test_tee_hands_every_row_to_each_sink_in_flush_sized_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 200)
+    _, table = recorded(make_table())
+    events: list[tuple[str, Any]] = []
+    rec = TeeRecorder([Log(events, "a"), Log(events, "b")], keep={"probe.reading"}.__contains__)
+    stream(rec, table)
+    assert [e[:2] for e in events[:2]] == [("a", "open"), ("b", "open")]
+    writes = [e for e in events if e[1] == "write"]
+    # blocks of at least FLUSH_ROWS rows (the master's batches are 50), the rest at close
+    sizes = [len(e[2]) for e in writes if e[0] == "a"]
+    assert sizes == [200, 200, 200, 121]
+    for sink in ("a", "b"):
+        got = [e for e in writes if e[0] == sink]
+        np.testing.assert_array_equal(np.concatenate([e[2] for e in got]), table.time)
+        for name in table.names():
+            np.testing.assert_array_equal(np.concatenate([e[3][name] for e in got]), table[name])
+    assert not [e for e in events if e[1] in ("close", "fail")]  # the sinks close with the outcome
+    kept = rec.table()
+    assert kept.names() == ["probe.reading"]
+    np.testing.assert_array_equal(kept["probe.reading"], table["probe.reading"])
+
+
+def test_tee_flushes_after_flush_seconds_even_with_few_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(recorder_module, "FLUSH_SECONDS", 0.0)
+    _, table = recorded(make_table(rows=120))
+    log = Log()
+    stream(TeeRecorder([log]), table, batch=40)
+    assert [len(e[2]) for e in log.events if e[1] == "write"] == [40, 40, 40]
+
+
+def test_tee_without_sinks_keeps_only_the_kept_columns() -> None:
+    _, table = recorded(make_table())
+    rec = TeeRecorder(keep={"thermal.t_base", "probe.reading"}.__contains__)
+    stream(rec, table)
+    kept = rec.table()
+    assert kept.names() == ["thermal.t_base", "probe.reading"]
+
+
+def test_tee_checkpoint_says_where_each_sink_stands_and_resumes_the_kept_rows(tmp_path: Path) -> None:
+    _, table = recorded(make_table(rows=100))
+    keep = {"probe.reading"}.__contains__
+    rec = TeeRecorder([SignalsCsvSink(tmp_path / "signals.csv"), Log()], keep=keep)
+    stream(rec, table)
+    part = rec.checkpoint()
+    assert list(part) == ["csv_position", "kept_time", "kept_rows"]  # the checkpoint's format
+    assert part["csv_position"] == [(tmp_path / "signals.csv").stat().st_size, float(table.time[-1])]
+    np.testing.assert_array_equal(part["kept_rows"][:, 0], table["probe.reading"])
+    again = TeeRecorder(keep=keep, resume=part)
+    again.open([table.meta[n] for n in table.names()])
+    np.testing.assert_array_equal(again.table()["probe.reading"], table["probe.reading"])
+
+
+def run_sinks(tmp_path: Path) -> list[Any]:
+    return [
+        SignalsCsvSink(tmp_path / "signals.csv"),
+        RecordingSink(
+            tmp_path / "recording.rrd",
+            recording_name="sample",
+            late_signals=[make_table().meta[n] for n in DERIVED],
+            budget_columns=list(DERIVED),
+        ),
+        DerivedCsvSink(tmp_path / "errormodel.csv"),
+        ErrorBudgetSink(tmp_path / "error_budget.png", PLOT, "sample"),
+        SummarySink(tmp_path / "summary.json"),
+    ]
+
+
+def test_a_runs_sinks_write_the_streamed_rows_and_the_outcome(tmp_path: Path) -> None:
+    full = make_table()
+    _, table = recorded(full)
+    sinks = run_sinks(tmp_path)
+    stream(TeeRecorder(sinks), table)
+    asked: list[int] = []
+
+    def summary() -> dict[str, Any]:
+        asked.append(1)
+        # made when the last sink asks: every other file is written by then
+        assert (tmp_path / "error_budget.png").exists() and (tmp_path / "errormodel.csv").exists()
+        return {"scenario": "sample", "status": "completed"}
+
+    outcome = Outcome(full, DERIVED, summary)
+    for sink in sinks:
+        sink.close(outcome)
+    assert len(asked) == 1
+    # streamed in blocks, the CSV has the bytes of the table written at once
+    write_signals_csv(table, tmp_path / "whole.csv")
+    assert (tmp_path / "signals.csv").read_bytes() == (tmp_path / "whole.csv").read_bytes()
+    derived = read_signals_csv(tmp_path / "errormodel.csv")
+    assert derived.names() == list(DERIVED)
+    np.testing.assert_array_equal(derived["errormodel.e_total"], full["errormodel.e_total"])
+    series = read_recording(tmp_path / "recording.rrd")
+    for name in ("probe.reading", "errormodel.e_total"):  # streamed, and derived after the run
+        t, v = series[entity_path(full.meta[name])]
+        np.testing.assert_array_equal(t, full.time)
+        np.testing.assert_array_equal(v, full[name])
+    assert (tmp_path / "error_budget.png").read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((tmp_path / "summary.json").read_text()) == {
+        "scenario": "sample",
+        "status": "completed",
+    }
+
+
+def test_without_an_error_model_only_the_rows_and_the_summary_are_written(tmp_path: Path) -> None:
+    _, table = recorded(make_table())
+    sinks = run_sinks(tmp_path)
+    stream(TeeRecorder(sinks), table)
+    for sink in sinks:
+        sink.close(Outcome(None, (), lambda: {"status": "failed"}))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "recording.rrd",
+        "signals.csv",
+        "signals.units.json",
+        "summary.json",
+    ]
+    series = read_recording(tmp_path / "recording.rrd")
+    assert entity_path(table.meta["probe.reading"]) in series
+
+
+def test_fail_keeps_what_was_written_and_writes_nothing_new(tmp_path: Path) -> None:
+    _, table = recorded(make_table())
+    sinks = run_sinks(tmp_path)
+    stream(TeeRecorder(sinks), table)
+    error = RuntimeError("the error model broke")
+    for sink in sinks:
+        sink.fail(error)
+        sink.fail(error)  # twice, or after close: harmless
+    assert len(read_signals_csv(tmp_path / "signals.csv")) == len(table)
+    assert not (tmp_path / "summary.json").exists() and not (tmp_path / "errormodel.csv").exists()
+    series = read_recording(tmp_path / "recording.rrd")  # closed: readable to its end
+    np.testing.assert_array_equal(series[entity_path(table.meta["probe.reading"])][0], table.time)
