@@ -23,7 +23,6 @@ import contextlib
 import itertools
 import math
 from collections.abc import Callable
-from ctypes import byref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,15 +32,12 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
     FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
 )
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from twin.fmu.build import model_names
+from twin.fmu.slot import logging_callbacks
 
 from ..fmus.cases import CASES
 
@@ -163,18 +159,12 @@ class Instance:
         #: every value a set call was accepted for (what the variables hold besides start values)
         self.known: dict[str, Any] = {}
 
-        def logger(_env: Any, _name: Any, status: int, _category: Any, message: bytes) -> None:
-            self.log.append(f"[{status}] {message.decode('utf-8', 'replace')}")
+        def log(status: int, message: str) -> None:
+            self.log.append(f"[{status}] {message}")
 
-        from fmpy import calloc, free
-        from fmpy.logging import addLoggerProxy
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(cb))
-        self._logger = logger  # keep the Python callback alive as long as the instance
+        # the twin's shared callbacks: fmpy's logger proxy is process-global, and a second
+        # registration freed with this instance would crash every later FMU that logs
+        cb = logging_callbacks("prop", log)
         self.slave = FMU2Slave(
             guid=model.md.guid,
             unzipDirectory=model.unzipdir,

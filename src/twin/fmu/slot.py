@@ -17,7 +17,7 @@ import contextlib
 import ctypes
 import shutil
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -30,9 +30,25 @@ from twin.fmu.catalog import Variable, describe
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
-#: the last messages each instance logged, by instance name (filled by the shared logger)
-_MESSAGES: dict[str, list[str]] = {}
+#: where each instance's log messages go, by instance name: (status, message) -> None
+_SINKS: dict[str, Callable[[int, str], None]] = {}
 _CALLBACKS: Any = None
+
+
+def logging_callbacks(instance_name: str, sink: Callable[[int, str], None]) -> Any:
+    """The fmi2CallbackFunctions to instantiate ``instance_name`` with; its messages go to ``sink``.
+
+    Every FMU instance of the process must be instantiated with these (fmpy's logger proxy is
+    process-global: a second registration would redirect, and after its owner is freed crash,
+    every other instance's logging). :func:`forget_logging` removes the sink.
+    """
+    _SINKS[instance_name] = sink
+    return _callbacks()
+
+
+def forget_logging(instance_name: str) -> None:
+    """Stop routing ``instance_name``'s messages (its messages then go to fmpy's default logger)."""
+    _SINKS.pop(instance_name, None)
 
 
 def _callbacks() -> Any:
@@ -59,14 +75,13 @@ def _callbacks() -> Any:
 
         def logger(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
             name = instance.decode(errors="replace") if instance else ""
-            box = _MESSAGES.get(name)
-            if box is None:
+            sink = _SINKS.get(name)
+            if sink is None:
                 # fmpy's proxy is process-global: messages of instances that are not ours
                 # go where fmpy's default logger would send them
                 printLogMessage(env, instance, status, category, message)
                 return
-            box.append(message.decode(errors="replace") if message else "")
-            del box[:-20]
+            sink(int(status), message.decode(errors="replace") if message else "")
 
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(logger)
@@ -138,8 +153,11 @@ class FMUSlot:
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
     def _make_callbacks(self) -> Any:
-        _MESSAGES[self.name] = self.messages
-        return _callbacks()
+        def keep(_status: int, message: str) -> None:
+            self.messages.append(message)
+            del self.messages[:-20]  # the last few say why a call failed
+
+        return logging_callbacks(self.name, keep)
 
     def error(self, call: str, status: int) -> FMUError:
         """The :class:`FMUError` for ``call`` returning ``status``, with the FMU's last message."""
@@ -231,6 +249,6 @@ class FMUSlot:
             self._slave.terminate()
         with contextlib.suppress(Exception):
             self._slave.freeInstance()
-        _MESSAGES.pop(self.name, None)
+        forget_logging(self.name)
         if self._own_unzipdir:
             shutil.rmtree(self.unzipdir, ignore_errors=True)

@@ -29,7 +29,8 @@ from typing import Any
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Loop, Master, RunResult
 from twin.errormodel.config import evaluation_config, input_columns
-from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate, evaluation_signals
+from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_signals
+from twin.errormodel.factors import FACTORS
 from twin.errors import ConfigError, RunError
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import Checkpoint, RunFolder, RunMeta
@@ -176,7 +177,7 @@ def budget_columns(cfg: EvaluationConfig) -> BudgetColumns:
     return BudgetColumns(
         reading=cfg.reading,
         predicted="errormodel.e_z",
-        parts={p: f"errormodel.e_{p}" for p in PARTS},
+        parts={f.label: f.column for f in FACTORS},
         temperatures=list(cfg.temperatures.values()),
     )
 
@@ -210,7 +211,7 @@ def run(
     sinks = folder.run_sinks(
         name=scenario.name,
         late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
-        budget_view=["errormodel.e_z", *[f"errormodel.e_{p}" for p in PARTS], "errormodel.reading_change"],
+        budget_view=["errormodel.e_z", *[f.column for f in FACTORS], "errormodel.reading_change"],
         plot=budget_columns(cfg),
         resume=resume,
     )
