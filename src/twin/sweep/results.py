@@ -49,32 +49,39 @@ class ResultStore:
     def __init__(self, out: Path, names: Iterable[str], meta: dict[str, Any], *, resume: bool) -> None:
         self.out = out
         self.names = list(names)
+        self.meta = meta
         self.rows: dict[int, dict[str, Any]] = {}
         self.write_s = 0.0
         self._dirty = False
         self._last = 0.0
         self._interval = 1.0
-        self._open(meta, resume)
+        self._read(resume)
 
-    def _open(self, meta: dict[str, Any], resume: bool) -> None:
+    def _read(self, resume: bool) -> None:
+        """The rows already there (``--resume``); refuses a folder holding another sweep."""
         meta_path = self.out / META
-        if meta_path.is_file():
-            if not resume:
-                raise ConfigError(
-                    "already holds a sweep: --resume completes it, or choose another --out",
-                    source=str(self.out),
-                )
-            old = json.loads(meta_path.read_text(encoding="utf-8"))
-            if old.get("fingerprint") != meta["fingerprint"]:
-                raise ConfigError(
-                    "holds another design (the sweep file or its base changed): choose another --out",
-                    source=str(self.out),
-                )
-            if (self.out / TABLE).is_file():
-                for row in pd.read_parquet(self.out / TABLE).to_dict("records"):
-                    self.rows[int(row["point"])] = row
+        if not meta_path.is_file():
+            return
+        if not resume:
+            raise ConfigError(
+                "already holds a sweep: --resume completes it, or choose another --out",
+                source=str(self.out),
+            )
+        old = json.loads(meta_path.read_text(encoding="utf-8"))
+        if old.get("fingerprint") != self.meta["fingerprint"]:
+            raise ConfigError(
+                "holds another design (the sweep file or its base changed): choose another --out",
+                source=str(self.out),
+            )
+        if (self.out / TABLE).is_file():
+            for row in pd.read_parquet(self.out / TABLE).to_dict("records"):
+                self.rows[int(row["point"])] = row
+
+    def start(self) -> None:
+        """Create the folder and ``sweep.json`` (once the points can run)."""
         self.out.mkdir(parents=True, exist_ok=True)
-        _atomic(meta_path, lambda p: p.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8"))
+        text = json.dumps(self.meta, indent=2) + "\n"
+        _atomic(self.out / META, lambda p: p.write_text(text, encoding="utf-8"))
 
     @property
     def done(self) -> set[int]:

@@ -23,27 +23,6 @@ from twin.sweep.spec import Spec, build_scenario
 Progress = Callable[[int, int, int], None]
 
 
-def _row(spec: Spec, design: Design, record: Record) -> dict[str, Any]:
-    i = record["index"]
-    figures = record["figures"]
-    if spec.outputs:
-        figures = {k: figures.get(k) for k in spec.outputs}
-    row = {"point": i, "seed": design.seeds[i], "status": record["status"], "error": record["error"]}
-    row.update(zip(design.names, design.rows[i], strict=True))
-    row.update(figures)
-    return row
-
-
-def _check_outputs(spec: Spec, record: Record) -> None:
-    """The first finished point shows whether the outputs the sweep file names exist."""
-    missing = [k for k in spec.outputs if k not in record["figures"]]
-    if missing:
-        known = ", ".join(sorted(record["figures"]))
-        raise ConfigError(
-            f"no figure {missing[0]!r} (the figures are: {known})", source=str(spec.path), key="sweep.outputs"
-        )
-
-
 def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
     folder = out / "runs" / f"point-{index:06d}"
     folder.mkdir(parents=True, exist_ok=True)
@@ -52,42 +31,72 @@ def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
             (folder / name).write_bytes(data)
 
 
-class _Tally:
-    """Counts and timings of the points run in this session."""
+class _Collector:
+    """Takes each finished point: its row into the table, its run folder, counts and timings."""
 
-    def __init__(self, total: int, done: int, failed: int) -> None:
-        self.total, self.done, self.failed = total, done, failed
+    def __init__(self, spec: Spec, design: Design, store: ResultStore, out: Path) -> None:
+        self.spec, self.design, self.store, self.out = spec, design, store, out
+        self.total, self.done = len(design), len(store.rows)
+        self.failed = sum(1 for r in store.rows.values() if r["status"] != "ok")
         self.run = 0
         self.point_s = 0.0
         self.peak_rss_mb: dict[int, float] = {}
+        self.checked = not spec.outputs
         self.start = self.begin = time.perf_counter()
 
     def started(self) -> None:
+        """The cluster is up: the timings are the points', not the cluster's start."""
         self.start = time.perf_counter()
 
-    def add(self, record: Record) -> None:
+    def take(self, record: Record) -> None:
+        if record["status"] == "ok" and not self.checked:
+            self._check_outputs(record)
+        if record.get("files"):
+            _write_folder(self.out, record["index"], record["files"])
+        self.store.add(self._row(record))
         self.done += 1
         self.run += 1
         self.failed += record["status"] != "ok"
         self.point_s += record.get("point_s", 0.0)
         if "pid" in record:
-            self.peak_rss_mb[record["pid"]] = max(
-                self.peak_rss_mb.get(record["pid"], 0.0), record["peak_rss_mb"]
-            )
+            pid = record["pid"]
+            self.peak_rss_mb[pid] = max(self.peak_rss_mb.get(pid, 0.0), record["peak_rss_mb"])
 
-    def timing(self, workers: int, write_s: float) -> dict[str, Any]:
+    def _row(self, record: Record) -> dict[str, Any]:
+        i = record["index"]
+        figures = record["figures"]
+        if self.spec.outputs:
+            figures = {k: figures.get(k) for k in self.spec.outputs}
+        row = {"point": i, "seed": self.design.seeds[i], "status": record["status"], "error": record["error"]}
+        row.update(zip(self.design.names, self.design.rows[i], strict=True))
+        row.update(figures)
+        return row
+
+    def _check_outputs(self, record: Record) -> None:
+        """The first finished point shows whether the outputs the sweep file names exist."""
+        missing = [k for k in self.spec.outputs if k not in record["figures"]]
+        if missing:
+            known = ", ".join(sorted(record["figures"]))
+            raise ConfigError(
+                f"no figure {missing[0]!r} (the figures are: {known})",
+                source=str(self.spec.path),
+                key="sweep.outputs",
+            )
+        self.checked = True
+
+    def timing(self, threads: int) -> dict[str, Any]:
         elapsed = time.perf_counter() - self.start
-        busy = self.point_s / self.run if self.run else None
-        overhead = (elapsed * workers - self.point_s) / self.run if self.run else None
+        run = self.run or None
         return {
             "startup_s": self.start - self.begin,
             "elapsed_s": elapsed,
             "points_run": self.run,
             "points_per_s": self.run / elapsed if elapsed > 0 else None,
-            "workers": workers,
-            "mean_point_s": busy,
-            "overhead_ms_per_point": overhead * 1e3 if overhead is not None else None,
-            "write_s": write_s,
+            "threads": threads,
+            "mean_point_s": self.point_s / run if run else None,
+            # what a point costs beyond its own run: scheduling, transfer, the client's work
+            "overhead_ms_per_point": (elapsed * threads - self.point_s) / run * 1e3 if run else None,
+            "write_s": self.store.write_s,
             "peak_rss_mb_per_worker": sorted(self.peak_rss_mb.values()),
         }
 
@@ -125,8 +134,7 @@ def run_sweep(
     }
     store = ResultStore(out, design.names, meta, resume=resume)
     todo = [i for i in range(len(design)) if i not in store.done]
-    n_failed = sum(1 for r in store.rows.values() if r["status"] != "ok")
-    tally = _Tally(len(design), len(store.rows), n_failed)
+    collector = _Collector(spec, design, store, out)
     echo(f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}")
 
     def payload(i: int) -> Payload | Record:
@@ -136,31 +144,27 @@ def run_sweep(
             return failed(i, one_line(exc))
         return {"index": i, "scenario": scenario, "folders": spec.run_folders}
 
-    n_workers = 0
+    threads = 0
+    if not todo:
+        store.start()
     try:
         if todo:
             with open_client(scheduler, workers) as client:
-                n_workers = _announce(client, echo, local=scheduler is None)
+                threads = _announce(client, echo, local=scheduler is None)
                 client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
-                tally.started()  # the timings are the points', not the cluster's start
-                checked = False
+                store.start()
+                collector.started()
                 for record in execute(client, todo, payload, task):
-                    if record["status"] == "ok" and spec.outputs and not checked:
-                        _check_outputs(spec, record)
-                        checked = True
-                    if record.get("files"):
-                        _write_folder(out, record["index"], record["files"])
-                    store.add(_row(spec, design, record))
-                    tally.add(record)
+                    collector.take(record)
                     if on_record is not None:
                         on_record(record)
                     if progress is not None:
-                        progress(tally.done, tally.failed, tally.total)
+                        progress(collector.done, collector.failed, collector.total)
                     store.flush()
     finally:
         store.flush(force=True)
     table = store.table()
-    summary = summarise(spec, table, len(design), tally.timing(n_workers, store.write_s))
+    summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
     draw_all(out, spec.design, table, design.names, summary)
     return summary
