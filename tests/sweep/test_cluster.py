@@ -178,3 +178,60 @@ def test_sobol_finds_the_room_the_dominant_input_of_the_thermal_drift(tmp_path: 
     assert {"S1_conf", "ST_conf"} <= set(found)
     for png in ("sensitivity.png", "scatter.png", "histogram.png"):
         assert (tmp_path / "out" / png).read_bytes().startswith(b"\x89PNG")
+
+
+def test_a_terminal_gets_a_progress_bar_and_sigterm_keeps_what_finished(spec: Path, tmp_path: Path) -> None:
+    """On a terminal: where the sweep runs, the dashboard, a bar of points done and failed;
+    SIGTERM stops it with exit 143, the table keeping every point that finished."""
+    import pty
+    import select
+
+    out = tmp_path / "term"
+    master, slave = pty.openpty()
+    cmd = [c for c in sweep_cmd(spec, out, "--workers", "1") if c != "--quiet"]
+    proc = subprocess.Popen(
+        cmd, env=child_env(), stdin=slave, stdout=slave, stderr=slave, start_new_session=True
+    )
+    os.close(slave)
+    text = b""
+    try:
+        deadline = time.monotonic() + 180
+        while b"failed=" not in text and proc.poll() is None and time.monotonic() < deadline:
+            if select.select([master], [], [], 0.5)[0]:
+                text += os.read(master, 65536)
+        proc.send_signal(signal.SIGTERM)  # the sweep's process only, as a service manager would
+        while proc.poll() is None and time.monotonic() < deadline:
+            if select.select([master], [], [], 0.5)[0]:
+                try:
+                    text += os.read(master, 65536)
+                except OSError:
+                    break
+        proc.wait(timeout=60)
+    finally:
+        stop(proc)
+        os.close(master)
+    shown = text.decode(errors="replace")
+    assert proc.returncode == 143, shown[-2000:]
+    assert "dashboard: http://" in shown and "points:" in shown and "failed=" in shown
+    assert "sweep interrupted by SIGTERM" in shown
+    assert 0 < _rows(out) < N_POINTS
+
+
+def test_run_folders_come_back_from_the_workers(tmp_path: Path) -> None:
+    body = BODY.replace("samples = 40", "samples = 3").replace('"60 min"', '"20 min"')
+    spec = load_spec(
+        write_spec(tmp_path / "f.toml", body.replace("seed = 11", "seed = 11\nrun_folders = true"))
+    )
+    run_sweep(spec, tmp_path / "with", workers=1)
+    plain = load_spec(write_spec(tmp_path / "p.toml", body))
+    run_sweep(plain, tmp_path / "without", workers=1)
+    # the whole pipeline's run folder, and the same figures as the in-memory point
+    pd.testing.assert_frame_equal(_table(tmp_path / "with"), _table(tmp_path / "without"))
+    table = _table(tmp_path / "with")
+    for i, status in zip(table["point"], table["status"], strict=True):
+        folder = tmp_path / "with" / "runs" / f"point-{i:06d}"
+        if status == "ok":
+            assert {"signals.csv", "summary.json", "errormodel.csv"} <= {p.name for p in folder.iterdir()}
+        else:
+            assert not folder.exists()
+    assert (table["status"] == "ok").any()

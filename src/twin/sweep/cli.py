@@ -60,12 +60,20 @@ def _progress_bar(quiet: bool) -> tuple[Callable[[int, int, int], None] | None, 
 
     from tqdm import tqdm
 
-    width = shutil.get_terminal_size((80, 24)).columns or 80
-    bar = tqdm(total=0, unit="pt", desc="points", file=sys.stderr, ncols=width, dynamic_ncols=False)
+    # a pseudo-terminal may report 0 columns and rows, with which tqdm draws nothing
+    size = shutil.get_terminal_size((80, 24))
+    bar = tqdm(
+        total=0, unit="pt", desc="points", file=sys.stderr, ncols=size.columns or 80, nrows=size.lines or 24
+    )
+
+    first = [True]
 
     def update(done: int, n_failed: int, total: int) -> None:
-        if bar.total != total:
-            bar.total = total
+        if first.pop() if first else False:
+            # the clock starts with the first point, not with the cluster; points finished
+            # before (--resume) do not count into the rate
+            bar.reset(total=total)
+            bar.initial = done - 1
         bar.n = done
         bar.set_postfix(failed=n_failed, refresh=False)
         bar.refresh()
