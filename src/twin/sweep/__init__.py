@@ -7,11 +7,25 @@ A sweep file names a base scenario and a design over keys that ``--set`` accepts
 it (:mod:`~twin.sweep.shipping`); the results table grows on disk as points finish
 (:mod:`~twin.sweep.results`) and ends with quantiles, SALib's indices
 (:mod:`~twin.sweep.analysis`) and figures (:mod:`~twin.sweep.plots`).
+
+Nothing heavy is imported here: ``twin --help`` imports :mod:`twin.sweep.cli`, and pandas,
+SALib and Dask load only when a sweep runs.
 """
 
 from __future__ import annotations
 
-from twin.sweep.runner import run_sweep
-from twin.sweep.spec import Spec, load_spec
+from typing import Any
 
-__all__ = ["Spec", "load_spec", "run_sweep"]
+__all__ = ["load_spec", "run_sweep"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "load_spec":
+        from twin.sweep.spec import load_spec
+
+        return load_spec
+    if name == "run_sweep":
+        from twin.sweep.runner import run_sweep
+
+        return run_sweep
+    raise AttributeError(f"module 'twin.sweep' has no attribute {name!r}")

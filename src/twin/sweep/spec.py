@@ -374,16 +374,17 @@ def _sweep_table(p: _Problems, raw: Mapping[str, Any], path: Path) -> dict[str, 
         p.add("sweep.samples", "empty design: at least one sample")
     if design in _POWER_OF_TWO and samples & (samples - 1):
         p.add("sweep.samples", f"{design} needs a power of two (its Sobol' sequence is balanced only then)")
+    outputs = _string_list(p, sw, "outputs", "sweep.outputs")
     main = sw.get("main")
-    if main is not None and not isinstance(main, str):
-        p.add("sweep.main", "expected an output name")
+    if main is not None and (not isinstance(main, str) or (outputs and main not in outputs)):
+        p.add("sweep.main", "expected one of the outputs" if outputs else "expected an output name")
     return {
         "name": name,
         "design": design,
         "samples": samples,
         "seed": _int(p, sw, "seed", 0, 0, 2**32 - 1),
         "fixed": _string_list(p, sw, "set", "sweep.set"),
-        "outputs": _string_list(p, sw, "outputs", "sweep.outputs"),
+        "outputs": outputs,
         "main": main,
         "second_order": _bool(p, sw, "second_order", False),
         "morris_levels": _int(p, sw, "levels", 4, 2, 100),
