@@ -16,7 +16,8 @@ while running a point (a crash in an FMU, the out-of-memory killer) makes the sc
 retry the point on another worker; the local cluster allows one retry
 (``allowed_failures=1``), an existing scheduler its own setting
 (``distributed.scheduler.allowed-failures``, 3 by default). After that the point is recorded
-as failed with the reason.
+as failed with the reason. Dask counts a death against every point the worker held at the
+time, which the window keeps to about two per worker thread.
 """
 
 from __future__ import annotations
