@@ -1,0 +1,173 @@
+#!/usr/bin/env python3
+"""Benchmark of ``twin sweep`` on a local Dask cluster (a script, not a timed test).
+
+Prints side by side, in one run:
+
+(a) throughput of a 200-point sweep of a short scenario (the paper's replay cut to 60 min)
+    on 1 and on 2 workers, and the speed-up (goal: >= 1.7x on a 2-core machine);
+(b) the scheduler's overhead per point: in that 2-worker sweep, the wall time the workers did
+    not spend in points, per point; and the round trip of a point that does nothing (a task
+    that returns at once, so all that is left is submitting, scheduling, the result's way
+    back and the client's bookkeeping), goal < 20 ms;
+(c) peak resident memory of each worker over a 1000-point sweep: after its first tenth of
+    the points and at the end (goal: flat, within 20 %).
+
+Timings start once the cluster is up (its start-up is printed apart). The cluster's start,
+the design and the table are the real ``twin sweep`` code paths (:func:`run_sweep`).
+
+    python benchmarks/bench_sweep.py            # the figures above (a few minutes)
+    python benchmarks/bench_sweep.py --quick    # a fast check that everything runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenarios" / "li2017-thermal-experiment.toml"
+
+SPEC = """[sweep]
+base = "{base}"
+design = "lhs"
+samples = {samples}
+seed = {seed}
+set = ['scenario.duration = "60 min"']
+{outputs}
+
+[problem]
+names = ["input.thermal.t_room.rise", "fmu.sensors.parameters.probe_zero_drift"]
+bounds = [[0.0, 9.0], [-0.3e-6, 0.3e-6]]
+"""
+
+
+def _spec(folder: Path, samples: int, seed: int, *, empty: bool) -> Any:
+    from twin.sweep.spec import load_spec
+
+    # an empty point has no figures: it names no outputs
+    outputs = "" if empty else 'outputs = ["drift_mm.probe", "compensation.residual_rms_um.after"]'
+    path = folder / f"bench-{samples}-{seed}.toml"
+    text = SPEC.format(base=PAPER.as_posix(), samples=samples, seed=seed, outputs=outputs)
+    path.write_text(text, encoding="utf-8")
+    return load_spec(path)
+
+
+def noop_task(payload: dict[str, Any]) -> dict[str, Any]:
+    """A point that does nothing: what remains of its time is the machinery's."""
+    return {
+        "index": payload["index"],
+        "status": "ok",
+        "error": "",
+        "figures": {},
+        "files": {},
+        "point_s": 0.0,
+    }
+
+
+def _sweep(folder: Path, samples: int, workers: int, seed: int, **kwargs: Any) -> dict[str, Any]:
+    from twin.sweep.runner import run_sweep
+
+    out = folder / f"out-{samples}-{workers}-{seed}-{time.monotonic_ns()}"
+    spec = _spec(folder, samples, seed, empty="task" in kwargs)
+    return run_sweep(spec, out, workers=workers, **kwargs)
+
+
+def throughput(folder: Path, points: int, reps: int) -> dict[str, Any]:
+    """(a) and the first half of (b): 1 vs 2 workers, alternating, medians of ``reps``."""
+    import statistics
+
+    runs: dict[int, list[dict[str, Any]]] = {1: [], 2: []}
+    for rep in range(reps):
+        for workers in (1, 2):
+            runs[workers].append(_sweep(folder, points, workers, seed=rep)["timing"])
+    med = {
+        w: {
+            k: statistics.median(t[k] for t in runs[w])
+            for k in ("points_per_s", "overhead_ms_per_point", "startup_s", "mean_point_s")
+        }
+        for w in runs
+    }
+    return {"workers": med, "speedup": med[2]["points_per_s"] / med[1]["points_per_s"]}
+
+
+def round_trip(folder: Path, points: int) -> float:
+    """Second half of (b): ms per point of a sweep whose points do nothing, on 2 workers."""
+    import cloudpickle
+
+    if __name__ != "__main__":  # imported: send the task by value (as a script it already is)
+        cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    timing = _sweep(folder, points, 2, seed=99, task=noop_task)["timing"]
+    return timing["elapsed_s"] * timing["threads"] / timing["points_run"] * 1e3
+
+
+def memory(folder: Path, points: int) -> dict[int, tuple[float, float]]:
+    """(c): each worker's peak RSS (MB) after its first tenth of the points and at the end."""
+    seen: dict[int, list[float]] = {}
+
+    def watch(record: dict[str, Any]) -> None:
+        seen.setdefault(record["pid"], []).append(record["peak_rss_mb"])
+
+    _sweep(folder, points, 2, seed=7, on_record=watch)
+    return {pid: (rss[max(0, len(rss) // 10 - 1)], rss[-1]) for pid, rss in seen.items() if len(rss) >= 10}
+
+
+def _row(name: str, value: str, goal: str = "", ok: bool | str | None = None) -> str:
+    verdict = ok if isinstance(ok, str) else {None: "", True: "yes", False: "NO"}[ok]
+    return f"| {name:<44} | {value:>22} | {goal:>12} | {verdict:>4} |"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes: a check that it runs, not figures")
+    args = parser.parse_args()
+    points, reps, noop_points, memory_points = (40, 1, 100, 100) if args.quick else (200, 2, 500, 1000)
+    load = os.getloadavg()[0]
+    print(
+        f"twin sweep benchmark: {os.cpu_count()} cores, load {load:.1f}, Python {platform.python_version()}"
+    )
+    if load > 0.5 * (os.cpu_count() or 1):
+        print("note: the machine is busy; ratios are indicative, measure on a quiet machine for the record")
+    with tempfile.TemporaryDirectory(prefix="twin-bench-sweep-") as tmp:
+        folder = Path(tmp)
+        t = throughput(folder, points, reps)
+        rt = round_trip(folder, noop_points)
+        mem = memory(folder, memory_points)
+    w1, w2 = t["workers"][1], t["workers"][2]
+    lines = [
+        _row("measure", "measured", "goal", "ok"),
+        "|" + "-" * 46 + "|" + "-" * 24 + "|" + "-" * 14 + "|" + "-" * 6 + "|",
+        _row(f"(a) {points}-point sweep, 1 worker", f"{w1['points_per_s']:.2f} points/s"),
+        _row(f"(a) {points}-point sweep, 2 workers", f"{w2['points_per_s']:.2f} points/s"),
+        _row("(a) speed-up, 2 vs 1 worker", f"{t['speedup']:.2f}x", ">= 1.7x", t["speedup"] >= 1.7),
+        _row("    mean point (in the worker), 2 workers", f"{w2['mean_point_s'] * 1e3:.0f} ms"),
+        _row("    cluster start-up, 2 workers", f"{w2['startup_s']:.1f} s"),
+        _row(
+            "(b) overhead per point, 2-worker sweep",
+            f"{w2['overhead_ms_per_point']:.1f} ms",
+            "< 20 ms",
+            w2["overhead_ms_per_point"] < 20,
+        ),
+        _row(f"(b) round trip of an empty point ({noop_points})", f"{rt:.1f} ms", "< 20 ms", rt < 20),
+    ]
+    for k, (early, end) in enumerate(mem[pid] for pid in sorted(mem)):
+        growth = end / early - 1
+        lines.append(
+            _row(
+                f"(c) worker {k + 1} peak RSS, 1/10 vs all {memory_points // 2}",
+                f"{early:.0f} -> {end:.0f} MB ({growth:+.0%})",
+                "within 20 %",
+                abs(growth) <= 0.2,
+            )
+        )
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

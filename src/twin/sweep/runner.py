@@ -1,0 +1,183 @@
+"""A whole sweep: design, run every missing point on Dask, write the table, summary and plots.
+
+The output folder holds ``sweep.json`` (what it is), ``results.parquet`` and ``results.csv``
+(growing while the sweep runs), and at the end ``summary.json`` and the PNG figures; with
+``run_folders = true`` in the sweep file, ``runs/point-<index>/`` holds each point's run folder.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from twin.errors import ConfigError
+from twin.sweep.design import Design, fingerprint, make_design
+from twin.sweep.execute import Payload, Record, execute, failed, one_line, open_client, run_task
+from twin.sweep.results import ResultStore
+from twin.sweep.spec import Spec, build_scenario
+
+#: called after every point: (points done, of which failed, total)
+Progress = Callable[[int, int, int], None]
+
+
+def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
+    folder = out / "runs" / f"point-{index:06d}"
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, data in files.items():
+        if Path(name).name == name:  # a plain file name: nothing lands outside the folder
+            (folder / name).write_bytes(data)
+
+
+class _Collector:
+    """Takes each finished point: its row into the table, its run folder, counts and timings."""
+
+    def __init__(self, spec: Spec, design: Design, store: ResultStore, out: Path) -> None:
+        self.spec, self.design, self.store, self.out = spec, design, store, out
+        self.total, self.done = len(design), len(store.rows)
+        self.failed = sum(1 for r in store.rows.values() if r["status"] != "ok")
+        self.run = 0
+        self.point_s = 0.0
+        self.peak_rss_mb: dict[int, float] = {}
+        self.checked = not spec.outputs
+        self.start = self.begin = time.perf_counter()
+
+    def started(self) -> None:
+        """The cluster is up: the timings are the points', not the cluster's start."""
+        self.start = time.perf_counter()
+
+    def take(self, record: Record) -> None:
+        if record["status"] == "ok" and not self.checked:
+            self._check_outputs(record)
+        if record.get("files"):
+            _write_folder(self.out, record["index"], record["files"])
+        self.store.add(self._row(record))
+        self.done += 1
+        self.run += 1
+        self.failed += record["status"] != "ok"
+        self.point_s += record.get("point_s", 0.0)
+        if "pid" in record:
+            pid = record["pid"]
+            self.peak_rss_mb[pid] = max(self.peak_rss_mb.get(pid, 0.0), record["peak_rss_mb"])
+
+    def _row(self, record: Record) -> dict[str, Any]:
+        i = record["index"]
+        figures = record["figures"]
+        if self.spec.outputs:
+            figures = {k: figures.get(k) for k in self.spec.outputs}
+        row = {"point": i, "seed": self.design.seeds[i], "status": record["status"], "error": record["error"]}
+        row.update(zip(self.design.names, self.design.rows[i], strict=True))
+        row.update(figures)
+        return row
+
+    def _check_outputs(self, record: Record) -> None:
+        """The first finished point shows whether the outputs the sweep file names exist."""
+        missing = [k for k in self.spec.outputs if k not in record["figures"]]
+        if missing:
+            known = ", ".join(sorted(record["figures"]))
+            raise ConfigError(
+                f"no figure {missing[0]!r} (the figures are: {known})",
+                source=str(self.spec.path),
+                key="sweep.outputs",
+            )
+        self.checked = True
+
+    def timing(self, threads: int) -> dict[str, Any]:
+        elapsed = time.perf_counter() - self.start
+        run = self.run or None
+        return {
+            "startup_s": self.start - self.begin,
+            "elapsed_s": elapsed,
+            "points_run": self.run,
+            "points_per_s": self.run / elapsed if elapsed > 0 else None,
+            "threads": threads,
+            "mean_point_s": self.point_s / run if run else None,
+            # what a point costs beyond its own run: scheduling, transfer, the client's work
+            "overhead_ms_per_point": (elapsed * threads - self.point_s) / run * 1e3 if run else None,
+            "write_s": self.store.write_s,
+            "peak_rss_mb_per_worker": sorted(self.peak_rss_mb.values()),
+        }
+
+
+def run_sweep(
+    spec: Spec,
+    out: Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    resume: bool = False,
+    progress: Progress | None = None,
+    echo: Callable[[str], None] = lambda _: None,
+    task: Callable[[Payload], Record] = run_task,
+    on_record: Callable[[Record], None] | None = None,
+) -> dict[str, Any]:
+    """Run ``spec`` into ``out`` and return the summary (also written to summary.json).
+
+    ``task`` is what workers run per point (tests and the benchmark swap it);
+    ``on_record`` sees every record as it arrives (the benchmark reads timings from it).
+    """
+    from twin.outputs.summary import write_summary
+    from twin.sweep import shipping
+    from twin.sweep.analysis import summarise
+    from twin.sweep.plots import draw_all
+
+    design = make_design(spec)
+    if len(design) == 0:
+        raise ConfigError("empty design: no point", source=str(spec.path))
+    meta = {
+        "sweep": spec.name,
+        "spec_file": str(spec.path),
+        "points": len(design),
+        "fingerprint": fingerprint(design),
+    }
+    store = ResultStore(out, design.names, meta, resume=resume)
+    todo = [i for i in range(len(design)) if i not in store.done]
+    collector = _Collector(spec, design, store, out)
+    echo(f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}")
+
+    def payload(i: int) -> Payload | Record:
+        try:
+            scenario = build_scenario(spec.base_data, spec.base, design.overrides(i))
+        except ConfigError as exc:
+            return failed(i, one_line(exc))
+        return {"index": i, "scenario": scenario, "folders": spec.run_folders}
+
+    threads = 0
+    if not todo:
+        store.start()
+    try:
+        if todo:
+            with open_client(scheduler, workers) as client:
+                threads = _announce(client, echo, local=scheduler is None)
+                client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
+                store.start()
+                collector.started()
+                for record in execute(client, todo, payload, task):
+                    collector.take(record)
+                    if on_record is not None:
+                        on_record(record)
+                    if progress is not None:
+                        progress(collector.done, collector.failed, collector.total)
+                    store.flush()
+    finally:
+        store.flush(force=True)
+    table = store.table()
+    summary = summarise(spec, table, len(design), collector.timing(threads))
+    write_summary(out / "summary.json", summary)
+    draw_all(out, spec.design, table, design.names, summary)
+    return summary
+
+
+def _announce(client: Any, echo: Callable[[str], None], local: bool) -> int:
+    """Print where the sweep runs; returns the number of worker threads."""
+    from twin.sweep.execute import dashboard
+
+    threads = client.nthreads()
+    link = dashboard(client)
+    echo(f"scheduler {client.scheduler.address}: {len(threads)} workers, {sum(threads.values())} threads")
+    if link and local and importlib.util.find_spec("bokeh") is None:
+        link += " (its pages need bokeh>=3.1: pip install bokeh)"
+    echo(f"dashboard: {link}" if link else "dashboard: none (the scheduler serves none)")
+    return max(1, sum(threads.values()))

@@ -1,0 +1,182 @@
+"""The parts of a sweep without a cluster: the point function, the table on disk, the
+analysis, the shipping of binaries, the worker's task."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tests.sweep.helpers import PAPER
+from twin.config.load import load_scenario
+from twin.errors import ConfigError, RunError
+from twin.sweep import shipping
+from twin.sweep.analysis import indices, statistics
+from twin.sweep.execute import run_task
+from twin.sweep.point import flatten, run_point
+from twin.sweep.results import CSV, META, TABLE, ResultStore
+from twin.sweep.spec import Spec
+
+
+def test_flatten_keeps_the_figures_only() -> None:
+    summary = {
+        "scenario": "x",
+        "drift_mm": {"predicted": -0.02, "probe": -0.021, "paper_measured": -0.021},
+        "sensors_used": {"load": True},
+        "compensation": {"residual_rms_um": {"before": 5.0, "after": None}},
+        "timing": {"cosim_s": 1.0},
+    }
+    flat = flatten(summary)
+    assert flat.keys() == {
+        "drift_mm.predicted",
+        "drift_mm.probe",
+        "compensation.residual_rms_um.before",
+        "compensation.residual_rms_um.after",
+    }
+    assert np.isnan(flat["compensation.residual_rms_um.after"])
+
+
+def test_run_point_gives_the_run_s_figures_in_memory() -> None:
+    scenario = load_scenario(PAPER, ['scenario.duration = "20 min"'])
+    figures = run_point(scenario)
+    assert figures["drift_mm.probe"] < 0  # the room warms: the reading falls
+    assert figures["compensation.residual_rms_um.after"] < figures["compensation.residual_rms_um.before"]
+    assert figures == run_point(scenario)  # same scenario, same seed: the same numbers
+
+
+def test_run_task_records_a_failure_on_one_line() -> None:
+    record = run_task({"index": 3, "scenario": None})
+    assert record["index"] == 3 and record["status"] == "failed"
+    assert record["error"].startswith("AttributeError: ") and "\n" not in record["error"]
+    assert record["figures"] == {} and record["peak_rss_mb"] > 0
+
+
+# ------------------------------------------------------------------------------ the table
+
+
+def _row(i: int, status: str = "ok") -> dict:
+    row = {
+        "point": i,
+        "seed": 100 + i,
+        "x": i / 10,
+        "status": status,
+        "error": "" if status == "ok" else "E: x",
+    }
+    if status == "ok":
+        row.update({"b.out": float(i), "a.out": 2.0 * i})
+    return row
+
+
+def test_store_writes_complete_tables_and_resumes(tmp_path: Path) -> None:
+    meta = {"fingerprint": "abc"}
+    store = ResultStore(tmp_path, ["x"], meta, resume=False)
+    store.start()
+    for i in (2, 0, 1):
+        store.add(_row(i, "failed" if i == 1 else "ok"))
+    store.flush(force=True)
+    table = pd.read_parquet(tmp_path / TABLE)
+    assert list(table.columns) == ["point", "seed", "x", "status", "error", "a.out", "b.out"]
+    assert list(table["point"]) == [0, 1, 2] and np.isnan(table["a.out"][1])
+    assert pd.read_csv(tmp_path / CSV, keep_default_na=False)["error"].tolist() == ["", "E: x", ""]
+    assert json.loads((tmp_path / META).read_text()) == meta
+    with pytest.raises(ConfigError, match="already holds a sweep"):
+        ResultStore(tmp_path, ["x"], meta, resume=False)
+    with pytest.raises(ConfigError, match="holds another design"):
+        ResultStore(tmp_path, ["x"], {"fingerprint": "other"}, resume=True)
+    again = ResultStore(tmp_path, ["x"], meta, resume=True)
+    assert again.done == {0, 1, 2}
+    pd.testing.assert_frame_equal(again.table(), table)
+
+
+def test_store_writes_at_most_about_once_a_second(tmp_path: Path) -> None:
+    store = ResultStore(tmp_path, ["x"], {"fingerprint": "f"}, resume=False)
+    store.start()
+    store.add(_row(0))
+    store.flush()
+    first = (tmp_path / TABLE).stat().st_mtime_ns
+    store.add(_row(1))
+    store.flush()  # within the interval: not yet written
+    assert (tmp_path / TABLE).stat().st_mtime_ns == first and len(pd.read_parquet(tmp_path / TABLE)) == 1
+    store.flush(force=True)
+    assert len(pd.read_parquet(tmp_path / TABLE)) == 2
+
+
+# ------------------------------------------------------------------------------ analysis
+
+
+def test_statistics_quantiles_ignore_failed_points() -> None:
+    stats = statistics(pd.Series([*range(101), np.nan]))
+    assert stats["n"] == 101 and stats["q05"] == 5.0 and stats["q50"] == 50.0 and stats["q95"] == 95.0
+
+
+def _linear_spec(design: str, n: int) -> tuple[Spec, pd.DataFrame]:
+    """y = 4 x1 + x2 on uniform [0, 1] inputs, x3 unused: S1 = ST = 16/17, 1/17, 0."""
+    problem = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[0.0, 1.0]] * 3, "dists": ["unif"] * 3}
+    spec = Spec(
+        path=Path("s.toml"),
+        name="s",
+        base=Path("b.toml"),
+        design=design,
+        samples=n,
+        seed=1,
+        fixed=(),
+        problem=problem,
+    )
+    from twin.sweep.design import matrix
+
+    x = matrix(spec)
+    table = pd.DataFrame(x, columns=problem["names"])
+    table["status"] = "ok"
+    table["y"] = 4 * x[:, 0] + x[:, 1]
+    return spec, table
+
+
+def test_sobol_indices_of_a_known_function() -> None:
+    spec, table = _linear_spec("saltelli", 1024)
+    found = indices(spec, table, ["y"], len(table))["y"]
+    assert found["S1"]["x1"] == pytest.approx(16 / 17, abs=0.05)
+    assert found["ST"]["x2"] == pytest.approx(1 / 17, abs=0.02)
+    assert abs(found["ST"]["x3"]) < 0.01 and found["ST_conf"]["x1"] > 0
+
+
+def test_morris_ranks_a_known_function() -> None:
+    spec, table = _linear_spec("morris", 20)
+    found = indices(spec, table, ["y"], len(table))["y"]
+    assert found["mu_star"]["x1"] == pytest.approx(4.0) and found["mu_star"]["x2"] == pytest.approx(1.0)
+    assert found["mu_star"]["x3"] == pytest.approx(0.0)
+
+
+def test_indices_need_every_point() -> None:
+    spec, table = _linear_spec("saltelli", 8)
+    table.loc[3, "status"] = "failed"
+    assert "skipped" in indices(spec, table, ["y"], len(table))["y"]
+    spec, table = _linear_spec("saltelli", 8)
+    assert "skipped" in indices(spec, table.iloc[:-1], ["y"], len(table))["y"]
+
+
+# ------------------------------------------------------------------------------ shipping
+
+
+def _artifact(name: str, data: bytes) -> shipping.Artifact:
+    return shipping.Artifact(name, data, hashlib.sha256(data).hexdigest())
+
+
+def test_install_checks_every_file_before_writing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    real = shipping.collect()  # from the client's cache
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(tmp_path / "cache"))  # into a worker's empty one
+    written = shipping.install(real)
+    assert {p.name for p in written} == {a.name for a in real}
+    assert shipping.install(real) == []  # already there, same bytes: nothing rewritten
+    (tmp_path / "cache" / real[0].name).write_bytes(b"a local build")
+    assert [p.name for p in shipping.install(real)] == [real[0].name]  # the client's bytes win
+    damaged = shipping.Artifact(real[0].name, b"other bytes", real[0].sha256)
+    with pytest.raises(RunError, match="sha256 mismatch"):
+        shipping.install((damaged,))
+    with pytest.raises(RunError, match="not a plain file name"):
+        shipping.install((_artifact("../escape.so", b"x"),))
+    with pytest.raises(RunError, match="differs from the client's"):
+        shipping.install(real[1:])  # a worker whose twin expects a binary the client did not send
