@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from twin import __version__
 from twin.errors import ConfigError, TwinError
+from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
 
 if TYPE_CHECKING:
     from twin.pipeline import RunSummary
@@ -240,6 +241,7 @@ def make_parser() -> argparse.ArgumentParser:
         "--out", metavar="FILE", help="parameter file to write (default: the one the scenario includes)"
     )
     p.set_defaults(func=_cmd_calibrate)
+    add_sweep_parser(sub)
     return parser
 
 

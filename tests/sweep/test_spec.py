@@ -10,7 +10,8 @@ import dask
 import pytest
 
 from tests.sweep.helpers import PAPER, write_spec
-from twin.config.load import model_variables, scenarios_dir
+from twin.config.load import scenarios_dir
+from twin.fmu.catalog import variables as model_variables
 from twin.sweep.cli import main
 from twin.sweep.spec import Spec, load_spec, toml_value
 

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.spec import Scenario
+from twin.errors import RunError
 
 #: the sections of a run's summary that hold figures of the run (not timings, versions or the
 #: paper's constants, which are the same for every point)
@@ -57,16 +58,12 @@ def run_point(scenario: Scenario) -> dict[str, float]:
 
     Raises :class:`~twin.errors.RunError` when the run fails (an FMU error).
     """
-    from twin.cosim.master import Master
-    from twin.errormodel.config import evaluation_config
-    from twin.errormodel.evaluate import evaluate
+    from twin.pipeline import run_point as simulate_and_evaluate
 
-    cfg = evaluation_config(scenario)
-    result = Master(scenario).run()
-    if result.error is not None:
-        raise result.error
-    assert result.table is not None
-    return flatten(evaluate(result.table, cfg).summary)
+    summary = simulate_and_evaluate(scenario)
+    if summary.status == "failed":
+        raise RunError(summary.error or "the run failed")
+    return flatten(summary.results)
 
 
 def run_point_folder(scenario: Scenario) -> tuple[dict[str, float], dict[str, bytes]]:
@@ -77,4 +74,4 @@ def run_point_folder(scenario: Scenario) -> tuple[dict[str, float], dict[str, by
     with tempfile.TemporaryDirectory(prefix="twin-sweep-point-") as tmp:
         summary = run(scenario, Path(tmp))
         files = {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir()) if p.is_file()}
-    return flatten(summary), files
+    return flatten(summary.results), files

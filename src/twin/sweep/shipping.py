@@ -45,18 +45,21 @@ def _sha256(data: bytes) -> str:
 
 def _expected_names() -> set[str]:
     """The cache names this installation of the twin loads (the hashes of its own sources)."""
-    from twin.cosim.native import LIBRARY, _digest
-    from twin.fmu.build import model_names, source_hash
+    from twin.cosim.native import LIBRARY, stepper_sources
+    from twin.fmu.build import source_hash
+    from twin.fmu.catalog import model_names
+    from twin.fmu.toolchain import LIBRARY_SUFFIX, content_hash
 
-    return {f"{m}-{source_hash(m)}.fmu" for m in model_names()} | {f"{LIBRARY}-{_digest()}.so"}
+    stepper = f"{LIBRARY}-{content_hash(stepper_sources())}{LIBRARY_SUFFIX}"
+    return {f"{m}-{source_hash(m)}.fmu" for m in model_names()} | {stepper}
 
 
 def collect() -> tuple[Artifact, ...]:
     """Build (or take from the cache) every FMU and the stepper: the client's side."""
     from twin.cosim.native import ensure_stepper
-    from twin.fmu.build import ensure_fmu, model_names
+    from twin.fmu import catalog
 
-    paths = [ensure_fmu(m) for m in model_names()] + [ensure_stepper()]
+    paths = [catalog.fmu(m) for m in catalog.model_names()] + [ensure_stepper()]
     out = []
     for p in paths:
         data = p.read_bytes()
@@ -70,7 +73,7 @@ def install(artifacts: tuple[Artifact, ...]) -> list[Path]:
     Raises :class:`RunError` when a file's bytes do not match their sha256, when a name is
     not a plain file name, or when this twin's sources differ from the client's.
     """
-    from twin.fmu.build import cache_dir
+    from twin.fmu.toolchain import cache_dir
 
     target = cache_dir()
     target.mkdir(parents=True, exist_ok=True)

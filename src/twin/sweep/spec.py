@@ -298,9 +298,10 @@ def _spread_bounds(raw: Mapping[str, Any], base: float | None, scale: float) -> 
 def nominal_value(scenario: Scenario, data: Mapping[str, Any], key: str) -> float | None:
     """The value ``key`` has in the base scenario (its file, its parameter files, or the
     FMU's declared start value; for ``errormodel.geometry.*`` what the error model uses)."""
-    from twin.config.load import _split_key, model_variables  # the loader's own key syntax
+    from twin.config.overrides import split_key  # the loader's own key syntax
+    from twin.fmu.catalog import variables as model_variables
 
-    parts = _split_key(key)
+    parts = split_key(key)
     node: Any = data
     for part in parts:
         node = node.get(part) if isinstance(node, dict) else None
