@@ -13,12 +13,13 @@ legitimately reached state that is refused all fail the test. A few seconds per 
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
 
 from tests.fmus.sanitized import build_harness, run_harness, sanitizer_problem
-from twin.fmu.build import model_names
+from twin.fmu.build import fmu_sources_dir, model_names
 
 #: fixed seed: the CI run is reproducible (``fuzz_<Model> SEED ITERATIONS`` replays it)
 SEED = 13
@@ -55,3 +56,24 @@ def test_fuzz_under_sanitizers(model: str, harness_dir: Path) -> None:
         assert counts[kind][0] == 0 and counts[kind][1], (kind, counts[kind])
     assert counts["legit"][0] > 100 and counts["restored"][0] > 10, counts
     assert counts["too_long"][0] > 0, counts
+
+
+def test_the_harness_finds_a_removed_check(
+    harness_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Without the clock check a crafted step counter overflows in doStep: the crafted cases
+    name it at once, and the random fuzzing alone runs into UBSan's report of the overflow."""
+    sources = tmp_path / "fmus"
+    shutil.copytree(fmu_sources_dir(), sources)
+    wrapper = sources / "common" / "fmi2_wrapper.c"
+    check = "static int bad_clock(StateCheck *c, const ModelValues *v) {\n"
+    assert check in wrapper.read_text()
+    wrapper.write_text(wrapper.read_text().replace(check, check + "    if (c) return 0; /* removed */\n"))
+    monkeypatch.setenv("TWIN_FMU_SOURCES", str(sources))
+    exe = build_harness("SensorsDAQ", tmp_path)
+    crafted = run_harness(exe, SEED, 10)
+    assert not crafted.clean and "crafted common case 3 (internal steps taken) was accepted" in crafted.stderr
+    found = [run_harness(exe, seed, DEFAULT_ITERATIONS, random_only=True) for seed in range(1, 4)]
+    assert any("runtime error: signed integer overflow" in r.stderr for r in found), [
+        r.tail(3) for r in found
+    ]
