@@ -139,3 +139,27 @@ void model_outputs(ModelInstance *comp) {
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
                           (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / r[VR_running_in_distance]));
 }
+
+/* A state handed back: each reference temperature the one initialization takes (the input's
+ * value at the start, within its range, or t_reference), the sliding distance between 0 and the
+ * most the sliding speed's range allows over the elapsed time, the wear between 0 and the most
+ * the Archard law gives over that distance at the highest contact pressure. */
+int model_check_state(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    const double *r = comp->v.r;
+    double elapsed = (double)comp->v.steps_taken * r[VR_solver_step];
+    double s_max = real_var(VR_sliding_speed)->max * elapsed * (1.0 + 1e-6);
+    double wear_max = r[VR_wear_rate] * real_var(VR_contact_pressure)->max *
+                      (m->sliding_distance + r[VR_running_in_factor] * r[VR_running_in_distance]) * (1.0 + 1e-6);
+    int i;
+    for (i = 0; i < FM_TEMPS; i++) {
+        if (comp->v.b[VR_reference_at_start] ? state_bad_follower(c, "reference temperature", m->t_ref[i], VR_TEMPS[i])
+                                             : state_bad_real(c, "reference temperature", m->t_ref[i], r[VR_t_reference],
+                                                              r[VR_t_reference]))
+            return -1;
+    }
+    if (state_bad_real(c, "sliding_distance", m->sliding_distance, 0.0, s_max) ||
+        state_bad_real(c, "wear", m->wear, 0.0, wear_max))
+        return -1;
+    return 0;
+}

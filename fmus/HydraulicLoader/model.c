@@ -27,6 +27,12 @@
 
 #define TWO_PI 6.283185307179586476925286766559
 
+/* N: no state a run can reach comes near it. |command| <= 9e5 N by the declared ranges (a sine
+ * of mean and amplitude <= 3e5 each, plus |load_offset| <= 3e5, times station_on <= 1), and the
+ * servo's gain over any command history (the L1 norm of its impulse response, about
+ * 2 / (pi zeta) <= 64 at zeta >= 0.01) keeps |F| and |F'| / omega_n below 1e8 N. */
+#define LOAD_STATE_BOUND 1e9
+
 enum { PROFILE_CONSTANT = 0, PROFILE_SINE = 1, PROFILE_TRAPEZOID = 2, PROFILE_TABLE = 3 };
 
 static const int VR_TABLE_T[HL_TABLE] = {VR_table_t_1, VR_table_t_2, VR_table_t_3, VR_table_t_4,
@@ -178,4 +184,25 @@ void model_outputs(ModelInstance *comp) {
     r[VR_radial_load] = load;
     r[VR_pressure] = load / r[VR_piston_area];
     r[VR_q_station] = r[VR_station_on] * (r[VR_q_idle] + r[VR_k_heat_load] * fabs(load));
+}
+
+/* A state handed back: the servo states finite and bounded, the step matrices those of the
+ * parameters (table_n, profile and the table's order are model_check's). */
+int model_check_state(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    ModelInstance fresh = *comp;
+    if (state_bad_real(c, "servo state load", m->load, -LOAD_STATE_BOUND, LOAD_STATE_BOUND) ||
+        state_bad_real(c, "servo state rate_scaled", m->rate_scaled, -LOAD_STATE_BOUND, LOAD_STATE_BOUND))
+        return -1;
+    if (m->step_h != comp->v.r[VR_solver_step]) {
+        state_fail(c, "step matrices made for %.17g s, not for solver_step = %.17g s", m->step_h, comp->v.r[VR_solver_step]);
+        return -1;
+    }
+    if (make_step_matrices(&fresh, m->step_h) != fmi2OK) {
+        state_fail(c, "the servo's step matrices cannot be computed from the parameters");
+        return -1;
+    }
+    if (state_bad_match(c, "phi", m->phi, fresh.v.m.phi, 4) || state_bad_match(c, "gamma", m->gamma, fresh.v.m.gamma, 2))
+        return -1;
+    return 0;
 }

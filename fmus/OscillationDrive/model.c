@@ -200,3 +200,50 @@ void model_outputs(ModelInstance *comp) {
     r[VR_sliding_distance] = m->distance;
     r[VR_cycles] = floor(theta + CYCLE_SNAP);
 }
+
+/* The counters of a state handed back: the heat-averaging block as initialization made it
+ * (n_window = q_avg_window / solver_step) and aligned to the start (n_block = steps mod
+ * n_window), and no more steps with the drive on than steps. */
+static int bad_counters(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    int64_t steps = comp->v.steps_taken;
+    int64_t n_window = (int64_t)llround(comp->v.r[VR_q_avg_window] / comp->v.r[VR_solver_step]);
+    if (m->n_window != n_window)
+        return state_fail(c, "n_window = %lld is not q_avg_window / solver_step = %lld", (long long)m->n_window,
+                          (long long)n_window);
+    if (m->n_block != steps % n_window)
+        return state_fail(c, "n_block = %lld is not the %lld steps taken modulo n_window = %lld", (long long)m->n_block,
+                          (long long)steps, (long long)n_window);
+    return state_bad_int(c, "n_on", m->n_on, 0, steps);
+}
+
+/* A state handed back: the generator valid, the counters consistent, every integral finite,
+ * >= 0 and within what the phase and the ranges allow (the sliding distance at most 4 amplitudes
+ * per cycle swept, the energy at most mu_max |F|max per metre), the swing's memory consistent and
+ * the vibration sample within ringing plus clipped noise. */
+int model_check_state(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    const double *r = comp->v.r;
+    const double h = r[VR_solver_step], elapsed = (double)comp->v.steps_taken * h;
+    const double f_max = fmax(fabs(real_var(VR_radial_load)->min), fabs(real_var(VR_radial_load)->max));
+    const double d_max = 0.5 * r[VR_d_k] * r[VR_amplitude] * 4.0 * (phase_of(comp, m->n_on) + 1.0) * (1.0 + 1e-6);
+    const double z_max = (r[VR_vibration_amplitude] + NOISE_CLIP * r[VR_vibration_noise]) * (1.0 + 1e-9);
+    const char *why = rng_problem(&m->rng);
+    if (why) {
+        state_fail(c, "noise generator: %s", why);
+        return -1;
+    }
+    if (bad_counters(comp, c) || state_bad_real(c, "distance", m->distance, 0.0, d_max) ||
+        state_bad_real(c, "energy", m->energy, 0.0, r[VR_mu_max] * f_max * m->distance * (1.0 + 1e-6)) ||
+        state_bad_real(c, "e_block", m->e_block, 0.0, m->energy * (1.0 + 1e-6)) ||
+        state_bad_real(c, "q_avg", m->q_avg, 0.0, HUGE_VAL) ||
+        state_bad_real(c, "t_since_rev", m->t_since_rev, -h, elapsed * (1.0 + 1e-6) + h) ||
+        state_bad_real(c, "z_vib", m->z_vib, -z_max, z_max))
+        return -1;
+    if ((m->has_reversal != 0 && m->has_reversal != 1) || (m->rev_sign != 1.0 && m->rev_sign != -1.0) ||
+        (!m->has_reversal && m->rev_sign != 1.0)) {
+        state_fail(c, "swing memory has_reversal = %d, rev_sign = %g is not one a swing leaves", m->has_reversal, m->rev_sign);
+        return -1;
+    }
+    return 0;
+}

@@ -36,6 +36,8 @@
 #include "rng.h"
 
 #define TWO_PI 6.283185307179586476925286766559
+/* the largest -ln(u) of a uniform u >= 2^-53: an Exp(1) draw never exceeds 53 ln 2 = 36.74 */
+#define EXP_DRAW_MAX 36.8
 
 /* channel order used by every table below: the paper's eight measuring points */
 static const int VR_TRUE[SD_TEMPS] = {VR_t_bearing_block, VR_t_heel_block, VR_t_bearing, VR_t_t_plate,
@@ -162,4 +164,50 @@ void model_outputs(ModelInstance *comp) {
     r[VR_angle_meas] = m->angle_sample;
     r[VR_vibration_meas] = m->vibration_sample;
     r[VR_spike] = m->spike_sample;
+}
+
+/* The generators and the gains of a state handed back: both streams valid, the gains and the
+ * spike length those of the parameters. */
+static int bad_setup(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    ModelInstance fresh = *comp;
+    const double got[3] = {m->a_temp, m->a_probe, m->spike_p};
+    double want[3];
+    const char *why = rng_problem(&m->rng);
+    if (why || (why = rng_problem(&m->rng2))) return state_fail(c, "noise generator: %s", why);
+    if (m->step_h != comp->v.r[VR_solver_step])
+        return state_fail(c, "gains made for %.17g s, not for solver_step = %.17g s", m->step_h, comp->v.r[VR_solver_step]);
+    make_gains(&fresh, m->step_h);
+    if (m->spike_steps != fresh.v.m.spike_steps)
+        return state_fail(c, "spike_steps = %d is not what spike_duration gives (%d)", m->spike_steps, fresh.v.m.spike_steps);
+    want[0] = fresh.v.m.a_temp;
+    want[1] = fresh.v.m.a_probe;
+    want[2] = fresh.v.m.spike_p;
+    return state_bad_match(c, "gain (a_temp, a_probe, spike_p)", got, want, 3);
+}
+
+/* A state handed back: generators and gains (bad_setup), every lag within the range of the
+ * input it follows, the spike process consistent (remaining samples within its length, a size
+ * an exponential draw can have), the last sample finite and the probe's clipped to its range. */
+int model_check_state(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    const double *r = comp->v.r;
+    const double spike_max = r[VR_spike_size] * EXP_DRAW_MAX;
+    const double other_samples[4] = {m->load_sample, m->torque_sample, m->angle_sample, m->vibration_sample};
+    int i;
+    if (bad_setup(comp, c)) return -1;
+    for (i = 0; i < SD_TEMPS; i++)
+        if (state_bad_follower(c, "temperature sensor lag", m->temp_lag[i], VR_TRUE[i])) return -1;
+    if (state_bad_follower(c, "probe filter", m->probe_filt, VR_probe_true) ||
+        state_bad_follower(c, "probe body reference", m->t_probe_body0, VR_t_probe_body) ||
+        state_bad_int(c, "spike_left", m->spike_left, 0, m->spike_steps) ||
+        state_bad_real(c, "spike_value", m->spike_value, -spike_max, spike_max) ||
+        state_bad_real(c, "spike_sample", m->spike_sample, m->spike_left > 0, m->spike_left > 0) ||
+        state_bad_reals(c, "temperature sample", m->temp_sample, SD_TEMPS, -HUGE_VAL, HUGE_VAL) ||
+        state_bad_real(c, "probe_sample", m->probe_sample, r[VR_probe_range_min], r[VR_probe_range_max]) ||
+        state_bad_real(c, "probe_in_range", m->probe_in_range, 0.0, 1.0) ||
+        (m->probe_in_range != 0.0 && m->probe_in_range != 1.0 && state_fail(c, "probe_in_range is neither 0 nor 1")) ||
+        state_bad_reals(c, "load/torque/angle/vibration sample", other_samples, 4, -HUGE_VAL, HUGE_VAL))
+        return -1;
+    return 0;
 }

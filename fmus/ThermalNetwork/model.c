@@ -184,3 +184,38 @@ void model_outputs(ModelInstance *comp) {
     comp->v.r[VR_energy_in] = m->energy_in;
     comp->v.r[VR_energy_lost] = m->energy_lost;
 }
+
+/* A state handed back: the step matrices those of the parameters, the energies finite (the heat
+ * put in between 0 and the most the inputs can bring), every temperature finite and not below
+ * the coldest start or room temperature the ranges allow (with heat inputs >= 0 and the exact,
+ * positive step map no node ever cools below that). */
+int model_check_state(const ModelInstance *comp, StateCheck *c) {
+    const ModelState *m = &comp->v.m;
+    const double *r = comp->v.r;
+    double elapsed = (double)comp->v.steps_taken * r[VR_solver_step];
+    double q_max = real_var(VR_q_hydraulic)->max + real_var(VR_q_friction)->max;
+    double t_low = real_var(VR_t_room)->min;
+    ModelInstance fresh = *comp;
+    int i;
+    for (i = 0; i < TN_NODES; i++)
+        if (real_var(VR_TSTART[i])->min < t_low) t_low = real_var(VR_TSTART[i])->min;
+    if (state_bad_reals(c, "node temperature", m->temp, TN_NODES, t_low - 1e-6, HUGE_VAL) ||
+        state_bad_real(c, "energy_stored0", m->energy_stored0, -HUGE_VAL, HUGE_VAL) ||
+        state_bad_real(c, "energy_in", m->energy_in, 0.0, q_max * elapsed * (1.0 + 1e-6)) ||
+        state_bad_real(c, "energy_lost", m->energy_lost, -HUGE_VAL, HUGE_VAL))
+        return -1;
+    if (m->phi_h != r[VR_solver_step]) {
+        state_fail(c, "step matrices made for %.17g s, not for solver_step = %.17g s", m->phi_h, r[VR_solver_step]);
+        return -1;
+    }
+    if (make_step_matrices(&fresh, m->phi_h) != fmi2OK) {
+        state_fail(c, "the step matrices cannot be computed from the parameters");
+        return -1;
+    }
+    if (state_bad_match(c, "phi", m->phi, fresh.v.m.phi, TN_NODES * TN_NODES) ||
+        state_bad_match(c, "gamma", m->gamma, fresh.v.m.gamma, TN_NODES * TN_INPUTS) ||
+        state_bad_match(c, "psi", m->psi, fresh.v.m.psi, TN_NODES * TN_NODES) ||
+        state_bad_match(c, "lambda", m->lambda, fresh.v.m.lambda, TN_NODES * TN_INPUTS))
+        return -1;
+    return 0;
+}

@@ -9,9 +9,13 @@
  *    the set, NaN/Inf, values outside the declared [min, max] -> fmi2Error, nothing changed;
  *  - fmi2DoStep runs a fixed internal step (the model's INTERNAL_STEP_VR parameter) an
  *    integer number of times and keeps time as start + k*h from an integer counter, so
- *    doStep(2h) equals two doStep(h) bit for bit;
- *  - the whole FMU state is one plain struct (ModelValues): get/set state is a copy,
- *    serialization is that copy behind a small header that is checked on the way back.
+ *    doStep(2h) equals two doStep(h) bit for bit; at most TWIN_MAX_SUBSTEPS (model.h: one
+ *    million) internal steps per doStep, a larger step is refused with fmi2Error at once;
+ *  - the whole FMU state is one plain struct (ModelValues) behind a small header: get state
+ *    is a copy, serialization is the same bytes. A state handed back (set, deserialize) is
+ *    untrusted: its header, every parameter and input, the clock and the model's own
+ *    invariants (model_check_state) are checked before it is accepted, so a crafted state is
+ *    refused with fmi2Error and the instance stays unchanged and usable.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -419,56 +423,226 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* ------------------------------------------------------------------ FMU state */
 
+/* An FMU state, in memory (what fmi2FMUstate points to) and serialized alike: a header naming
+ * the format (the magic carries its version) and the model, then the values. Both the pointers
+ * and the bytes come back from the host untrusted and are checked before anything is read
+ * beyond the header (see model.h). */
 typedef struct {
     char magic[8];
-    char guid[64];
-    uint64_t size;
-    ModelValues v;
-} SerializedState;
+    char guid[64]; /* MODEL_GUID, padded with zeros */
+    uint64_t size; /* sizeof(ModelValues) */
+} StateHeader;
 
-/* Where a state goes: the host's *FMUstate if it hands one back, else a new allocation.
- * NULL (logged) when out of memory. */
-static ModelValues *state_slot(ModelInstance *comp, const char *fn, fmi2FMUstate *FMUstate) {
-    ModelValues *s = (ModelValues *)*FMUstate;
-    if (!s) {
-        s = (ModelValues *)malloc(sizeof *s);
-        if (!s) {
-            log_error(comp, "%s: out of memory", fn);
-            return NULL;
-        }
-        *FMUstate = s;
+typedef struct {
+    StateHeader header;
+    ModelValues v;
+} SavedState;
+
+/* ---- checks of a state handed back: the state_* helpers of model.h */
+
+int state_fail(StateCheck *c, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(c->msg, c->size, fmt, ap);
+    va_end(ap);
+    return 1;
+}
+
+int state_bad_real(StateCheck *c, const char *what, double x, double lo, double hi) {
+    if (isfinite(x) && x >= lo && x <= hi) return 0;
+    return state_fail(c, "%s = %.17g is not finite in [%g, %g]", what, x, lo, hi);
+}
+
+int state_bad_reals(StateCheck *c, const char *what, const double *x, size_t n, double lo, double hi) {
+    size_t k;
+    for (k = 0; k < n; k++) {
+        if (!(isfinite(x[k]) && x[k] >= lo && x[k] <= hi))
+            return state_fail(c, "%s[%zu] = %.17g is not finite in [%g, %g]", what, k, x[k], lo, hi);
     }
+    return 0;
+}
+
+int state_bad_int(StateCheck *c, const char *what, int64_t x, int64_t lo, int64_t hi) {
+    if (x >= lo && x <= hi) return 0;
+    return state_fail(c, "%s = %lld is not in [%lld, %lld]", what, (long long)x, (long long)lo, (long long)hi);
+}
+
+int state_bad_match(StateCheck *c, const char *what, const double *got, const double *want, size_t n) {
+    double scale = 0.0;
+    size_t k;
+    for (k = 0; k < n; k++)
+        if (fabs(want[k]) > scale || !isfinite(want[k])) scale = fabs(want[k]);
+    if (!isfinite(scale)) return state_fail(c, "%s cannot be recomputed from the parameters", what);
+    for (k = 0; k < n; k++) {
+        if (!(fabs(got[k] - want[k]) <= 1e-9 * scale))
+            return state_fail(c, "%s[%zu] = %.17g is not what the parameters give (%.17g)", what, k, got[k], want[k]);
+    }
+    return 0;
+}
+
+int state_bad_follower(StateCheck *c, const char *what, double x, int vr) {
+    const VarInfo *info = &VARS_REAL[vr];
+    double slack = 1e-9 * (info->max - info->min); /* rounding of x + a (u - x); infinite if a side is open */
+    if (isfinite(x) && x >= info->min - slack && x <= info->max + slack) return 0;
+    return state_fail(c, "%s = %.17g is outside the range [%g, %g] of '%s' it follows", what, x, info->min, info->max,
+                      info->name);
+}
+
+const VarInfo *real_var(int vr) { return &VARS_REAL[vr]; }
+
+/* exactly one of the states a live instance can be in */
+static int bad_instance_state(StateCheck *c, int s) {
+    switch (s) {
+        case ST_INSTANTIATED:
+        case ST_INIT_MODE:
+        case ST_STEP_COMPLETE:
+        case ST_STEP_FAILED:
+        case ST_TERMINATED:
+        case ST_ERROR: return 0;
+        default: return state_fail(c, "instance state %d is not one a live instance can be in", s);
+    }
+}
+
+/* What a set would have accepted: every parameter and input finite and in its declared range,
+ * every Boolean 0 or 1. The outputs are the model's business (bad_model). */
+static int bad_variable(StateCheck *c, const VarInfo *info, double x, int is_boolean) {
+    if (info->causality != CAUS_PARAMETER && info->causality != CAUS_INPUT) return 0;
+    if (is_boolean && x != 0.0 && x != 1.0) return state_fail(c, "Boolean '%s' = %.17g is neither 0 nor 1", info->name, x);
+    return state_bad_real(c, info->name, x, info->min, info->max);
+}
+
+static int bad_variables(StateCheck *c, const ModelValues *v) {
+    size_t k;
+    for (k = 0; k < N_REALS; k++)
+        if (bad_variable(c, &VARS_REAL[k], v->r[k], 0)) return 1;
+#if N_INTEGERS > 0
+    for (k = 0; k < N_INTEGERS; k++)
+        if (bad_variable(c, &VARS_INTEGER[k], (double)v->i[k], 0)) return 1;
+#endif
+#if N_BOOLEANS > 0
+    for (k = 0; k < N_BOOLEANS; k++)
+        if (bad_variable(c, &VARS_BOOLEAN[k], (double)v->b[k], 1)) return 1;
+#endif
+    return 0;
+}
+
+/* The clock: a finite start, 0 <= k <= 2^53 internal steps (none before initialization is
+ * over), a finite time. Checked after the variables, so the internal step is valid. */
+static int bad_clock(StateCheck *c, const ModelValues *v) {
+    int64_t k_max = (v->state & (ST_INSTANTIATED | ST_INIT_MODE)) ? 0 : TWIN_MAX_STEPS_TAKEN;
+    return state_bad_real(c, "start time", v->start_time, -HUGE_VAL, HUGE_VAL) ||
+           state_bad_int(c, "internal steps taken", v->steps_taken, 0, k_max) ||
+           state_bad_real(c, "time", v->start_time + (double)v->steps_taken * v->r[INTERNAL_STEP_VR], -HUGE_VAL, HUGE_VAL);
+}
+
+/* Two output values agree: the same bits, or (a state saved by a build with other rounding)
+ * both finite within 1e-9 of each other. */
+static int same_output(double a, double b) {
+    if (memcmp(&a, &b, sizeof a) == 0 || (isnan(a) && isnan(b))) return 1;
+    return isfinite(a) && isfinite(b) && fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b));
+}
+
+/* 'Step complete' is the one state in which the model computes with its states: its parameters
+ * pass model_check, its states model_check_state, and its outputs are model_outputs of them
+ * (every step and every set of an input recompute them). */
+static int bad_model(StateCheck *c, const ModelInstance *comp, const ModelValues *v) {
+    ModelInstance scratch = *comp; /* the logger and name, for a message of model_check_state */
+    size_t k;
+    if (v->state != ST_STEP_COMPLETE) return 0;
+    scratch.v = *v;
+    if (model_check(&scratch, c->msg, c->size) != 0 || model_check_state(&scratch, c) != 0) return 1;
+    model_outputs(&scratch);
+    for (k = 0; k < N_REALS; k++) {
+        if (VARS_REAL[k].causality == CAUS_OUTPUT && !same_output(v->r[k], scratch.v.r[k]))
+            return state_fail(c, "output '%s' = %.17g is not what the states give (%.17g)", VARS_REAL[k].name, v->r[k],
+                              scratch.v.r[k]);
+    }
+    return 0;
+}
+
+/* The header every state of this FMU starts with: this format, this model, this size. */
+static void make_header(StateHeader *h) {
+    memset(h, 0, sizeof *h);
+    memcpy(h->magic, STATE_MAGIC, 8);
+    strncpy(h->guid, MODEL_GUID, sizeof h->guid - 1);
+    h->size = sizeof(ModelValues);
+}
+
+/* Is s one of ours: its header byte for byte the one make_header writes? Reads the header only,
+ * so a (larger or smaller) state of another model is told apart safely. */
+static int ours(const SavedState *s) {
+    StateHeader h;
+    make_header(&h);
+    return memcmp(&s->header, &h, sizeof h) == 0;
+}
+
+/* Every invariant of a state handed back. Returns 1 or logs why and returns 0. */
+static int state_accepted(ModelInstance *comp, const char *fn, const SavedState *s) {
+    char msg[MSG_SIZE] = "";
+    StateCheck c = {msg, sizeof msg};
+    if (!ours(s)) {
+        log_error(comp, "%s: not a state of this FMU (format %s, model %s)", fn, STATE_MAGIC, MODEL_GUID);
+        return 0;
+    }
+    if (bad_instance_state(&c, s->v.state) || bad_variables(&c, &s->v) || bad_clock(&c, &s->v) ||
+        bad_model(&c, comp, &s->v)) {
+        log_error(comp, "%s: state refused, the instance is unchanged: %s", fn, msg);
+        return 0;
+    }
+    return 1;
+}
+
+/* Where a state goes: the host's *FMUstate if it hands back one of ours, else a new allocation.
+ * NULL (logged) when out of memory or when *FMUstate is something else. */
+static SavedState *state_slot(ModelInstance *comp, const char *fn, fmi2FMUstate *FMUstate) {
+    SavedState *s = (SavedState *)*FMUstate;
+    if (s) {
+        if (ours(s)) return s;
+        log_error(comp, "%s: *FMUstate is not a state of this FMU (pass NULL for a new one)", fn);
+        return NULL;
+    }
+    s = (SavedState *)malloc(sizeof *s);
+    if (!s) {
+        log_error(comp, "%s: out of memory", fn);
+        return NULL;
+    }
+    *FMUstate = s;
     return s;
+}
+
+/* The state the host passes to a function: non-NULL and one of ours. Logs and returns NULL otherwise. */
+static const SavedState *given_state(ModelInstance *comp, const char *fn, fmi2FMUstate FMUstate) {
+    const SavedState *s = (const SavedState *)FMUstate;
+    if (!s) log_error(comp, "%s: NULL state", fn);
+    else if (!ours(s)) log_error(comp, "%s: not a state of this FMU (format %s, model %s)", fn, STATE_MAGIC, MODEL_GUID);
+    else return s;
+    return NULL;
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     ModelInstance *comp = (ModelInstance *)c;
-    ModelValues *s;
+    SavedState *s;
     if (!allowed(comp, "fmi2GetFMUstate", ALL_LIVE_STATES)) return fmi2Error;
     if (!FMUstate) {
         log_error(comp, "fmi2GetFMUstate: NULL argument");
         return fmi2Error;
     }
     if (!(s = state_slot(comp, "fmi2GetFMUstate", FMUstate))) return fmi2Error;
-    *s = comp->v;
-    s->state = comp->state;
+    make_header(&s->header);
+    memcpy(&s->v, &comp->v, sizeof s->v);
+    s->v.state = comp->state;
     return fmi2OK;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     ModelInstance *comp = (ModelInstance *)c;
-    const ModelValues *s = (const ModelValues *)FMUstate;
+    const SavedState *s;
     if (!allowed(comp, "fmi2SetFMUstate", ALL_LIVE_STATES)) return fmi2Error;
-    if (!s) {
-        log_error(comp, "fmi2SetFMUstate: NULL state");
-        return fmi2Error;
-    }
-    if (!(s->state & ALL_LIVE_STATES)) {
-        log_error(comp, "fmi2SetFMUstate: not a state of this FMU");
-        return fmi2Error;
-    }
-    comp->v = *s;
-    comp->state = s->state;
+    if (!(s = given_state(comp, "fmi2SetFMUstate", FMUstate))) return fmi2Error;
+    /* checked again: the host may have changed the memory, or hand over a state of another instance */
+    if (!state_accepted(comp, "fmi2SetFMUstate", s)) return fmi2Error;
+    memcpy(&comp->v, &s->v, sizeof comp->v);
+    comp->state = s->v.state;
     return fmi2OK;
 }
 
@@ -485,39 +659,35 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     ModelInstance *comp = (ModelInstance *)c;
     if (!allowed(comp, "fmi2SerializedFMUstateSize", ALL_LIVE_STATES)) return fmi2Error;
-    if (!FMUstate || !size) {
+    if (!size) {
         log_error(comp, "fmi2SerializedFMUstateSize: NULL argument");
         return fmi2Error;
     }
-    *size = sizeof(SerializedState);
+    if (!given_state(comp, "fmi2SerializedFMUstateSize", FMUstate)) return fmi2Error;
+    *size = sizeof(SavedState);
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
     ModelInstance *comp = (ModelInstance *)c;
-    SerializedState out;
+    const SavedState *s;
     if (!allowed(comp, "fmi2SerializeFMUstate", ALL_LIVE_STATES)) return fmi2Error;
-    if (!FMUstate || !serializedState) {
+    if (!serializedState) {
         log_error(comp, "fmi2SerializeFMUstate: NULL argument");
         return fmi2Error;
     }
-    if (size < sizeof out) {
-        log_error(comp, "fmi2SerializeFMUstate: buffer of %zu bytes is smaller than the state (%zu)", size, sizeof out);
+    if (!(s = given_state(comp, "fmi2SerializeFMUstate", FMUstate))) return fmi2Error;
+    if (size < sizeof *s) {
+        log_error(comp, "fmi2SerializeFMUstate: buffer of %zu bytes is smaller than the state (%zu)", size, sizeof *s);
         return fmi2Error;
     }
-    memset(&out, 0, sizeof out);
-    memcpy(out.magic, STATE_MAGIC, 8);
-    strncpy(out.guid, MODEL_GUID, sizeof out.guid - 1);
-    out.size = sizeof(ModelValues);
-    out.v = *(const ModelValues *)FMUstate;
-    memcpy(serializedState, &out, sizeof out);
+    memcpy(serializedState, s, sizeof *s);
     return fmi2OK;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate *FMUstate) {
     ModelInstance *comp = (ModelInstance *)c;
-    SerializedState in;
-    ModelValues *s;
+    SavedState in, *s;
     if (!allowed(comp, "fmi2DeSerializeFMUstate", ALL_LIVE_STATES)) return fmi2Error;
     if (!serializedState || !FMUstate) {
         log_error(comp, "fmi2DeSerializeFMUstate: NULL argument");
@@ -527,18 +697,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         log_error(comp, "fmi2DeSerializeFMUstate: %zu bytes given, a state of this FMU has %zu", size, sizeof in);
         return fmi2Error;
     }
-    memcpy(&in, serializedState, sizeof in);
-    in.guid[sizeof in.guid - 1] = '\0';
-    if (memcmp(in.magic, STATE_MAGIC, 8) != 0 || in.size != sizeof(ModelValues) || strcmp(in.guid, MODEL_GUID) != 0) {
-        log_error(comp, "fmi2DeSerializeFMUstate: the bytes are not a serialized state of this FMU");
-        return fmi2Error;
-    }
-    if (!(in.v.state & ALL_LIVE_STATES)) {
-        log_error(comp, "fmi2DeSerializeFMUstate: corrupt state");
-        return fmi2Error;
-    }
+    memcpy(&in, serializedState, sizeof in); /* aligned, and the host's bytes are read once */
+    if (!state_accepted(comp, "fmi2DeSerializeFMUstate", &in)) return fmi2Error;
     if (!(s = state_slot(comp, "fmi2DeSerializeFMUstate", FMUstate))) return fmi2Error;
-    *s = in.v;
+    memcpy(s, &in, sizeof in);
     return fmi2OK;
 }
 
@@ -603,10 +765,22 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         return fmi2Error;
     }
     n_real = communicationStepSize / h_int;
+    if (n_real > TWIN_MAX_SUBSTEPS + 0.5) {
+        /* refused before any work: the host is told at once instead of waiting for hours */
+        log_error(comp,
+                  "fmi2DoStep: step %.12g s needs %.0f internal steps of %s = %.12g s, more than the %d one doStep "
+                  "may take: split it into smaller communication steps",
+                  communicationStepSize, n_real, VARS_REAL[INTERNAL_STEP_VR].name, h_int, TWIN_MAX_SUBSTEPS);
+        return fmi2Error;
+    }
     n = (int64_t)llround(n_real);
     if (fabs((double)n * h_int - communicationStepSize) > 1e-9 * (communicationStepSize > h_int ? communicationStepSize : h_int)) {
         log_error(comp, "fmi2DoStep: step %.12g s is not a multiple of the fixed internal step %s = %.12g s",
                   communicationStepSize, VARS_REAL[INTERNAL_STEP_VR].name, h_int);
+        return fmi2Error;
+    }
+    if (n > TWIN_MAX_STEPS_TAKEN - comp->v.steps_taken) {
+        log_error(comp, "fmi2DoStep: the internal step counter would pass 2^53 (time no longer exact)");
         return fmi2Error;
     }
 #ifdef VR_fault_inject

@@ -11,10 +11,21 @@
  *   model_initialize  precompute from parameters, set initial states and outputs
  *   model_step        advance the states by exactly one internal step
  *   model_outputs     recompute outputs from states and inputs (after set of inputs)
+ *   model_check_state are the model's own states (ModelState) consistent with its parameters?
+ *                     (called on every FMU state handed back by the host, see below)
  *
  * All model data lives in ModelInstance.v (plain doubles/ints, no pointers), so an FMU
  * state is a byte copy of that struct and serialization is trivially portable between
  * instances of the same build.
+ *
+ * An FMU state handed back by the host (fmi2SetFMUstate, fmi2DeSerializeFMUstate) is untrusted:
+ * the bytes may come from a file. The wrapper accepts it only after re-checking every invariant a
+ * live instance keeps (header, instance state, clock, every parameter and input against its
+ * declared range, and in the state 'step complete' model_check, model_check_state and the outputs
+ * against model_outputs), so a crafted state is refused with fmi2Error and never reaches the
+ * equations. In the other states ModelState is never read (initialization recomputes it; a
+ * terminated or failed instance only hands out its last values), so only the wrapper's checks
+ * apply there.
  */
 #ifndef TWIN_MODEL_H
 #define TWIN_MODEL_H
@@ -42,6 +53,16 @@ typedef struct {
  * includes the model's config.h, which declares ModelState (the model's own states and
  * precomputed data) and INTERNAL_STEP_VR (the parameter holding the fixed solver step). */
 #include "model_vars.h"
+
+/* At most this many internal steps per fmi2DoStep: a larger communication step returns fmi2Error
+ * at once (the instance is unchanged) instead of blocking the host for minutes. The twin's
+ * scenarios take at most a few hundred internal steps per doStep (the thermal network's 10 s
+ * over a 1 s step, the others 0.5 s over 10 ms); a million internal steps take well under a
+ * second for every model. */
+#define TWIN_MAX_SUBSTEPS 1000000
+/* The internal step counter never passes 2^53: time = start + k h stays exact in k, and the
+ * counter can never overflow. */
+#define TWIN_MAX_STEPS_TAKEN 9007199254740992LL
 
 typedef enum {
     ST_INSTANTIATED = 1 << 0,
@@ -80,6 +101,33 @@ void log_info(ModelInstance *comp, const char *fmt, ...);
 /* Current time of the instance from the integer step counter (never summed floats). */
 double model_time(const ModelInstance *comp);
 
+/* Why a state was refused: model_check_state writes one line into it (through the helpers
+ * below) and returns -1. */
+typedef struct {
+    char *msg;
+    size_t size;
+} StateCheck;
+
+/* Helpers for model_check_state. Each returns 0 if the value passes, else writes why (naming
+ * `what`) into c and returns 1, so checks chain with ||. */
+int state_fail(StateCheck *c, const char *fmt, ...);
+/* x is not NaN and lies in [lo, hi] (pass -HUGE_VAL/HUGE_VAL for an open side; both infinite
+ * still refuses +-Inf) */
+int state_bad_real(StateCheck *c, const char *what, double x, double lo, double hi);
+/* the same for each of x[0..n-1] */
+int state_bad_reals(StateCheck *c, const char *what, const double *x, size_t n, double lo, double hi);
+/* an integer count or index lies in [lo, hi] */
+int state_bad_int(StateCheck *c, const char *what, int64_t x, int64_t lo, int64_t hi);
+/* got[0..n-1] agree with want[0..n-1] (recomputed from the parameters) to 1e-9 of the largest
+ * |want|: precomputed data must be what the parameters give (not bit for bit, so a state saved
+ * by a build with other rounding is still accepted) */
+int state_bad_match(StateCheck *c, const char *what, const double *got, const double *want, size_t n);
+/* a state that follows Real variable vr (a sensor's lag of its input, a reference taken from
+ * it) is finite and within vr's declared range, widened by 1e-9 of the range for rounding */
+int state_bad_follower(StateCheck *c, const char *what, double x, int vr);
+/* the declared range and name of Real variable vr (the tables live in the wrapper only) */
+const VarInfo *real_var(int vr);
+
 /* ---- to be implemented by every model ---- */
 
 /* Return 0 if the parameters are consistent, else write a one-line reason into msg. */
@@ -90,5 +138,11 @@ fmi2Status model_initialize(ModelInstance *comp);
 fmi2Status model_step(ModelInstance *comp, double h);
 /* Recompute the outputs from the states and the current inputs. */
 void model_outputs(ModelInstance *comp);
+/* Is ModelState consistent with the parameters, as after initialization and any number of
+ * steps?  comp holds a candidate FMU state in 'step complete' whose parameters and inputs already
+ * passed their ranges and model_check. Return 0, or -1 with the reason in c (state_* helpers):
+ * counts and indices in range, values finite and within their physical bounds, precomputed data
+ * equal to what the parameters give. Must not change anything but local copies. */
+int model_check_state(const ModelInstance *comp, StateCheck *c);
 
 #endif

@@ -5,6 +5,7 @@
 #include "rng.h"
 
 #include <math.h>
+#include <stddef.h>
 
 #define RNG_TWO_PI 6.283185307179586476925286766559
 
@@ -56,4 +57,14 @@ double rng_gauss(Rng *r) {
     r->gauss_spare = rad * sin(RNG_TWO_PI * u2);
     r->has_spare = 1;
     return rad * cos(RNG_TWO_PI * u2);
+}
+
+/* the largest |normal| rng_gauss can return: sqrt(-2 ln 2^-53) = 8.5716..., rounded up */
+#define RNG_GAUSS_MAX 8.5717
+
+const char *rng_problem(const Rng *r) {
+    if (!(r->s[0] | r->s[1] | r->s[2] | r->s[3])) return "the xoshiro256** state is all zero (its stream would be constant)";
+    if (r->has_spare != 0 && r->has_spare != 1) return "has_spare is neither 0 nor 1";
+    if (!(fabs(r->gauss_spare) <= RNG_GAUSS_MAX)) return "the spare normal is not one Box-Muller can draw";
+    return NULL;
 }

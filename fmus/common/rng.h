@@ -31,4 +31,10 @@ double rng_uniform(Rng *r);
 /* Standard normal N(0, 1) by Box-Muller; each pair costs two uniforms. */
 double rng_gauss(Rng *r);
 
+/* NULL if r can be a generator's state (after rng_seed and any draws), else why not: the
+ * xoshiro256** state is never all zero, has_spare is 0 or 1, and the spare normal is one
+ * Box-Muller can give (|x| <= sqrt(-2 ln 2^-53) ~ 8.57, the uniforms being >= 2^-53).
+ * For the FMU state checks of the models that carry a generator. */
+const char *rng_problem(const Rng *r);
+
 #endif
