@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from twin.fmu.build import fmu_sources_dir, generate_vars_header
+from twin.fmu.catalog import describe
 
 HARNESS = Path(__file__).resolve().parent / "fuzz" / "fuzz_fmu.c"
 
@@ -104,7 +105,7 @@ def build_harness(
     for p in headers.glob("fmi2*.h"):
         shutil.copyfile(p, work / p.name)
     xml = src / model / "modelDescription.xml"
-    (work / "model_vars.h").write_text(generate_vars_header(xml))
+    (work / "model_vars.h").write_text(generate_vars_header(describe(xml), str(xml)))
     exe = out_dir / f"fuzz_{model}"
     sources = [str(work / name) for name in _source_files(xml)]
     cmd = [cc, optimize, "-g", *SANITIZE, *WARNINGS, *(extra or []), "-I", str(work), str(HARNESS), *sources]
