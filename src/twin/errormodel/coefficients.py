@@ -197,12 +197,7 @@ class Coefficients:
 
 
 def _coefficient_table(c: Coefficient, meaning: str) -> dict[str, Any]:
-    out: dict[str, Any] = {
-        "value": c.value,
-        "std_error": c.std_error,
-        "unit": c.unit,
-        "experiment": c.experiment,
-    }
+    out: dict[str, Any] = {k: getattr(c, k) for k in ("value", "std_error", "unit", "experiment")}
     if c.prior is not None:
         prior = {"value": c.prior.value, "sigma": c.prior.sigma, "source": c.prior.source}
         out["prior"] = {k: v for k, v in prior.items() if v is not None}

@@ -89,14 +89,14 @@ class Columns:
 COLUMN_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Columns))
 
 
-def _coefficient(unit: str, meaning: str) -> Any:
-    """A coefficient field: its unit (a coefficients file must state the same) and meaning."""
+def _declare(unit: str, meaning: str) -> Any:
+    """A coefficient's field: its unit (a coefficients file must state the same) and meaning."""
     return field(metadata={"unit": unit, "meaning": meaning})
 
 
 @dataclass(frozen=True)
 class _Coefficients:
-    """Named coefficients, each a float with a unit in its field's metadata."""
+    """Named coefficients, each a float declared with :func:`_declare`."""
 
     @classmethod
     def units(cls) -> dict[str, str]:
@@ -127,35 +127,19 @@ class ThermalCoefficients(_Coefficients):
     body's mean temperature follows the sensor that stands for it.
     """
 
-    alpha_l_heel_block: float = _coefficient(
-        "m/K", "heel block's growth lifting the spindle, per K of the heel block"
-    )
-    alpha_l_bearing_block: float = _coefficient(
-        "m/K", "bearing block's growth lifting the spindle, per K of the bearing block"
-    )
-    alpha_l_spindle: float = _coefficient(
-        "m/K", "spindle radius' growth under the bearing, per K of the bearing"
-    )
-    alpha_l_bearing_rings: float = _coefficient("m/K", "bearing rings' radial growth, per K of the bearing")
-    alpha_l_t_plate: float = _coefficient(
-        "m/K", "T-plate's growth below the outer ring, per K of the T-plate"
-    )
-    alpha_l_detecting_frame: float = _coefficient(
-        "m/K", "detecting frame's growth lowering the probe, per K of the frame"
-    )
-    probe_zero_drift: float = _coefficient(
-        "m/K", "probe reading's zero drift, per K of the frame it is fixed on"
-    )
-    alpha_l_clamp: float = _coefficient(
-        "m/K", "clamp's growth down to the probe head, per K of the long pole"
-    )
-    alpha_l_pole_heel: float = _coefficient(
-        "m/K", "long pole's growth inside the heel block, per K of the heel block"
-    )
-    alpha_l_pole_base: float = _coefficient("m/K", "long pole's growth inside the base, per K of the base")
-    alpha_l_pole_lower: float = _coefficient(
-        "m/K", "long pole's growth below the base, per K of the long pole"
-    )
+    # fmt: off
+    alpha_l_heel_block: float = _declare("m/K", "heel block's growth lifting the spindle, per K of the heel block")
+    alpha_l_bearing_block: float = _declare("m/K", "bearing block's growth lifting the spindle, per K of the bearing block")
+    alpha_l_spindle: float = _declare("m/K", "spindle radius' growth under the bearing, per K of the bearing")
+    alpha_l_bearing_rings: float = _declare("m/K", "bearing rings' radial growth, per K of the bearing")
+    alpha_l_t_plate: float = _declare("m/K", "T-plate's growth below the outer ring, per K of the T-plate")
+    alpha_l_detecting_frame: float = _declare("m/K", "detecting frame's growth lowering the probe, per K of the frame")
+    probe_zero_drift: float = _declare("m/K", "probe reading's zero drift, per K of the frame it is fixed on")
+    alpha_l_clamp: float = _declare("m/K", "clamp's growth down to the probe head, per K of the long pole")
+    alpha_l_pole_heel: float = _declare("m/K", "long pole's growth inside the heel block, per K of the heel block")
+    alpha_l_pole_base: float = _declare("m/K", "long pole's growth inside the base, per K of the base")
+    alpha_l_pole_lower: float = _declare("m/K", "long pole's growth below the base, per K of the long pole")
+    # fmt: on
 
 
 #: the name the evaluation's configuration knows the thermal coefficients by
@@ -211,13 +195,13 @@ class MechanicalCoefficients(_Coefficients):
     unit torque, and the probe's tilt shows only as the cosine that scales its reading.
     """
 
-    load_compliance: float = _coefficient("m/N", "T-plate's drop per N of radial load (liner and structure)")
-    spindle_runout: float = _coefficient("m", "amplitude of the spindle's runout at the bearing")
-    runout_phase: float = _coefficient("rad", "spindle angle of the runout's high point")
-    probe_scale: float = _coefficient("1", "probe reading per unit motion along Z: cos of its axis' tilt")
-    abbe_rotation: float = _coefficient(
-        "m/(N.m)", "probe reading per N.m of friction torque: Abbe offset x T-plate rotation"
-    )
+    # fmt: off
+    load_compliance: float = _declare("m/N", "T-plate's drop per N of radial load (liner and structure)")
+    spindle_runout: float = _declare("m", "amplitude of the spindle's runout at the bearing")
+    runout_phase: float = _declare("rad", "spindle angle of the runout's high point")
+    probe_scale: float = _declare("1", "probe reading per unit motion along Z: cos of its axis' tilt")
+    abbe_rotation: float = _declare("m/(N.m)", "probe reading per N.m of friction torque: Abbe offset x T-plate rotation")
+    # fmt: on
 
 
 def loading_errors(load_change: np.ndarray, c: MechanicalCoefficients) -> dict[str, dict[str, np.ndarray]]:
