@@ -80,16 +80,17 @@ class Experiment:
     ``nuisance``: ``offset`` (always sensible: the probe is zeroed by hand) and ``drift`` (a
     line in time: slow thermal drift and wear in a short experiment). ``known_displacement``
     names the input (``instance.variable``) whose profile moves the T-plate by a known amount
-    (the gauge blocks), ``settle_s`` how long after each of its changes samples are left out;
-    ``use_from_s`` leaves out everything before (a warm-up whose wear nobody measures).
+    (the gauge blocks). ``use_when`` = (input, value) keeps only the samples while that input's
+    profile is at that value (the drive stopped: a warm-up whose wear nobody measures is left
+    out). ``settle_s``: samples within that time after a change of either input are left out.
     """
 
     name: str
     scenario: str
     nuisance: tuple[str, ...] = ("offset",)
     known_displacement: str | None = None
+    use_when: tuple[str, float] | None = None
     settle_s: float = 0.0
-    use_from_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,8 @@ class Calibration:
 #: the calibration experiments a lab runs on its tester (scenarios/calibration/)
 EXPERIMENTS: tuple[Experiment, ...] = (
     Experiment("thermal_soak", "thermal-soak.toml"),
-    Experiment("hot_cooldown", "hot-cooldown.toml", nuisance=("offset", "drift"), use_from_s=3660.0),
+    Experiment("hot_cooldown", "hot-cooldown.toml", nuisance=("offset", "drift"),
+               use_when=("oscillation.drive_on", 0.0), settle_s=60.0),
     Experiment("gauge_blocks", "gauge-blocks.toml", nuisance=("offset", "drift"),
                known_displacement="mechanics.wear_offset", settle_s=1.0),
     Experiment("load_steps", "load-steps.toml", nuisance=("offset", "drift")),
@@ -231,23 +233,35 @@ def known_displacement(
     scenario: Scenario, experiment: Experiment, t: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The known displacement at the times ``t`` (what the lab set: the profile of the input
-    the experiment names) and the samples a fit uses: from ``use_from_s`` on, and at least
-    ``settle_s`` after the known displacement's last change."""
+    the experiment names, zero without one) and the samples a fit uses (see
+    :class:`Experiment`: ``use_when`` and ``settle_s``)."""
+    used = np.ones(len(t), dtype=bool)
+    known = np.zeros(len(t))
+    if experiment.known_displacement is not None:
+        f = _profile(scenario, experiment.known_displacement)
+        known = f(t)
+        used &= _settled(f, t, experiment.settle_s)
+    if experiment.use_when is not None:
+        target, value = experiment.use_when
+        f = _profile(scenario, target)
+        used &= (f(t) == value) & _settled(f, t, experiment.settle_s)
+    return known, used
+
+
+def _profile(scenario: Scenario, target: str) -> Callable[[np.ndarray], np.ndarray]:
+    """The time function of the profile driving ``target`` (``instance.variable``)."""
     from twin.cosim.profiles import profile_function
 
-    after = t >= t[0] + experiment.use_from_s
-    if experiment.known_displacement is None:
-        return np.zeros(len(t)), after
-    profiles = [p for p in scenario.profiles if p.target == experiment.known_displacement]
-    if not profiles:
-        raise ConfigError(
-            f"no profile drives {experiment.known_displacement}", source=scenario.source_path, key="input"
-        )
-    f = profile_function(profiles[0])
-    known = f(t)
-    lag = np.linspace(0.0, experiment.settle_s, 11)
-    settled = np.all([f(np.maximum(t - d, t[0])) == known for d in lag], axis=0)
-    return known, settled & after
+    for p in scenario.profiles:
+        if p.target == target:
+            return profile_function(p)
+    raise ConfigError(f"no profile drives {target}", source=scenario.source_path, key="input")
+
+
+def _settled(f: Callable[[np.ndarray], np.ndarray], t: np.ndarray, settle_s: float) -> np.ndarray:
+    """The samples at which ``f`` has not changed over the ``settle_s`` before them."""
+    now = f(t)
+    return np.all([f(np.maximum(t - d, t[0])) == now for d in np.linspace(0.0, settle_s, 11)], axis=0)
 
 
 # ----------------------------------------------------------------------------- one fit
