@@ -7,6 +7,7 @@ as they were), and a bad file is one line of bad input naming the file and the k
 from __future__ import annotations
 
 import math
+import pickle
 import tomllib
 from pathlib import Path
 
@@ -72,6 +73,12 @@ def test_a_written_file_reads_back_the_same(tmp_path: Path) -> None:
         np.testing.assert_allclose(back.fits[name].correlation, fit.correlation, atol=1e-4)
         assert back.fits[name].condition_number == fit.condition_number
     assert path.read_text().startswith("# a header\n# of two lines\n")
+
+
+def test_coefficients_pickle() -> None:
+    # a sweep's Dask workers send them back
+    c = committed()
+    assert pickle.loads(pickle.dumps(c)) == c
 
 
 @pytest.mark.parametrize(

@@ -44,7 +44,6 @@ import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -139,11 +138,15 @@ class Fit:
 
 @dataclass(frozen=True)
 class Coefficients:
-    """A tester's coefficients, the fits behind them and where they come from."""
+    """A tester's coefficients, the fits behind them and where they come from.
+
+    Plain mappings (treat them as read-only), so the object pickles: a sweep's workers send
+    it back.
+    """
 
     coefficients: Mapping[str, Coefficient]
-    fits: Mapping[str, Fit] = field(default_factory=lambda: MappingProxyType({}))
-    identified: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    fits: Mapping[str, Fit] = field(default_factory=dict)
+    identified: Mapping[str, Any] = field(default_factory=dict)
 
     def values(self) -> dict[str, float]:
         """Every coefficient's value by name."""
@@ -163,7 +166,7 @@ class Coefficients:
         if unknown:
             raise KeyError(f"unknown coefficient(s) {unknown}")
         new = {k: replace(c, value=float(values.get(k, c.value))) for k, c in self.coefficients.items()}
-        return replace(self, coefficients=MappingProxyType(new))
+        return replace(self, coefficients=new)
 
     def covariance(self, names: Sequence[str]) -> np.ndarray:
         """Covariance of the named coefficients: standard errors, and the correlation of any two
@@ -402,9 +405,7 @@ def parse_coefficients(data: Mapping[str, Any], source: str) -> Coefficients:
         for name, f in _table(data.get("fit", {}), source, "fit", set(data.get("fit", {}))).items()
     }
     identified = _table(data.get("identified", {}), source, "identified", set(data.get("identified", {})))
-    return Coefficients(
-        MappingProxyType(coefficients), MappingProxyType(fits), MappingProxyType(dict(identified))
-    )
+    return Coefficients(coefficients, fits, dict(identified))
 
 
 def load_priors(path: str | Path | None = None) -> dict[str, Prior]:

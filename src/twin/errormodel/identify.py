@@ -37,7 +37,6 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -525,9 +524,7 @@ def fit_records(
             )
         found.setdefault(name, Coefficient(prior.value, prior.sigma or 0.0, prior.unit, "prior", prior))
     ordered = {n: found[n] for n in coefficient_units()}
-    return Coefficients(
-        MappingProxyType(ordered), MappingProxyType(fits), MappingProxyType(dict(identified or {}))
-    )
+    return Coefficients(ordered, fits, dict(identified or {}))
 
 
 def _fmu_versions() -> dict[str, str]:
