@@ -1,17 +1,30 @@
 """The error model's configuration: which columns hold what, and what is known of the tester.
 
-:func:`evaluation_config` builds it for a scenario, :func:`errormodel_config` from known
-coefficients and an ``[errormodel]`` table (a scenario's or a lab's TOML), and
-:func:`input_columns` names the recorded columns the error model reads (the only ones a run
-keeps in memory).
+:func:`evaluation_config` builds it for a scenario, :func:`errormodel_config` from an
+``[errormodel]`` table (a scenario's or a lab's TOML), and :func:`input_columns` names the
+recorded columns the error model reads (the only ones a run keeps in memory).
+
+What is known of the tester, its coefficients, comes from a coefficients file only
+(:mod:`twin.errormodel.coefficients`, written by ``twin identify`` from calibration
+experiments): ``[errormodel] coefficients = "calibration/identified.toml"`` names it relative to
+the TOML that says so, or gives the same table inline; without it the committed file of the
+nominal twin is used. The FMUs' parameters never enter: the twin's truth and the lab's model
+of it are kept apart.
 """
 
 from __future__ import annotations
 
-from dataclasses import fields
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from twin.config.spec import NS_PER_S, Scenario
+from twin.errormodel.coefficients import (
+    Coefficients,
+    default_path,
+    load_coefficients,
+    parse_coefficients,
+)
 from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, PARTS
 from twin.errormodel.sources import (
@@ -20,62 +33,66 @@ from twin.errormodel.sources import (
     DEFAULT_TEMPERATURES,
     DEFAULT_TRUE_WEAR,
     MechanicalCoefficients,
-    ThermalGeometry,
+    ThermalCoefficients,
 )
 from twin.errors import ConfigError
-from twin.fmu.catalog import variables as model_variables
-
-_GEOMETRY_FROM = {"FixtureMechanics", "SensorsDAQ"}
 
 
 def model_defaults() -> dict[str, float]:
-    """The FixtureMechanics and SensorsDAQ parameters' declared values (their sources are in
-    the modelDescription.xml): the error model's default knowledge of the tester."""
-    values: dict[str, float] = {}
-    for model in sorted(_GEOMETRY_FROM):
-        for name, v in model_variables(model).items():
-            if v.causality == "parameter" and v.type == "Real" and v.start is not None:
-                values[name] = float(v.start)
-    return values
+    """The committed coefficients of the nominal twin (``twin identify``), by name: what the
+    error model uses when nothing names a coefficients file."""
+    return load_coefficients(default_path()).values()
+
+
+def coefficients_for(em: Mapping[str, Any], source: str) -> Coefficients | None:
+    """The coefficients an ``[errormodel]`` table names: ``coefficients = "file.toml"``
+    (relative to ``source``'s folder) or an inline table of them; ``None`` if it names none."""
+    spec = em.get("coefficients")
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        return load_coefficients(Path(source).resolve().parent / spec)
+    if isinstance(spec, Mapping):
+        return parse_coefficients({"coefficients": spec}, f"{source}: errormodel")
+    raise ConfigError(
+        "expected a file name or a table of coefficients", source=source, key="errormodel.coefficients"
+    )
 
 
 def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     """Error-model configuration of a scenario.
 
-    Geometry and the probe's zero drift default to the values the scenario gives its
-    FixtureMechanics and SensorsDAQ instances (the instrument's data sheet and the fixture's
-    drawings, in a lab); ``[errormodel]`` may override any of them, the temperature columns
-    (``temperatures = { point = "column" }``), the reading and the true-wear column.
+    The coefficients come from the file ``[errormodel] coefficients`` names (relative to the
+    scenario file), else from the committed default; ``[errormodel]`` may also set the
+    temperature columns (``temperatures = { point = "column" }``), the reading, the true-wear
+    column and the factors.
     """
-    values = model_defaults()
-    for spec in scenario.fmus:
-        if spec.model in _GEOMETRY_FROM:
-            values.update({k: float(p.value) for k, p in spec.parameters.items()})
     em = {k: p.value for k, p in scenario.errormodel.items()}
-    return errormodel_config(values, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
+    return errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
 
 
 def errormodel_config(
-    values: dict[str, float], em: dict[str, Any], source: str, window_s: float
+    values: Mapping[str, float] | None, em: Mapping[str, Any], source: str, window_s: float
 ) -> EvaluationConfig:
-    """An :class:`EvaluationConfig` from known coefficients and an ``[errormodel]`` table."""
+    """An :class:`EvaluationConfig` from an ``[errormodel]`` table. Its coefficients are those
+    the table names (``coefficients``), else ``values``, else (``None``) the committed ones."""
     em = dict(em)
+    named = coefficients_for(em, source)
+    em.pop("coefficients", None)
+    if named is not None:
+        values = named.values()
+    elif values is None:
+        values = model_defaults()
     columns = _pop_columns(em, source)
     factors = em.pop("factors", list(PARTS))
     if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
         raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
-    geometry_overrides = em.pop("geometry", {})
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
-    _check_geometry(geometry_overrides, source)
     _check_columns(columns, source)
-    values.update(geometry_overrides)
-    mechanics = None
-    if all(f.name in values for f in fields(MechanicalCoefficients)):
-        mechanics = MechanicalCoefficients.from_parameters(values, source=source)
     return EvaluationConfig(
-        geometry=ThermalGeometry.from_parameters(values, source=source),
-        mechanics=mechanics,
+        geometry=ThermalCoefficients.from_values(values, source=source),
+        mechanics=MechanicalCoefficients.from_values(values, source=source),
         factors=tuple(factors),
         **{k: v for k, v in columns.items() if k in _sensor_fields()},
         temperatures=columns["temperatures"],
@@ -121,18 +138,6 @@ def _check_columns(columns: dict[str, Any], source: str) -> None:
             source=source,
             key="errormodel.temperatures",
         )
-
-
-def _check_geometry(overrides: Any, source: str) -> None:
-    """Check ``[errormodel] geometry``: a table of numbers naming known coefficients."""
-    if not isinstance(overrides, dict) or not all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in overrides.values()
-    ):
-        raise ConfigError("expected a table of numbers", source=source, key="errormodel.geometry")
-    known = {f.name for f in fields(ThermalGeometry)} | {f.name for f in fields(MechanicalCoefficients)}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise ConfigError(f"unknown geometry value(s) {unknown}", source=source, key="errormodel.geometry")
 
 
 def input_columns(cfg: EvaluationConfig) -> set[str]:

@@ -14,7 +14,11 @@ some of them:
   torque at the Abbe offset: :func:`positioning_errors`;
 - interference dE_I: no body moves; :func:`hampel` separates the spikes from the reading.
 
-:class:`Columns` says which column of a table holds each of those streams.
+:class:`Columns` says which column of a table holds each of those streams;
+:class:`ThermalCoefficients` and :class:`MechanicalCoefficients` declare the coefficients the
+factors need, each with its unit. Their values come from a coefficients file
+(:mod:`twin.errormodel.coefficients`) that ``twin identify`` fits to calibration experiments,
+never from the FMUs' parameters.
 
 Only measured streams are used (the temperature sensors' readings, never the FMUs' node
 temperatures), so the same code runs on a lab's CSV of real measurements.
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from typing import Any, Self
 
 import numpy as np
 
@@ -84,39 +89,66 @@ class Columns:
 COLUMN_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Columns))
 
 
+def _declare(unit: str, meaning: str) -> Any:
+    """A coefficient's field: its unit (a coefficients file must state the same) and meaning."""
+    return field(metadata={"unit": unit, "meaning": meaning})
+
+
 @dataclass(frozen=True)
-class ThermalGeometry:
-    """Expansion coefficients (1/K), effective lengths (m) and the probe's zero drift (m/K).
-
-    The names are those of the FixtureMechanics and SensorsDAQ parameters, whose
-    modelDescription.xml says where each value comes from (handbook, estimate, or calibrated
-    to the paper's FEM part results).
-    """
-
-    alpha_cast_iron: float
-    alpha_steel: float
-    alpha_bearing_steel: float
-    h_heel_block: float
-    h_bearing_block: float
-    r_spindle: float
-    t_bearing_rings: float
-    l_t_plate: float
-    l_detecting_frame: float
-    l_pole_heel: float
-    l_pole_base: float
-    l_pole_lower: float
-    l_clamp: float
-    probe_zero_drift: float
+class _Coefficients:
+    """Named coefficients, each a float declared with :func:`_declare`."""
 
     @classmethod
-    def from_parameters(cls, values: Mapping[str, float], *, source: str = "errormodel") -> ThermalGeometry:
+    def units(cls) -> dict[str, str]:
+        """The unit of every coefficient, by name, in the declared order."""
+        return {f.name: f.metadata["unit"] for f in fields(cls)}
+
+    @classmethod
+    def meanings(cls) -> dict[str, str]:
+        """What every coefficient is, by name."""
+        return {f.name: f.metadata["meaning"] for f in fields(cls)}
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, float], *, source: str = "errormodel") -> Self:
+        """From a mapping holding at least every coefficient of the class (others are ignored)."""
         missing = [f.name for f in fields(cls) if f.name not in values]
         if missing:
-            raise ConfigError(f"missing geometry value(s): {', '.join(missing)}", source=source)
+            raise ConfigError(f"missing coefficient(s): {', '.join(missing)}", source=source)
         return cls(**{f.name: float(values[f.name]) for f in fields(cls)})
 
 
-def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[str, dict[str, np.ndarray]]:
+@dataclass(frozen=True)
+class ThermalCoefficients(_Coefficients):
+    """The thermal factor's coefficients (m/K): the effective alpha * L of each body's growth,
+    per measured temperature it is driven by, and the probe's zero drift.
+
+    They are what a thermal soak identifies (``twin identify``), never the FMUs' parameters: an
+    effective coefficient lumps the material's expansion, the length that grows and how far the
+    body's mean temperature follows the sensor that stands for it.
+    """
+
+    # fmt: off
+    alpha_l_heel_block: float = _declare("m/K", "heel block's growth lifting the spindle, per K of the heel block")
+    alpha_l_bearing_block: float = _declare("m/K", "bearing block's growth lifting the spindle, per K of the bearing block")
+    alpha_l_spindle: float = _declare("m/K", "spindle radius' growth under the bearing, per K of the bearing")
+    alpha_l_bearing_rings: float = _declare("m/K", "bearing rings' radial growth, per K of the bearing")
+    alpha_l_t_plate: float = _declare("m/K", "T-plate's growth below the outer ring, per K of the T-plate")
+    alpha_l_detecting_frame: float = _declare("m/K", "detecting frame's growth lowering the probe, per K of the frame")
+    probe_zero_drift: float = _declare("m/K", "probe reading's zero drift, per K of the frame it is fixed on")
+    alpha_l_clamp: float = _declare("m/K", "clamp's growth down to the probe head, per K of the long pole")
+    alpha_l_pole_heel: float = _declare("m/K", "long pole's growth inside the heel block, per K of the heel block")
+    alpha_l_pole_base: float = _declare("m/K", "long pole's growth inside the base, per K of the base")
+    alpha_l_pole_lower: float = _declare("m/K", "long pole's growth below the base, per K of the long pole")
+    # fmt: on
+
+
+#: the name the evaluation's configuration knows the thermal coefficients by
+ThermalGeometry = ThermalCoefficients
+
+
+def thermal_errors(
+    rises: Mapping[str, np.ndarray], g: ThermalCoefficients
+) -> dict[str, dict[str, np.ndarray]]:
     """Body error parameters (``p_dz``) of the thermal factor from temperature rises (K).
 
     ``rises`` holds one array per measuring point (keys of :data:`DEFAULT_TEMPERATURES`).
@@ -128,21 +160,23 @@ def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[
     return {
         # branch 1: heel + bearing block lift the spindle axis (up = -Z)
         "bearing_block": {
-            "p_dz": -g.alpha_cast_iron
-            * (g.h_heel_block * r["heel_block"] + g.h_bearing_block * r["bearing_block"])
+            "p_dz": -(g.alpha_l_heel_block * r["heel_block"] + g.alpha_l_bearing_block * r["bearing_block"])
         },
-        "testing_spindle": {"p_dz": g.alpha_steel * g.r_spindle * r["bearing"]},
-        "spherical_plain_bearing": {"p_dz": g.alpha_bearing_steel * g.t_bearing_rings * r["bearing"]},
-        "t_plate": {"p_dz": g.alpha_steel * g.l_t_plate * r["t_plate"]},
+        "testing_spindle": {"p_dz": g.alpha_l_spindle * r["bearing"]},
+        "spherical_plain_bearing": {"p_dz": g.alpha_l_bearing_rings * r["bearing"]},
+        "t_plate": {"p_dz": g.alpha_l_t_plate * r["t_plate"]},
         # branch 2: the frame hangs from the base and grows down
-        "detecting_frame": {"p_dz": g.alpha_steel * g.l_detecting_frame * r["detecting_frame"]},
+        "detecting_frame": {"p_dz": g.alpha_l_detecting_frame * r["detecting_frame"]},
         # the probe's zero drift raises the reading by k*dT, as if its body had moved up
         "displacement_sensor": {"p_dz": -g.probe_zero_drift * r["detecting_frame"]},
         # clamp and pole grow down from the pole's top: the contact face goes down
-        "contacting_clamp": {"p_dz": -g.alpha_steel * g.l_clamp * r["long_pole"]},
+        "contacting_clamp": {"p_dz": -g.alpha_l_clamp * r["long_pole"]},
         "long_pole": {
-            "p_dz": -g.alpha_steel
-            * (g.l_pole_heel * r["heel_block"] + g.l_pole_base * r["base"] + g.l_pole_lower * r["long_pole"])
+            "p_dz": -(
+                g.alpha_l_pole_heel * r["heel_block"]
+                + g.alpha_l_pole_base * r["base"]
+                + g.alpha_l_pole_lower * r["long_pole"]
+            )
         },
     }
 
@@ -151,35 +185,23 @@ def thermal_errors(rises: Mapping[str, np.ndarray], g: ThermalGeometry) -> dict[
 
 
 @dataclass(frozen=True)
-class MechanicalCoefficients:
-    """What a lab identifies once on its tester (static load test, runout and alignment check).
+class MechanicalCoefficients(_Coefficients):
+    """What a lab identifies once on its tester: static load steps (the loading chain's
+    compliance), gauge blocks (the probe's scale), a runout check and a slow oscillation under
+    a light load (the friction torque's Abbe effect); see ``twin identify``.
 
-    Names as the FixtureMechanics parameters.
+    Each is the combination an experiment determines, not the parts it is made of: the liner's
+    and the structure's compliance add, the Abbe offset multiplies the T-plate's rotation per
+    unit torque, and the probe's tilt shows only as the cosine that scales its reading.
     """
 
-    liner_thickness: float
-    liner_modulus: float
-    contact_area: float
-    compliance_structure: float
-    spindle_runout: float
-    runout_phase: float
-    sensor_tilt: float
-    abbe_offset: float
-    tplate_rotation_compliance: float
-
-    @classmethod
-    def from_parameters(
-        cls, values: Mapping[str, float], *, source: str = "errormodel"
-    ) -> MechanicalCoefficients:
-        missing = [f.name for f in fields(cls) if f.name not in values]
-        if missing:
-            raise ConfigError(f"missing coefficient(s): {', '.join(missing)}", source=source)
-        return cls(**{f.name: float(values[f.name]) for f in fields(cls)})
-
-    @property
-    def load_compliance(self) -> float:
-        """m/N: liner compression (thickness / (modulus * area)) plus the structure."""
-        return self.liner_thickness / (self.liner_modulus * self.contact_area) + self.compliance_structure
+    # fmt: off
+    load_compliance: float = _declare("m/N", "T-plate's drop per N of radial load (liner and structure)")
+    spindle_runout: float = _declare("m", "amplitude of the spindle's runout at the bearing")
+    runout_phase: float = _declare("rad", "spindle angle of the runout's high point")
+    probe_scale: float = _declare("1", "probe reading per unit motion along Z: cos of its axis' tilt")
+    abbe_rotation: float = _declare("m/(N.m)", "probe reading per N.m of friction torque: Abbe offset x T-plate rotation")
+    # fmt: on
 
 
 def loading_errors(load_change: np.ndarray, c: MechanicalCoefficients) -> dict[str, dict[str, np.ndarray]]:
@@ -205,16 +227,13 @@ def fluctuating_errors(
 def positioning_errors(
     reading_change: np.ndarray, torque_change: np.ndarray | None, c: MechanicalCoefficients
 ) -> dict[str, dict[str, np.ndarray]]:
-    """Positioning dE_G: the probe's axis tilted from Z reads motion times cos(tilt) (cosine
-    error, second order in the tilt, so it is given explicitly rather than left to the
-    first-order MBS form), and the T-plate's rotation by the friction torque moves the clamp
-    by the Abbe offset times the angle. Both act at the sensor (body 7, branch 2: sign -1)."""
-    cosine = -(1.0 - np.cos(c.sensor_tilt)) / np.cos(c.sensor_tilt) * reading_change
-    abbe = (
-        0.0
-        if torque_change is None
-        else c.abbe_offset * c.tplate_rotation_compliance * torque_change * np.cos(c.sensor_tilt)
-    )
+    """Positioning dE_G: the probe's axis tilted from Z reads motion times cos(tilt), its
+    ``probe_scale`` (cosine error, second order in the tilt, so it is given explicitly rather
+    than left to the first-order MBS form), and the T-plate's rotation by the friction torque
+    moves the clamp by the Abbe offset times the angle (``abbe_rotation`` per N.m, read through
+    the same cosine). Both act at the sensor (body 7, branch 2: sign -1)."""
+    cosine = -(1.0 - c.probe_scale) / c.probe_scale * reading_change
+    abbe = 0.0 if torque_change is None else c.abbe_rotation * torque_change * c.probe_scale
     return {"displacement_sensor": {"p_dz": -(cosine + abbe)}}
 
 

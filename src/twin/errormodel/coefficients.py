@@ -1,0 +1,430 @@
+"""The coefficients file: what ``twin identify`` found, and all the error model knows of a tester.
+
+The error model reads its coefficients from such a file only (or from the same table inline in
+a lab's ``[errormodel]``), never from the FMUs' parameters. A file (TOML)::
+
+    [identified]                           # provenance: who fitted what on which twin
+    by = "twin identify"
+    twin_version = "0.1.0"
+    overrides = []                         # --set values of the tester as built
+    [identified.experiments.thermal_soak]
+    scenario = "thermal-soak.toml"
+    sha256 = "..."                         # of the experiment's resolved scenario data
+
+    [coefficients.alpha_l_detecting_frame]  # one table per coefficient, every one required
+    value = 4.6e-06
+    std_error = 2.1e-08                    # one standard error
+    unit = "m/K"                           # must be the unit the error model declares
+    experiment = "thermal_soak"            # which fit it comes from
+    prior = { value = 4.2e-06, sigma = 6.4e-07, source = "..." }   # where a prior entered
+
+    [fit.thermal_soak]                     # one table per fit (optional in a lab's own file)
+    parameters = ["alpha_l_heel_block", ...]
+    samples = 2880
+    residual_rms = 1.4e-07                 # m
+    noise_inflation = 3.1                  # the residuals' serial correlation, see identify
+    rank = 7                               # of the data's Jacobian (columns scaled to norm 1)
+    informative_directions = 5             # directions the data know better than the priors
+    condition_number = 1.0e+08             # of the data's Jacobian, all parameters
+    condition_number_identifiable = 266.0  # over its rank only
+    condition_number_regularised = 35.0    # with the priors
+    singular_values = [...]
+    correlation = [[1.0, ...], ...]        # of the estimates, in the order of parameters
+
+A bad file is bad input: one :class:`~twin.errors.ConfigError` per problem, one line naming
+the file and the key (a missing coefficient, a value that is not a finite number, a unit that
+is not the declared one).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
+from twin.errors import ConfigError
+
+__all__ = [
+    "DEFAULT_FILE",
+    "PRIORS_FILE",
+    "Coefficient",
+    "Coefficients",
+    "Fit",
+    "Prior",
+    "coefficient_units",
+    "default_path",
+    "load_coefficients",
+    "load_priors",
+    "parse_coefficients",
+    "priors_path",
+    "read_toml_file",
+]
+
+#: the committed coefficients of the nominal twin, relative to the scenarios folder
+DEFAULT_FILE = "calibration/identified.toml"
+#: the drawing's and handbook's priors and start values, relative to the scenarios folder
+PRIORS_FILE = "calibration/priors.toml"
+
+
+def coefficient_units() -> dict[str, str]:
+    """Every coefficient the error model needs, with its unit, in the declared order."""
+    return {**ThermalCoefficients.units(), **MechanicalCoefficients.units()}
+
+
+def default_path() -> Path:
+    """The committed default coefficients file (``twin identify`` on the nominal twin)."""
+    from twin.config.load import scenarios_dir
+
+    return scenarios_dir() / DEFAULT_FILE
+
+
+def priors_path() -> Path:
+    """The committed priors file."""
+    from twin.config.load import scenarios_dir
+
+    return scenarios_dir() / PRIORS_FILE
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What is known of a coefficient before any experiment: the drawing's length times the
+    handbook's expansion, an estimate. ``sigma`` is ``None`` for a start value only (a flat
+    prior: the fit is not pulled towards it)."""
+
+    value: float
+    sigma: float | None
+    unit: str
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class Coefficient:
+    """One coefficient: value, one standard error, unit, the fit it came from, and the prior
+    that entered that fit (if any)."""
+
+    value: float
+    std_error: float
+    unit: str
+    experiment: str
+    prior: Prior | None = None
+
+
+@dataclass(frozen=True)
+class Fit:
+    """How one fit went (see :mod:`twin.errormodel.identify` for the numbers): its parameters,
+    its experiments and, per experiment, the samples used, the residual's rms (m) and the
+    noise inflation for the residuals' serial correlation."""
+
+    parameters: tuple[str, ...]
+    experiments: tuple[str, ...]
+    samples: tuple[int, ...]
+    residual_rms: tuple[float, ...]
+    noise_inflation: tuple[float, ...]
+    rank: int
+    informative_directions: int
+    condition_number: float
+    condition_number_identifiable: float
+    condition_number_regularised: float
+    singular_values: tuple[float, ...]
+    correlation: tuple[tuple[float, ...], ...]
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    """A tester's coefficients, the fits behind them and where they come from.
+
+    Plain mappings (treat them as read-only), so the object pickles: a sweep's workers send
+    it back.
+    """
+
+    coefficients: Mapping[str, Coefficient]
+    fits: Mapping[str, Fit] = field(default_factory=dict)
+    identified: Mapping[str, Any] = field(default_factory=dict)
+
+    def values(self) -> dict[str, float]:
+        """Every coefficient's value by name."""
+        return {name: c.value for name, c in self.coefficients.items()}
+
+    def thermal(self) -> ThermalCoefficients:
+        """The thermal factor's coefficients."""
+        return ThermalCoefficients.from_values(self.values())
+
+    def mechanics(self) -> MechanicalCoefficients:
+        """The loading, fluctuating and positioning factors' coefficients."""
+        return MechanicalCoefficients.from_values(self.values())
+
+    def with_values(self, **values: float) -> Coefficients:
+        """A copy with some values replaced (their standard errors and origin kept)."""
+        unknown = sorted(set(values) - set(self.coefficients))
+        if unknown:
+            raise KeyError(f"unknown coefficient(s) {unknown}")
+        new = {k: replace(c, value=float(values.get(k, c.value))) for k, c in self.coefficients.items()}
+        return replace(self, coefficients=new)
+
+    def covariance(self, names: Sequence[str]) -> np.ndarray:
+        """Covariance of the named coefficients: standard errors, and the correlation of any two
+        that came from the same fit (those of different fits are independent)."""
+        se = np.array([self.coefficients[n].std_error for n in names])
+        corr = np.eye(len(names))
+        for i, a in enumerate(names):
+            for j, b in enumerate(names):
+                fit = self.fits.get(self.coefficients[a].experiment)
+                if i != j and fit is not None and a in fit.parameters and b in fit.parameters:
+                    corr[i, j] = fit.correlation[fit.parameters.index(a)][fit.parameters.index(b)]
+        return corr * np.outer(se, se)
+
+    def to_toml(self, header: str = "") -> str:
+        """The file's text (``header`` becomes comment lines at its top)."""
+        lines = [f"# {h}".rstrip() for h in header.splitlines()]
+        lines += _section("identified", self.identified)
+        meanings = {**ThermalCoefficients.meanings(), **MechanicalCoefficients.meanings()}
+        for name, c in self.coefficients.items():
+            table = _coefficient_table(c, meanings.get(name, ""))
+            lines += _section(f"coefficients.{name}", table, inline={"prior"})
+        for name, fit in self.fits.items():
+            lines += _section(f"fit.{name}", _fit_table(fit))
+        return "\n".join(lines).lstrip("\n") + "\n"
+
+    def write(self, path: str | Path, header: str = "") -> Path:
+        """Write the file (the folder must exist); returns its path."""
+        path = Path(path)
+        path.write_text(self.to_toml(header), encoding="utf-8")
+        return path
+
+
+def _coefficient_table(c: Coefficient, meaning: str) -> dict[str, Any]:
+    out: dict[str, Any] = {k: getattr(c, k) for k in ("value", "std_error", "unit", "experiment")}
+    if c.prior is not None:
+        prior = {"value": c.prior.value, "sigma": c.prior.sigma, "source": c.prior.source}
+        out["prior"] = {k: v for k, v in prior.items() if v is not None}
+    if meaning:
+        out["meaning"] = meaning
+    return out
+
+
+def _fit_table(fit: Fit) -> dict[str, Any]:
+    out = {f.name: getattr(fit, f.name) for f in fields(Fit)}
+    # four decimals say all a correlation has to say, and keep the matrix readable
+    out["correlation"] = [[round(x, 4) for x in row] for row in fit.correlation]
+    return out
+
+
+# ----------------------------------------------------------------------------- TOML out
+
+
+def _toml_value(v: Any) -> str:
+    """One value as TOML: strings, booleans, numbers, arrays and inline tables."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)  # a JSON string is a TOML basic string
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return ("-inf" if v < 0 else "inf") if math.isinf(v) else "nan" if math.isnan(v) else repr(v)
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, Sequence):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, np.generic):
+        return _toml_value(v.item())
+    raise TypeError(f"no TOML for {type(v).__name__}")
+
+
+def _section(
+    path: str, table: Mapping[str, Any], inline: frozenset[str] | set[str] = frozenset()
+) -> list[str]:
+    """``[path]`` with the table's values, then its sub-tables as ``[path.key]`` (those named in
+    ``inline`` stay inline tables); no header for a table that holds only sub-tables."""
+    nested = {k: v for k, v in table.items() if isinstance(v, Mapping) and k not in inline}
+    lines = [f"{k} = {_toml_value(v)}" for k, v in table.items() if k not in nested]
+    lines = ["", f"[{path}]", *lines] if lines or not nested else []
+    for k, v in nested.items():
+        lines += _section(f"{path}.{k}", v, inline)
+    return lines
+
+
+# ----------------------------------------------------------------------------- TOML in
+
+
+def read_toml_file(path: str | Path) -> dict[str, Any]:
+    """A TOML file's data; a missing or malformed file is a one-line :class:`ConfigError`."""
+    try:
+        return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError("file not found", source=str(path)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read: {exc}", source=str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"invalid TOML: {exc}", source=str(path)) from None
+
+
+def load_coefficients(path: str | Path) -> Coefficients:
+    """Read and check a coefficients file."""
+    return parse_coefficients(read_toml_file(path), str(path))
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _number(raw: Mapping[str, Any], k: str, source: str, key: str, *, positive: bool = False) -> float:
+    if k not in raw:
+        raise ConfigError("missing", source=source, key=f"{key}.{k}")
+    v = raw[k]
+    if not _finite(v):
+        raise ConfigError(f"must be a finite number, got {v!r}", source=source, key=f"{key}.{k}")
+    if positive and v < 0:
+        raise ConfigError(f"must not be negative, got {v!r}", source=source, key=f"{key}.{k}")
+    return float(v)
+
+
+def _text(raw: Mapping[str, Any], k: str, source: str, key: str, default: str | None = None) -> str:
+    v = raw.get(k, default)
+    if not isinstance(v, str):
+        raise ConfigError("missing" if v is None else "must be a string", source=source, key=f"{key}.{k}")
+    return v
+
+
+def _table(raw: Any, source: str, key: str, allowed: set[str]) -> Mapping[str, Any]:
+    if not isinstance(raw, Mapping):
+        raise ConfigError("expected a table", source=source, key=key)
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise ConfigError(f"unknown key(s) {unknown}", source=source, key=key)
+    return raw
+
+
+def _prior(raw: Any, unit: str, source: str, key: str) -> Prior:
+    raw = _table(raw, source, key, {"value", "sigma", "source", "unit"})
+    sigma = None if "sigma" not in raw else _number(raw, "sigma", source, key, positive=True)
+    if "unit" in raw and raw["unit"] != unit:
+        raise ConfigError(f"unit must be {unit!r}, got {raw['unit']!r}", source=source, key=f"{key}.unit")
+    return Prior(_number(raw, "value", source, key), sigma, unit, _text(raw, "source", source, key, ""))
+
+
+def _coefficient(raw: Any, unit: str, source: str, key: str) -> Coefficient:
+    raw = _table(raw, source, key, {"value", "std_error", "unit", "experiment", "prior", "meaning"})
+    if raw.get("unit") != unit:
+        got = "no unit" if "unit" not in raw else repr(raw["unit"])
+        raise ConfigError(f"unit must be {unit!r}, got {got}", source=source, key=f"{key}.unit")
+    value = _number(raw, "value", source, key)
+    std_error = _number(raw, "std_error", source, key, positive=True)
+    prior = _prior(raw["prior"], unit, source, f"{key}.prior") if "prior" in raw else None
+    return Coefficient(value, std_error, unit, _text(raw, "experiment", source, key), prior)
+
+
+def _is_number(v: Any) -> bool:
+    """An int or float that is not NaN (infinite condition numbers are allowed)."""
+    return isinstance(v, int | float) and not isinstance(v, bool) and not math.isnan(v)
+
+
+#: how each field of a fit table is checked and converted
+_FIT_FIELDS: dict[str, tuple[Callable[[Any], bool], Callable[[Any], Any], str]] = {
+    "strings": (
+        lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v),
+        tuple,
+        "a list of names",
+    ),
+    "ints": (
+        lambda v: isinstance(v, list) and all(isinstance(x, int) for x in v),
+        tuple,
+        "a list of integers",
+    ),
+    "numbers": (
+        lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
+        lambda v: tuple(float(x) for x in v),
+        "a list of numbers",
+    ),
+    "int": (lambda v: isinstance(v, int) and not isinstance(v, bool), int, "an integer"),
+    "number": (_is_number, float, "a number"),
+    "matrix": (
+        lambda v: (
+            isinstance(v, list) and all(isinstance(r, list) and all(_is_number(x) for x in r) for r in v)
+        ),
+        lambda v: tuple(tuple(float(x) for x in r) for r in v),
+        "a list of rows of numbers",
+    ),
+}
+_FIT_KINDS = {
+    "parameters": "strings",
+    "experiments": "strings",
+    "samples": "ints",
+    "residual_rms": "numbers",
+    "noise_inflation": "numbers",
+    "rank": "int",
+    "informative_directions": "int",
+    "condition_number": "number",
+    "condition_number_identifiable": "number",
+    "condition_number_regularised": "number",
+    "singular_values": "numbers",
+    "correlation": "matrix",
+}
+
+
+def _fit(raw: Any, source: str, key: str) -> Fit:
+    raw = _table(raw, source, key, set(_FIT_KINDS))
+    values = {}
+    for k, kind in _FIT_KINDS.items():
+        check, convert, what = _FIT_FIELDS[kind]
+        if k not in raw or not check(raw[k]):
+            raise ConfigError(f"must be {what}", source=source, key=f"{key}.{k}")
+        values[k] = convert(raw[k])
+    n = len(values["parameters"])
+    if n == 0 or any(len(row) != n for row in values["correlation"]) or len(values["correlation"]) != n:
+        raise ConfigError(
+            f"must be {n} x {n}, one row per parameter", source=source, key=f"{key}.correlation"
+        )
+    return Fit(**values)
+
+
+def parse_coefficients(data: Mapping[str, Any], source: str) -> Coefficients:
+    """Check a coefficients file's data (or a lab's inline table with ``coefficients`` only).
+
+    Every coefficient the error model declares must be there, with a finite value, a finite
+    non-negative standard error, the declared unit and the experiment it came from.
+    """
+    _table(data, source, "", {"identified", "coefficients", "fit"})
+    units = coefficient_units()
+    raw = _table(data.get("coefficients"), source, "coefficients", set(units))
+    missing = [name for name in units if name not in raw]
+    if missing:
+        raise ConfigError(f"missing coefficient(s): {', '.join(missing)}", source=source, key="coefficients")
+    coefficients = {
+        name: _coefficient(raw[name], unit, source, f"coefficients.{name}") for name, unit in units.items()
+    }
+    fits = {
+        name: _fit(f, source, f"fit.{name}")
+        for name, f in _table(data.get("fit", {}), source, "fit", set(data.get("fit", {}))).items()
+    }
+    identified = _table(data.get("identified", {}), source, "identified", set(data.get("identified", {})))
+    return Coefficients(coefficients, fits, dict(identified))
+
+
+def load_priors(path: str | Path | None = None) -> dict[str, Prior]:
+    """The priors file (default: the committed one): a ``[priors.<name>]`` table for every
+    coefficient, with ``value``, its ``unit`` and ``source``, and ``sigma`` where it is a prior
+    (without, the value only starts the fit)."""
+    path = priors_path() if path is None else Path(path)
+    source = str(path)
+    data = read_toml_file(path)
+    _table(data, source, "", {"priors"})
+    units = coefficient_units()
+    raw = _table(data.get("priors"), source, "priors", set(units))
+    missing = [name for name in units if name not in raw]
+    if missing:
+        raise ConfigError(f"missing prior(s): {', '.join(missing)}", source=source, key="priors")
+    priors = {}
+    for name, unit in units.items():
+        key = f"priors.{name}"
+        if not isinstance(raw[name], Mapping) or raw[name].get("unit") != unit:
+            raise ConfigError(f"unit must be {unit!r}", source=source, key=f"{key}.unit")
+        priors[name] = _prior(raw[name], unit, source, key)
+    return priors

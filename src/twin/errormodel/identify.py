@@ -1,0 +1,579 @@
+"""``twin identify``: the error model's coefficients from calibration experiments, as a lab finds them.
+
+A lab does not know its tester's expansion coefficients, lengths, compliances or runout; it
+measures what they do. So does this module, on the twin: it runs the calibration experiments of
+``scenarios/calibration/`` (:data:`EXPERIMENTS`: a thermal soak with the drive off, gauge blocks
+under the pole, static load steps, a runout check, a slow oscillation at light load), records
+only the channels a lab's DAQ records (:class:`LabRecorder`: the ``sensors.*`` readings the
+error model reads, never a true or internal FMU value), and fits the error model's own form to
+them, one experiment after the other, each fit using what the ones before found.
+
+The fit of an experiment (:func:`fit_experiment`): the model is the sum of the error model's
+factors (:data:`~twin.errormodel.factors.FACTORS`, interference aside: the target is the
+reading the robust filter cleaned), evaluated by the factors' own functions on the record with
+trial coefficients, so whatever form the factors have is the form fitted. The target is the
+cleaned reading's change minus any known displacement (the gauge blocks); a constant offset and,
+in the short experiments, a linear drift are nuisance terms projected out. The parameters are
+found by ``scipy.optimize.least_squares``; where a coefficient has a prior (the drawing's
+length times the handbook's alpha, ``scenarios/calibration/priors.toml``) it enters as a
+pseudo-observation (value - prior) / sigma: a regularised, Bayesian least-squares fit, so a
+direction the data cannot see (two temperatures that rise together, two coefficients of one
+sensor) stays at the prior instead of running off, and the file says so.
+
+Uncertainties: the data's noise is estimated from the residuals, inflated by
+sqrt((1 + rho) / (1 - rho)) for their lag-1 correlation rho (a residual that is model misfit
+rather than white noise carries less information than its sample count), and the standard
+errors and correlations come from the inverse of J^T J of the whitened problem (data and
+priors). Each fit reports the rank and condition number of the data's Jacobian (columns scaled
+to norm 1: the collinearity of what was measured), the number of directions the data determine
+better than the priors, and the condition number with the priors.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data, scenarios_dir
+from twin.config.spec import Scenario
+from twin.errormodel.coefficients import Coefficient, Coefficients, Fit, Prior, coefficient_units
+from twin.errormodel.evaluate import EvaluationConfig
+from twin.errormodel.factors import FACTORS, Measured
+from twin.errormodel.sources import Columns, MechanicalCoefficients, ThermalCoefficients
+from twin.errormodel.tester import tester_model
+from twin.errors import ConfigError, RunError
+from twin.signals.table import Signal, SignalTable
+
+__all__ = [
+    "CALIBRATIONS",
+    "EXPERIMENTS",
+    "Calibration",
+    "Experiment",
+    "LabRecorder",
+    "Record",
+    "fit_calibration",
+    "fit_records",
+    "identify",
+    "lab_channels",
+    "run_experiment",
+]
+
+#: relative rank tolerance: a direction of the scaled Jacobian below it is not seen at all
+RANK_RTOL = 1e-7
+#: a flat prior's sigma in units of the parameter's scale (for the count of informative directions)
+FLAT = 1e6
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One calibration experiment: its scenario (in ``scenarios/calibration/``) and which of
+    its samples a fit uses.
+
+    ``nuisance``: ``offset`` (always sensible: the probe is zeroed by hand) and ``drift`` (a
+    line in time: slow thermal drift and wear in a short experiment). ``known_displacement``
+    names the input (``instance.variable``) whose profile moves the T-plate by a known amount
+    (the gauge blocks). ``use_when`` = (input, value) keeps only the samples while that input's
+    profile is at that value (the drive stopped: a warm-up whose wear nobody measures is left
+    out). ``settle_s``: samples within that time after a change of either input are left out.
+    """
+
+    name: str
+    scenario: str
+    nuisance: tuple[str, ...] = ("offset",)
+    known_displacement: str | None = None
+    use_when: tuple[str, float] | None = None
+    settle_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """One fit: the coefficients ``fit`` from the records of ``experiments`` together.
+
+    ``starts`` gives further start values of a parameter (a phase), ``lower`` lower bounds.
+    """
+
+    name: str
+    experiments: tuple[str, ...]
+    fit: tuple[str, ...]
+    starts: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
+    lower: Mapping[str, float] = field(default_factory=dict)
+
+
+# fmt: off
+#: the calibration experiments a lab runs on its tester (scenarios/calibration/)
+EXPERIMENTS: tuple[Experiment, ...] = (
+    Experiment("thermal_soak", "thermal-soak.toml"),
+    Experiment("hot_cooldown", "hot-cooldown.toml", nuisance=("offset", "drift"),
+               use_when=("oscillation.drive_on", 0.0), settle_s=60.0),
+    Experiment("gauge_blocks", "gauge-blocks.toml", nuisance=("offset", "drift"),
+               known_displacement="mechanics.wear_offset", settle_s=1.0),
+    Experiment("load_steps", "load-steps.toml", nuisance=("offset", "drift")),
+    Experiment("runout_check", "runout-check.toml", nuisance=("offset", "drift")),
+    Experiment("light_oscillation", "light-oscillation.toml", nuisance=("offset", "drift")),
+)
+
+#: the fits, in order: the thermal one first, so the short mechanical experiments take their
+#: small thermal drift from it
+CALIBRATIONS: tuple[Calibration, ...] = (
+    Calibration("thermal", ("thermal_soak", "hot_cooldown"), fit=tuple(ThermalCoefficients.units())),
+    Calibration("probe_scale", ("gauge_blocks",), fit=("probe_scale",)),
+    Calibration("load_compliance", ("load_steps",), fit=("load_compliance",)),
+    Calibration("runout", ("runout_check",), fit=("spindle_runout", "runout_phase"),
+                starts={"runout_phase": (math.pi / 2, math.pi, -math.pi / 2)}, lower={"spindle_runout": 0.0}),
+    Calibration("abbe", ("light_oscillation",), fit=("abbe_rotation",)),
+)
+# fmt: on
+
+
+#: the Columns fields a lab's DAQ records (the true wear is not one of them)
+LAB_FIELDS: tuple[str, ...] = ("temperatures", "reading", "load", "torque", "angle", "vibration")
+
+
+def lab_channels(columns: Columns | None = None) -> frozenset[str]:
+    """The columns a lab records: the eight temperatures, probe, load cell, torque sensor,
+    angle encoder and vibration pickup (the twin's ``sensors.*`` readings by default)."""
+    columns = columns or Columns()
+    return frozenset(name for f in LAB_FIELDS for name in columns.names(f))
+
+
+class LabRecorder:
+    """A master's recorder that keeps the lab's channels and nothing else, so no fit can see a
+    true or internal value of the twin."""
+
+    def __init__(self, keep: Iterable[str]) -> None:
+        self.keep = frozenset(keep)
+        self.signals: list[Signal] = []
+        self._index: list[int] = []
+        self._times: list[np.ndarray] = []
+        self._rows: list[np.ndarray] = []
+
+    def open(self, signals: list[Signal]) -> None:
+        self._index = [i for i, s in enumerate(signals) if s.name in self.keep]
+        self.signals = [signals[i] for i in self._index]
+        missing = sorted(self.keep - {s.name for s in self.signals})
+        if missing:
+            raise ConfigError(f"the experiment records no {', '.join(missing)}", source="twin identify")
+
+    def append(self, times: np.ndarray, rows: np.ndarray) -> None:
+        self._times.append(np.array(times, dtype=np.float64))
+        self._rows.append(np.array(rows[:, self._index], dtype=np.float64))
+
+    def close(self) -> None:
+        """Nothing to release: the rows stay in memory."""
+
+    def table(self) -> SignalTable:
+        """The recorded lab channels."""
+        rows = np.concatenate(self._rows) if self._rows else np.zeros((0, len(self.signals)))
+        table = SignalTable(np.concatenate(self._times) if self._times else np.zeros(0))
+        for c, meta in enumerate(self.signals):
+            table.add(meta, rows[:, c])
+        return table
+
+
+@dataclass(frozen=True)
+class Record:
+    """One experiment's DAQ record: the lab's channels, the known displacement at each sample
+    (zero without gauge blocks) and the samples the fit uses."""
+
+    experiment: Experiment
+    table: SignalTable
+    known: np.ndarray
+    used: np.ndarray
+    scenario_sha256: str = ""
+
+
+def experiment_scenario(
+    experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
+) -> tuple[Scenario, str]:
+    """The experiment's checked scenario with ``overrides``, and a sha256 of what it runs: its
+    resolved data (``extends`` and overrides applied), with each parameter file's name replaced
+    by its content's hash, so the digest does not depend on where the checkout lies."""
+    path = (folder or scenarios_dir() / "calibration") / experiment.scenario
+    data = read_scenario_data(path)
+    apply_overrides(data, overrides, f"{path}: --set")
+    scenario = load_scenario_data(data, str(path), path.resolve().parent)
+    return scenario, _fingerprint(data, path.resolve().parent)
+
+
+def _fingerprint(data: Mapping[str, Any], folder: Path) -> str:
+    fmus = {}
+    for name, spec in data.get("fmu", {}).items():
+        files = spec.get("parameter_files", [])
+        hashed = [hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files]
+        fmus[name] = {**spec, "parameter_files": hashed} if files else spec
+    text = json.dumps({**data, "fmu": fmus}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def run_experiment(
+    experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
+) -> Record:
+    """Run one calibration experiment on the twin and keep what a lab's DAQ records."""
+    from twin.cosim.master import Master
+
+    scenario, digest = experiment_scenario(experiment, overrides, folder)
+    recorder = LabRecorder(lab_channels())
+    result = Master(scenario, recorder=recorder).run()
+    if result.status != "completed":
+        raise RunError(f"calibration experiment {experiment.name!r} {result.status}: {result.error}")
+    table = recorder.table()
+    known, used = known_displacement(scenario, experiment, table.time)
+    return Record(experiment, table, known, used, digest)
+
+
+def known_displacement(
+    scenario: Scenario, experiment: Experiment, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The known displacement at the times ``t`` (what the lab set: the profile of the input
+    the experiment names, zero without one) and the samples a fit uses (see
+    :class:`Experiment`: ``use_when`` and ``settle_s``)."""
+    used = np.ones(len(t), dtype=bool)
+    known = np.zeros(len(t))
+    if experiment.known_displacement is not None:
+        f = _profile(scenario, experiment.known_displacement)
+        known = f(t)
+        used &= _settled(f, t, experiment.settle_s)
+    if experiment.use_when is not None:
+        target, value = experiment.use_when
+        f = _profile(scenario, target)
+        used &= (f(t) == value) & _settled(f, t, experiment.settle_s)
+    return known, used
+
+
+def _profile(scenario: Scenario, target: str) -> Callable[[np.ndarray], np.ndarray]:
+    """The time function of the profile driving ``target`` (``instance.variable``)."""
+    from twin.cosim.profiles import profile_function
+
+    for p in scenario.profiles:
+        if p.target == target:
+            return profile_function(p)
+    raise ConfigError(f"no profile drives {target}", source=scenario.source_path, key="input")
+
+
+def _settled(f: Callable[[np.ndarray], np.ndarray], t: np.ndarray, settle_s: float) -> np.ndarray:
+    """The samples at which ``f`` has not changed over the ``settle_s`` before them."""
+    now = f(t)
+    return np.all([f(np.maximum(t - d, t[0])) == now for d in np.linspace(0.0, settle_s, 11)], axis=0)
+
+
+# ----------------------------------------------------------------------------- one fit
+
+
+def _config(values: Mapping[str, float]) -> EvaluationConfig:
+    """The error model with ``values``, every factor on, the twin's default columns."""
+    return EvaluationConfig(**_coefficient_fields(values), true_wear=None)
+
+
+def _coefficient_fields(values: Mapping[str, float]) -> dict[str, Any]:
+    return {
+        "geometry": ThermalCoefficients.from_values(values, source="twin identify"),
+        "mechanics": MechanicalCoefficients.from_values(values, source="twin identify"),
+    }
+
+
+def _lag1(r: np.ndarray) -> float:
+    """Lag-1 autocorrelation of the residuals, in [0, 0.99]."""
+    if len(r) < 3 or not np.any(r):
+        return 0.0
+    rho = float(np.dot(r[1:], r[:-1]) / np.dot(r, r))
+    return min(max(rho, 0.0), 0.99)
+
+
+@dataclass
+class _Block:
+    """One record's rows of a fit: the target, its nuisance columns (orthonormal), the model's
+    prediction as a function of the fitted parameters, and the noise level."""
+
+    target: np.ndarray
+    basis: np.ndarray
+    predict: Callable[[np.ndarray], np.ndarray]
+    sigma: float = 1.0
+    rms: float = 0.0
+    inflation: float = 1.0
+
+    def residual(self, p: np.ndarray) -> np.ndarray:
+        """Target minus model, the nuisance projected out (not whitened)."""
+        r = self.target - self.predict(p)
+        return r - self.basis @ (self.basis.T @ r)
+
+    def update_noise(self, p: np.ndarray, n_params: int) -> bool:
+        """The residuals' spread, inflated by sqrt((1 + rho) / (1 - rho)) for their lag-1
+        correlation rho, becomes the noise level; True when it moved by less than 1 %."""
+        r = self.residual(p)
+        dof = max(len(r) - self.basis.shape[1] - n_params, 1)
+        rho = _lag1(r)
+        self.rms = max(float(np.sqrt(np.dot(r, r) / dof)), 1e-15)
+        self.inflation = math.sqrt((1 + rho) / (1 - rho))
+        settled = abs(self.rms * self.inflation / self.sigma - 1.0) < 0.01
+        self.sigma = self.rms * self.inflation
+        return settled
+
+
+@dataclass
+class _Problem:
+    """One fit's least-squares problem in scaled parameters z = (p - start) / scale."""
+
+    names: tuple[str, ...]
+    start: np.ndarray
+    scale: np.ndarray
+    prior_sigma: np.ndarray  # inf where the prior is flat
+    blocks: list[_Block]
+
+    def params(self, z: np.ndarray) -> np.ndarray:
+        return self.start + self.scale * z
+
+    def data(self, z: np.ndarray) -> np.ndarray:
+        """The whitened data residuals of every block, stacked."""
+        p = self.params(z)
+        return np.concatenate([b.residual(p) / b.sigma for b in self.blocks])
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        prior = self.scale * z / self.prior_sigma  # zero rows for flat priors
+        return np.concatenate([self.data(z), prior])
+
+    def jacobian(self, z: np.ndarray, h: float = 1e-3) -> np.ndarray:
+        """Central differences of the whitened data residuals in z (exact for a coefficient
+        the model is linear in)."""
+        step = h * np.eye(len(z))
+        return np.column_stack([(self.data(z + d) - self.data(z - d)) / (2 * h) for d in step])
+
+    def bounds(self, lower: Mapping[str, float]) -> np.ndarray:
+        """The scaled lower bounds (-inf where none)."""
+        lo = [
+            (lower[n] - s) / c if n in lower else -np.inf
+            for n, s, c in zip(self.names, self.start, self.scale, strict=True)
+        ]
+        return np.array(lo)
+
+
+def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) -> _Block:
+    """The rows of one record: its cleaned reading's change minus the known displacement,
+    against the error model's factors (interference aside) with trial coefficients."""
+    cfg = _config(values)
+    measured = Measured.read(record.table, cfg, tester_model())
+    used = record.used
+    target = (measured.cleaned - measured.cleaned[0] - (record.known - record.known[0]))[used]
+    t = record.table.time[used]
+    columns = {"offset": np.ones(len(t)), "drift": (t - t[0]) / max(t[-1] - t[0], 1.0)}
+    basis, _ = np.linalg.qr(np.column_stack([columns[k] for k in record.experiment.nuisance]))
+    parts = [f for f in FACTORS if f.name != "interference"]
+
+    def predict(p: np.ndarray) -> np.ndarray:
+        trial = {**values, **dict(zip(names, p.tolist(), strict=True))}
+        m = replace(measured, cfg=replace(cfg, **_coefficient_fields(trial)))
+        return np.sum([f.contribution(m).e_z for f in parts], axis=0)[used]
+
+    # a first guess of the noise: the robust spread of the first differences
+    diffs = np.diff(target)
+    sigma = 1.4826 * float(np.median(np.abs(diffs - np.median(diffs)))) / math.sqrt(2)
+    return _Block(target, basis, predict, max(sigma, 1e-12))
+
+
+def _scale(prior: Prior) -> float:
+    """The size of a parameter's steps: its prior's sigma, else its start value's size, else
+    one (an angle in rad)."""
+    if prior.sigma is not None:
+        return prior.sigma
+    return 1.0 if prior.unit == "rad" or prior.value == 0 else abs(prior.value)
+
+
+def _problem(
+    cal: Calibration, records: Sequence[Record], values: Mapping[str, float], priors: Mapping[str, Prior]
+) -> _Problem:
+    names = cal.fit
+    start = np.array([priors[n].value for n in names])
+    sigma = np.array([math.inf if priors[n].sigma is None else priors[n].sigma for n in names])
+    scale = np.array([_scale(priors[n]) for n in names])
+    return _Problem(names, start, scale, sigma, [_block(r, values, names) for r in records])
+
+
+def _starts(cal: Calibration, prob: _Problem) -> list[np.ndarray]:
+    """The scaled start vectors: the priors' values, and one more per extra start value."""
+    out = [np.zeros(len(prob.names))]
+    for name, extra in cal.starts.items():
+        i = prob.names.index(name)
+        for v in extra:
+            z = np.zeros(len(prob.names))
+            z[i] = (v - prob.start[i]) / prob.scale[i]
+            out.append(z)
+    return out
+
+
+def _solve(prob: _Problem, z0s: Sequence[np.ndarray], lo: np.ndarray) -> np.ndarray:
+    """The best of the least-squares solutions from the start vectors ``z0s``."""
+    from scipy.optimize import least_squares
+
+    solutions = [
+        least_squares(prob.residual, np.maximum(z0, lo), bounds=(lo, np.inf), method="trf") for z0 in z0s
+    ]
+    return min(solutions, key=lambda sol: sol.cost).x
+
+
+def fit_calibration(
+    cal: Calibration, records: Sequence[Record], values: Mapping[str, float], priors: Mapping[str, Prior]
+) -> tuple[dict[str, Coefficient], Fit]:
+    """Fit the coefficients of ``cal`` to its experiments' ``records``, the others at ``values``.
+
+    The noise levels are found with the fit: from the first differences' spread at first,
+    then from the residuals' (serial-correlation inflated) spread, refitting until they settle.
+    """
+    prob = _problem(cal, records, values, priors)
+    lo = prob.bounds(cal.lower)
+    z = _solve(prob, _starts(cal, prob), lo)
+    for _ in range(8):
+        settled = [b.update_noise(prob.params(z), len(z)) for b in prob.blocks]
+        if all(settled):
+            break
+        z = _solve(prob, [z], lo)
+    return _report(cal, [r.experiment.name for r in records], prob, z, priors)
+
+
+def _report(
+    cal: Calibration, experiments: Sequence[str], prob: _Problem, z: np.ndarray, priors: Mapping[str, Prior]
+) -> tuple[dict[str, Coefficient], Fit]:
+    """Values, standard errors, correlation and the diagnostics of the fit at ``z``."""
+    jd = prob.jacobian(z)  # whitened data rows
+    jp = np.diag(prob.scale / prob.prior_sigma)  # prior rows (zero for flat priors)
+    info = jd.T @ jd + jp.T @ jp
+    if np.linalg.matrix_rank(info) < len(z):
+        raise RunError(f"the experiments {list(experiments)} do not determine all of {list(prob.names)}")
+    cov = np.linalg.inv(info) * np.outer(prob.scale, prob.scale)
+    se = np.sqrt(np.diag(cov))
+    units = coefficient_units()
+    out = {
+        n: Coefficient(
+            float(v), float(s), units[n], cal.name, priors[n] if priors[n].sigma is not None else None
+        )
+        for n, v, s in zip(prob.names, _canonical(prob.names, prob.params(z)), se, strict=True)
+    }
+    return out, Fit(
+        parameters=prob.names,
+        experiments=tuple(experiments),
+        samples=tuple(len(b.target) for b in prob.blocks),
+        residual_rms=tuple(b.rms for b in prob.blocks),
+        noise_inflation=tuple(b.inflation for b in prob.blocks),
+        correlation=tuple(tuple(float(x) for x in row) for row in cov / np.outer(se, se)),
+        **_diagnostics(jd, jp, prob),
+    )
+
+
+def _canonical(names: Sequence[str], p: np.ndarray) -> list[float]:
+    """Angles (unit rad) wrapped to [-pi, pi]."""
+    units = coefficient_units()
+    return [
+        math.remainder(v, 2 * math.pi) if units[n] == "rad" else float(v)
+        for n, v in zip(names, p, strict=True)
+    ]
+
+
+def _diagnostics(jd: np.ndarray, jp: np.ndarray, prob: _Problem) -> dict[str, Any]:
+    """Rank and condition numbers of the data's Jacobian and of the regularised problem."""
+    norms = np.linalg.norm(jd, axis=0)
+    s = np.linalg.svd(jd / np.where(norms > 0, norms, 1.0), compute_uv=False)
+    rank = int(np.sum(s > RANK_RTOL * s[0])) if s[0] > 0 else 0
+    # the data's singular values in units of the prior sigmas (a flat prior: very wide)
+    width = np.where(np.isfinite(prob.prior_sigma), prob.prior_sigma, FLAT * prob.scale) / prob.scale
+    informative = int(np.sum(np.linalg.svd(jd * width, compute_uv=False) >= 1.0))
+    s_all = np.linalg.svd(np.vstack([jd, jp]), compute_uv=False)
+    return {
+        "rank": rank,
+        "informative_directions": informative,
+        "condition_number": float(s[0] / s[-1]) if s[-1] > 0 else math.inf,
+        "condition_number_identifiable": float(s[0] / s[rank - 1]) if rank else math.inf,
+        "condition_number_regularised": float(s_all[0] / s_all[-1]) if s_all[-1] > 0 else math.inf,
+        "singular_values": tuple(float(x) for x in s),
+    }
+
+
+# ----------------------------------------------------------------------------- all of them
+
+
+def fit_records(
+    records: Mapping[str, Record],
+    priors: Mapping[str, Prior],
+    identified: Mapping[str, Any] | None = None,
+    calibrations: Sequence[Calibration] = CALIBRATIONS,
+) -> Coefficients:
+    """Fit the calibrations in order, each with what the ones before found, to the records
+    (by experiment name) of their experiments.
+
+    A coefficient no calibration fits keeps its prior, with the prior's sigma as its standard
+    error (its experiment says "prior"); one without a prior sigma is an error.
+    """
+    values = {n: p.value for n, p in priors.items()}
+    found: dict[str, Coefficient] = {}
+    fits: dict[str, Fit] = {}
+    for cal in calibrations:
+        coefficients, fits[cal.name] = fit_calibration(
+            cal, [records[e] for e in cal.experiments], values, priors
+        )
+        found.update(coefficients)
+        values.update({n: c.value for n, c in coefficients.items()})
+    for name in coefficient_units():
+        prior = priors[name]
+        if name not in found and prior.sigma is None:
+            raise ConfigError(
+                f"no calibration fits {name} and its prior has no sigma", source="twin identify"
+            )
+        found.setdefault(name, Coefficient(prior.value, prior.sigma or 0.0, prior.unit, "prior", prior))
+    ordered = {n: found[n] for n in coefficient_units()}
+    return Coefficients(ordered, fits, dict(identified or {}))
+
+
+def _fmu_versions() -> dict[str, str]:
+    """The content hash of every FMU's sources (what ``twin build`` caches them by)."""
+    from twin.fmu.build import source_hash
+    from twin.fmu.catalog import model_names
+
+    return {name: source_hash(name) for name in model_names()}
+
+
+def identify(
+    overrides: Sequence[str] = (),
+    *,
+    priors: Mapping[str, Prior] | None = None,
+    calibrations: Sequence[Calibration] = CALIBRATIONS,
+    experiments: Sequence[Experiment] = EXPERIMENTS,
+    per_experiment: Mapping[str, Sequence[str]] | None = None,
+    folder: Path | None = None,
+) -> Coefficients:
+    """Run the calibration experiments on the twin and fit the error model's coefficients.
+
+    ``overrides`` (``--set KEY=VALUE``) make the tester as built: they apply to every
+    experiment (each is the whole tester), ``per_experiment`` adds some to one experiment
+    only (by name). ``priors`` default to ``scenarios/calibration/priors.toml``. In process
+    and without files, so a sweep can run it once per simulated tester.
+    """
+    from twin import __version__
+    from twin.errormodel.coefficients import load_priors
+
+    priors = load_priors() if priors is None else priors
+    per_experiment = per_experiment or {}
+    needed = {e for cal in calibrations for e in cal.experiments}
+    records = {
+        e.name: run_experiment(e, [*overrides, *per_experiment.get(e.name, ())], folder)
+        for e in experiments
+        if e.name in needed
+    }
+    identified = {
+        "by": "twin identify",
+        "twin_version": __version__,
+        "overrides": list(overrides),
+        "fmu_sources": _fmu_versions(),
+        "experiments": {
+            name: {
+                "scenario": r.experiment.scenario,
+                "sha256": r.scenario_sha256,
+                "overrides": list(per_experiment.get(name, ())),
+            }
+            for name, r in records.items()
+        },
+    }
+    return fit_records(records, priors, identified, calibrations)
