@@ -9,6 +9,7 @@ import pytest
 
 from twin.cli import main
 from twin.config.load import load_scenario, scenarios_dir
+from twin.errormodel.coefficients import default_path
 from twin.errormodel.sources import DEFAULT_TEMPERATURES
 from twin.pipeline import run
 
@@ -18,23 +19,10 @@ pytestmark = pytest.mark.slow
 def test_compensating_a_runs_csv_reproduces_the_runs_error_model(tmp_path: Path) -> None:
     sc = load_scenario(scenarios_dir() / "constant-load.toml", ['scenario.duration="20 min"'])
     run(sc, tmp_path / "run")
-    mech = {k: p.value for k, p in sc.fmu("mechanics").parameters.items()}
     config = tmp_path / "lab.toml"
-    # what a lab writes down once: its tester's coefficients (here the twin's own)
-    config.write_text(
-        "[errormodel]\ngeometry = { "
-        + ", ".join(
-            f"{k} = {mech[k]!r}"
-            for k in (
-                "spindle_runout",
-                "runout_phase",
-                "sensor_tilt",
-                "abbe_offset",
-                "tplate_rotation_compliance",
-            )
-        )
-        + " }\n"
-    )
+    # what a lab writes down once: where its tester's identified coefficients are (here the
+    # twin's committed ones, which the run used)
+    config.write_text(f'[errormodel]\ncoefficients = "{default_path()}"\n')
     assert (
         main(
             [
@@ -85,9 +73,9 @@ def test_a_labs_own_column_names(tmp_path: Path) -> None:
 
 def test_bad_compensate_config_is_bad_input(tmp_path: Path, capsys) -> None:
     config = tmp_path / "bad.toml"
-    config.write_text("[errormodel]\ngeometry = { no_such = 1.0 }\n")
+    config.write_text("[errormodel]\ncoefficients = { no_such = 1.0 }\n")
     csv = tmp_path / "x.csv"
     csv.write_text("time,a\n0.0,1.0\n1.0,2.0\n")
     assert main(["compensate", str(csv), "--config", str(config)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "errormodel.geometry" in err[0]
+    assert len(err) == 1 and "errormodel: coefficients" in err[0] and "no_such" in err[0]

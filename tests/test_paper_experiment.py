@@ -108,8 +108,12 @@ def test_thermal_parts_sit_near_the_papers_fem_parts(paper_run: tuple[Path, dict
 
 def test_other_parts_are_zero_without_their_causes(paper_run: tuple[Path, dict]) -> None:
     _, summary = paper_run
-    for part in ("loading", "fluctuating", "positioning", "interference"):
+    for part in ("loading", "fluctuating", "interference"):
         assert summary["error_parts_mm"][part] == 0.0
+    # positioning is the identified cosine term (1 - probe_scale) on the reading's own ~20 um
+    # change: the coefficients were identified on the base tester, whose probe is tilted
+    # (probe_scale 0.99996), so it is of order 1 nm here, not exactly 0
+    assert abs(summary["error_parts_mm"]["positioning"]) < 1e-5
 
 
 def test_same_scenario_and_seed_give_byte_identical_signals(

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from twin import __version__
+from twin import __version__, identify_cli
 from twin.errors import ConfigError, TwinError
 from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
 
@@ -241,6 +241,7 @@ def make_parser() -> argparse.ArgumentParser:
         "--out", metavar="FILE", help="parameter file to write (default: the one the scenario includes)"
     )
     p.set_defaults(func=_cmd_calibrate)
+    identify_cli.add_parser(sub)
     add_sweep_parser(sub)
     return parser
 

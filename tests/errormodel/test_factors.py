@@ -153,13 +153,13 @@ def streams(cfg: EvaluationConfig, *, without: tuple[str, ...] = ()) -> SignalTa
 
 def config(**em: Any) -> EvaluationConfig:
     # a tester with every mechanical cause present, so no part is zero by its coefficients
-    geometry = {
+    values = {
+        **model_defaults(),
         "spindle_runout": 3e-6,
-        "sensor_tilt": 0.05,
-        "abbe_offset": 0.05,
-        "tplate_rotation_compliance": 1e-6,
+        "probe_scale": float(np.cos(0.05)),
+        "abbe_rotation": 0.05 * 1e-6,
     }
-    return errormodel_config(model_defaults(), {"geometry": geometry, **em}, "test", 60.0)
+    return errormodel_config(values, em, "test", 60.0)
 
 
 def test_every_declared_factor_appears_in_the_columns_the_summary_and_the_inputs() -> None:

@@ -303,7 +303,7 @@ def test_with_identified_coefficients_the_predicted_drift_meets_the_probes(
     from twin.outputs import read_signals_csv
     from twin.pipeline import run
 
-    summary = run(load_scenario(scenarios_dir() / scenario), tmp_path)
+    summary = run(load_scenario(scenarios_dir() / scenario), tmp_path).to_dict()
     em = read_signals_csv(tmp_path / "errormodel.csv")
     start, end = endpoints(em.time, em["errormodel.residual"], 300.0)  # compensated - true wear
     drift = summary["drift_mm"]

@@ -55,8 +55,8 @@ samples = 4
 # from the FMU's declared start value: 1.17e-5 1/K, 4 % of it
 "fmu.mechanics.parameters.alpha_steel" = { dist = "normal", sigma = 0.04, relative = true }
 "fmu.sensors.parameters.probe_zero_drift" = { dist = "normal", mean = 0.0, sigma = 0.3e-6 }
-# what the error model takes for the probe's tilt: the mechanics model's declared value
-"errormodel.geometry.sensor_tilt" = { dist = "uniform", half_width = 0.0087 }
+# the probe's mounting tilt of the tester as built: the mechanics model's declared value
+"fmu.mechanics.parameters.sensor_tilt" = { dist = "uniform", half_width = 0.0087 }
 "input.thermal.t_room.rise" = { dist = "truncnorm", sigma = 1.0, low = 7.9, high = 9.9 }
 """,
     )
@@ -67,7 +67,10 @@ samples = 4
     assert rows["fmu.mechanics.parameters.alpha_steel"] == ("norm", pytest.approx([1.17e-5, 0.04 * 1.17e-5]))
     assert rows["fmu.sensors.parameters.probe_zero_drift"] == ("norm", [0.0, 0.3e-6])
     tilt = float(model_variables("FixtureMechanics")["sensor_tilt"].start)
-    assert rows["errormodel.geometry.sensor_tilt"] == ("unif", pytest.approx([tilt - 0.0087, tilt + 0.0087]))
+    assert rows["fmu.mechanics.parameters.sensor_tilt"] == (
+        "unif",
+        pytest.approx([tilt - 0.0087, tilt + 0.0087]),
+    )
     assert rows["input.thermal.t_room.rise"] == ("truncnorm", [7.9, 9.9, 8.9, 1.0])
 
 

@@ -29,8 +29,8 @@ def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[
 
     ``config_path`` is a TOML file with an ``[errormodel]`` table: which columns hold the eight
     temperatures (K), the probe reading (m) and, where present, load, torque, angle, vibration
-    and a true wear; ``geometry`` the tester's coefficients (names as the FixtureMechanics and
-    SensorsDAQ parameters; defaults are those FMUs' values); ``factors``; and optionally
+    and a true wear; ``coefficients`` the tester's identified coefficients (a file written by
+    ``twin identify``, or an inline table; default the committed identification); ``factors``; and optionally
     ``drift_window`` (default 5 min). Writes errormodel.csv, summary.json, error_budget.png
     into ``out_dir``; returns the summary.
     """

@@ -297,7 +297,7 @@ def _spread_bounds(raw: Mapping[str, Any], base: float | None, scale: float) -> 
 
 def nominal_value(scenario: Scenario, data: Mapping[str, Any], key: str) -> float | None:
     """The value ``key`` has in the base scenario (its file, its parameter files, or the
-    FMU's declared start value; for ``errormodel.geometry.*`` what the error model uses)."""
+    FMU's declared start value; not the error model's identified coefficients)."""
     from twin.config.overrides import split_key  # the loader's own key syntax
     from twin.fmu.catalog import variables as model_variables
 
@@ -318,13 +318,6 @@ def nominal_value(scenario: Scenario, data: Mapping[str, Any], key: str) -> floa
             return float(spec.parameters[parts[3]].value)
         var = model_variables(spec.model).get(parts[3])
         return float(var.start) if var is not None and var.start is not None else None
-    if len(parts) == 3 and parts[:2] == ["errormodel", "geometry"]:
-        from twin.errormodel.config import evaluation_config
-
-        cfg = evaluation_config(scenario)
-        for group in (cfg.geometry, cfg.mechanics):
-            if group is not None and hasattr(group, parts[2]):
-                return float(getattr(group, parts[2]))
     return None
 
 
