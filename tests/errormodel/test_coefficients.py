@@ -189,7 +189,7 @@ UNKNOWN = '\n[coefficients.creep]\nvalue = 1.0\nstd_error = 0.1\nunit = "1"\nexp
 BAD |= {
     "missing coefficient": (_without("coefficients.load_compliance"), "coefficients", "load_compliance"),
     "unknown coefficient": (_file_text() + UNKNOWN, "coefficients", "creep"),
-    "not TOML": ("[coefficients\n", "", "invalid TOML"),
+    "not TOML": ("[coefficients\n", "", "TOML syntax error"),
     "bad fit": (_file_text().replace("rank = ", "rank = 1.5 #", 1), "fit.", "integer"),
 }
 

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -256,14 +255,9 @@ def _section(
 
 def read_toml_file(path: str | Path) -> dict[str, Any]:
     """A TOML file's data; a missing or malformed file is a one-line :class:`ConfigError`."""
-    try:
-        return tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("file not found", source=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read: {exc}", source=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"invalid TOML: {exc}", source=str(path)) from None
+    from twin.config.problems import read_toml  # the loader's one reader of TOML files
+
+    return read_toml(Path(path), str(path))
 
 
 def load_coefficients(path: str | Path) -> Coefficients:

@@ -32,7 +32,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -121,14 +120,9 @@ def _is_number(v: Any) -> bool:
 
 
 def _read(path: Path) -> dict[str, Any]:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("file not found", source=str(path)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read: {exc}", source=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"TOML syntax error: {exc}", source=str(path)) from None
+    from twin.config.problems import read_toml  # the loader's one reader of TOML files
+
+    return read_toml(path, str(path))
 
 
 def _table(p: _Problems, data: Mapping[str, Any], key: str) -> dict[str, Any]:
