@@ -13,24 +13,13 @@ from twin.config.spec import NS_PER_S
 from twin.cosim.master import Master
 from twin.errors import ConfigError, RunError
 
-from .test_master import scenario
+from .test_master import LOOP_SYSTEM, scenario
 
 # noise on (the FMU state must come back), a delayed loop, a slow and a fast instance, and
 # events before, at and between the checkpoint times (every 60 s)
-BODY = """
-[fmu.thermal]
-model = "ThermalNetwork"
-period = "10 s"
-parameters = { solver_step = 1.0 }
-[fmu.sensors]
-model = "SensorsDAQ"
-period = "1 s"
-[connections]
-"thermal.t_ambient" = "sensors.t_room"
-[[delay]]
-from = "sensors.t_room_meas"
-to = "thermal.t_room"
-initial = 295.0
+BODY = (
+    LOOP_SYSTEM
+    + """
 [input.thermal.q_hydraulic]
 profile = "sine"
 mean = 200.0
@@ -58,6 +47,7 @@ action = "set"
 target = "thermal.q_hydraulic"
 value = 50.0
 """
+)
 EVERY_NS = 60 * NS_PER_S
 
 

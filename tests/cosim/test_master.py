@@ -20,6 +20,25 @@ duration = "1 h"
 """
 
 
+#: a slow thermal network and fast sensors closed through a delayed loop: the system the
+#: plan and checkpoint tests build on (each adds its own driven input and events)
+LOOP_SYSTEM = """
+[fmu.thermal]
+model = "ThermalNetwork"
+period = "10 s"
+parameters = { solver_step = 1.0 }
+[fmu.sensors]
+model = "SensorsDAQ"
+period = "1 s"
+[connections]
+"thermal.t_ambient" = "sensors.t_room"
+[[delay]]
+from = "sensors.t_room_meas"
+to = "thermal.t_room"
+initial = 295.0
+"""
+
+
 def scenario(
     tmp_path: Path, body: str, *, duration: str = "1 h", step: str = "1 s", interval: str = "1 s"
 ) -> Path:

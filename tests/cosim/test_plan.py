@@ -13,22 +13,11 @@ from twin.config.load import load_scenario
 from twin.cosim.plan import BATCH_TICKS, ColumnKind, InputKind, instance_seed, make_plan
 from twin.errors import ConfigError
 
-from .test_master import scenario
+from .test_master import LOOP_SYSTEM, scenario
 
-BODY = """
-[fmu.thermal]
-model = "ThermalNetwork"
-period = "10 s"
-parameters = { solver_step = 1.0 }
-[fmu.sensors]
-model = "SensorsDAQ"
-period = "1 s"
-[connections]
-"thermal.t_ambient" = "sensors.t_room"
-[[delay]]
-from = "sensors.t_room_meas"
-to = "thermal.t_room"
-initial = 295.0
+BODY = (
+    LOOP_SYSTEM
+    + """
 [input.thermal.q_hydraulic]
 profile = "constant"
 value = 100.0
@@ -44,6 +33,7 @@ action = "bias"
 target = "sensors.t_room_meas"
 value = 0.5
 """
+)
 
 
 def test_plan_resolves_inputs_columns_and_events_without_loading_an_fmu(

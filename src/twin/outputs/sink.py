@@ -26,6 +26,7 @@ Adding an output is one class with these four methods in its own module, and a l
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, Protocol, Self
@@ -83,7 +84,7 @@ class Sink(Protocol):
         ...
 
 
-class OutcomeSink:
+class OutcomeSink(ABC):
     """Base of the sinks that write only when the run is over, from its outcome (the error
     model's CSV, the plot, the summary): the streamed rows are not theirs, and a run that
     broke leaves them nothing begun to release. Subclasses implement :meth:`write_outcome`,
@@ -94,9 +95,11 @@ class OutcomeSink:
 
     def open(self, signals: list[Signal]) -> None:
         """Nothing to prepare: the file is written whole at the end."""
+        return  # deliberately nothing (see the docstring)
 
     def write(self, block: Block) -> None:
         """The streamed rows are not this file's."""
+        return  # deliberately nothing (see the docstring)
 
     def close(self, outcome: Outcome) -> None:
         if not self._done:
@@ -105,16 +108,19 @@ class OutcomeSink:
 
     def fail(self, error: BaseException) -> None:
         """Nothing was begun before the outcome: nothing to release, nothing written."""
+        return  # deliberately nothing (see the docstring)
 
+    @abstractmethod
     def write_outcome(self, outcome: Outcome) -> None:
-        raise NotImplementedError
+        """Write this sink's file from the run's outcome."""
 
 
-class ClosesOnExit:
+class ClosesOnExit(ABC):
     """A ``with`` block closes the object: for writers whose ``close()`` is idempotent."""
 
+    @abstractmethod
     def close(self) -> None:
-        raise NotImplementedError
+        """Finish and release the file; calling it again does nothing."""
 
     def __enter__(self) -> Self:
         return self
