@@ -149,6 +149,43 @@ def test_a_worker_dying_in_a_point_is_retried_once(tmp_path: Path, always: bool,
         assert row["error"].startswith("KilledWorker: a worker died while running this point (2 tries)")
 
 
+def _quick_or_crashing(payload: dict, *, log: str, crash: int) -> dict:
+    """A 20-ms point that records its try; point ``crash`` kills its worker every time."""
+    with open(log, "a") as f:
+        f.write(f"{payload['index']}\n")
+    if payload["index"] == crash:
+        os._exit(1)
+    time.sleep(0.02)
+    return {
+        "index": payload["index"],
+        "status": "ok",
+        "error": "",
+        "figures": {},
+        "files": {},
+        "point_s": 0.02,
+    }
+
+
+def test_a_crashing_point_in_a_batch_costs_its_neighbours_only_a_rerun(tmp_path: Path) -> None:
+    """Short points travel in batches; when a batch's worker dies (twice: one retry), each of
+    its points runs again alone, so only the crashing point is recorded as failed."""
+    body = BODY.replace("samples = 40", "samples = 24").replace(
+        "outputs = [", "# outputs = ["
+    )  # the points return no figures
+    spec = load_spec(write_spec(tmp_path / "b.toml", body.replace("[-2.0, 10.0]", "[2.0, 10.0]")))
+    log = tmp_path / "tries.log"
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    task = functools.partial(_quick_or_crashing, log=str(log), crash=20)
+    summary = run_sweep(spec, tmp_path / "out", workers=1, task=task)
+    table = _table(tmp_path / "out")
+    tries = log.read_text().split()
+    assert list(table["point"]) == list(range(24)) and summary["ok"] == 23 and summary["failed"] == 1
+    assert table.loc[20, "error"].startswith("KilledWorker: a worker died while running this point (2 tries)")
+    assert tries.count("20") == 4  # twice in its batch, twice alone
+    assert len(tries) < 24 + 2 * 16 + 4  # a batch's other points ran once in it and again alone, no more
+    assert max(tries.count(str(i)) for i in range(24) if i != 20) <= 3
+
+
 SOBOL = """design = "saltelli"
 samples = 16
 seed = 5

@@ -16,7 +16,7 @@ from twin.config.load import load_scenario
 from twin.errors import ConfigError, RunError
 from twin.sweep import shipping
 from twin.sweep.analysis import indices, statistics
-from twin.sweep.execute import run_task
+from twin.sweep.execute import MAX_BATCH, TASK_SECONDS, TASKS_PER_THREAD_LEFT, _Batcher, run_task
 from twin.sweep.point import flatten, run_point
 from twin.sweep.results import CSV, META, TABLE, ResultStore
 from twin.sweep.spec import Spec
@@ -53,6 +53,23 @@ def test_run_task_records_a_failure_on_one_line() -> None:
     assert record["index"] == 3 and record["status"] == "failed"
     assert record["error"].startswith("AttributeError: ") and "\n" not in record["error"]
     assert record["figures"] == {} and record["peak_rss_mb"] > 0
+
+
+def test_short_points_travel_in_batches_long_ones_alone() -> None:
+    batcher = _Batcher()
+    assert batcher.size(remaining=1000, threads=2) == 1  # nothing timed yet: one per task
+    for _ in range(4):
+        batcher.took({"status": "ok", "point_s": 0.05})
+    batcher.took({"status": "failed", "point_s": 9.0})  # a failure's time says nothing
+    assert batcher.size(remaining=1000, threads=2) == int(TASK_SECONDS / 0.05)
+    assert batcher.size(remaining=40, threads=2) == 40 // (TASKS_PER_THREAD_LEFT * 2)  # share the rest
+    assert batcher.size(remaining=3, threads=2) == 1
+    quick = _Batcher()
+    quick.took({"status": "ok", "point_s": 1e-6})
+    assert quick.size(remaining=10**6, threads=1) == MAX_BATCH
+    slow = _Batcher()
+    slow.took({"status": "ok", "point_s": 8.0})
+    assert slow.size(remaining=10**6, threads=1) == 1
 
 
 # ------------------------------------------------------------------------------ the table

@@ -38,6 +38,7 @@ is not the declared one).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -261,8 +262,23 @@ def read_toml_file(path: str | Path) -> dict[str, Any]:
 
 
 def load_coefficients(path: str | Path) -> Coefficients:
-    """Read and check a coefficients file."""
-    return parse_coefficients(read_toml_file(path), str(path))
+    """Read and check a coefficients file.
+
+    The parsed file is kept while the file is unchanged (same inode, size and modification
+    time): a sweep's client builds a scenario per point, and parsing the same file each time
+    was the largest part of that work. :class:`Coefficients` is frozen, so sharing it is safe.
+    """
+    try:
+        st = Path(path).stat()
+    except OSError:
+        return parse_coefficients(read_toml_file(path), str(path))  # reports the missing file
+    return _load_unchanged(str(Path(path).resolve()), str(path), st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=16)
+def _load_unchanged(resolved: str, shown: str, inode: int, size: int, mtime_ns: int) -> Coefficients:
+    del inode, size, mtime_ns  # the cache's key: a changed file is read again
+    return parse_coefficients(read_toml_file(resolved), shown)
 
 
 def _finite(v: Any) -> bool:

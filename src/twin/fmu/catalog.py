@@ -209,7 +209,12 @@ def model(name: str, src: Path | None = None) -> Model:
 
 def variables(name: str) -> Mapping[str, Variable]:
     """The variables of model ``name`` by name, from its modelDescription.xml (no build needed)."""
-    return model(name).variables
+    return _variables(name, sources_dir())
+
+
+@cache  # every connection, parameter and input check asks (a sweep's client, once per point)
+def _variables(name: str, src: Path) -> Mapping[str, Variable]:
+    return model(name, src).variables
 
 
 def fmu(name: str) -> Path:

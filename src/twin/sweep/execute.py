@@ -5,19 +5,22 @@ and one thread each (a point is single-threaded C and numpy: processes, not thre
 them side by side). ``--scheduler tcp://host:8786`` connects to an existing cluster and uses
 it unchanged.
 
-Points are submitted in a sliding window (a few per worker thread) rather than all at once:
-a point's scenario is built and checked on the client only when it is submitted, so a
+Points are submitted in a sliding window (a few tasks per worker thread) rather than all at
+once: a point's scenario is built and checked on the client only when it is submitted, so a
 100 000-point sweep holds a few dozen scenarios in memory, not all of them, on the client
 and on the scheduler. A point whose values the scenario loader refuses (a sample outside a
-variable's physical range) is recorded as failed without running.
+variable's physical range) is recorded as failed without running. Short points travel
+several to a task (about half a second of work each), because on a small machine the
+per-task bookkeeping of client, scheduler and worker otherwise takes CPU from the points.
 
 A point that raises is a failed point (its error is its row's message). A worker that dies
-while running a point (a crash in an FMU, the out-of-memory killer) makes the scheduler
-retry the point on another worker; the local cluster allows one retry
+while running a task (a crash in an FMU, the out-of-memory killer) makes the scheduler
+retry the task on another worker; the local cluster allows one retry
 (``allowed_failures=1``), an existing scheduler its own setting
-(``distributed.scheduler.allowed-failures``, 3 by default). After that the point is recorded
-as failed with the reason. Dask counts a death against every point the worker held at the
-time, which the window keeps to about two per worker thread.
+(``distributed.scheduler.allowed-failures``, 3 by default). Dask counts a death against
+every task the worker held at the time, the crashing one and those queued beside it; so the
+points of a task that still failed run again each alone, one task on the whole cluster,
+and only a point that kills its worker alone is recorded as failed with the reason.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import resource
 import time
 import uuid
 import warnings
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -36,6 +40,12 @@ from twin.errors import ConfigError, RunError
 
 #: tasks in flight per worker thread (keeps every worker busy while results travel back)
 WINDOW_PER_THREAD = 2
+#: seconds of points one task should hold (short points travel in batches)
+TASK_SECONDS = 0.5
+#: the most points in one task
+MAX_BATCH = 16
+#: a batch is never so large that fewer tasks than this per worker thread remain to share out
+TASKS_PER_THREAD_LEFT = 4
 #: a point's error message is kept to this length (it goes into one table cell)
 MAX_ERROR = 500
 
@@ -133,19 +143,134 @@ def _threads(client: Any) -> int:
         return 1
 
 
-def _outcome(future: Any, index: int) -> Record:
-    """The record of a finished future; a lost scheduler is raised, not recorded."""
+def run_batch(task: Callable[[Payload], Record], payloads: list[Payload]) -> list[Record]:
+    """What a worker runs for one task: several points one after the other (never raises)."""
+    return [task(p) for p in payloads]
+
+
+class _Batcher:
+    """How many points go into one task.
+
+    Short points travel in batches: every task costs the scheduler, the client and the
+    worker a few milliseconds of bookkeeping, and on a small machine that work takes CPU from
+    the points themselves. A batch holds about :data:`TASK_SECONDS` of points (one point per
+    task until points have been timed), never so many that fewer than
+    :data:`TASKS_PER_THREAD_LEFT` tasks per worker thread remain to share out, and at most
+    :data:`MAX_BATCH`. Long points run one per task.
+    """
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.timed = 0
+
+    def took(self, record: Record) -> None:
+        if record.get("status") == "ok" and "point_s" in record:
+            self.seconds += record["point_s"]
+            self.timed += 1
+
+    def size(self, remaining: int, threads: int) -> int:
+        if self.timed == 0:
+            return 1
+        per_point = max(self.seconds / self.timed, 1e-3)
+        fair = remaining // (TASKS_PER_THREAD_LEFT * threads)
+        return max(1, min(int(TASK_SECONDS / per_point), fair, MAX_BATCH))
+
+
+def _outcome(future: Any, indices: list[int], alone: bool) -> list[Record] | None:
+    """The records of a finished task; ``None`` when its worker died while other tasks were
+    in flight too (the death cannot be put down to one of its points: they run again, each
+    alone); a lost scheduler is raised, not recorded."""
     from distributed import KilledWorker
 
     if future.status == "finished":
         return future.result()
     exc = future.exception()
     if isinstance(exc, KilledWorker):
+        if not alone or len(indices) > 1:
+            return None
         tries = exc.allowed_failures + 1
-        return failed(index, f"KilledWorker: a worker died while running this point ({tries} tries)")
+        return [failed(indices[0], f"KilledWorker: a worker died while running this point ({tries} tries)")]
     if future.status == "cancelled":
-        raise RunError(f"point {index} was cancelled: the scheduler is gone or restarted")
-    return failed(index, one_line(exc))
+        raise RunError(f"point {indices[0]} was cancelled: the scheduler is gone or restarted")
+    return [failed(i, one_line(exc)) for i in indices]
+
+
+class _Tasks:
+    """The tasks in flight: which points each holds, and what to submit next.
+
+    A worker's death counts against every task it held, the one that killed it and those
+    queued beside it. So the points of a task that died with others in flight become
+    suspects: once the tasks in flight have finished, each suspect runs alone, one task on the
+    whole cluster, and only a point that kills its worker alone is recorded as failed.
+    """
+
+    def __init__(
+        self, client: Any, indices: Iterable[int], payload: Callable[[int], Payload | Record], task: Any
+    ) -> None:
+        from distributed import as_completed
+
+        self.client, self.payload, self.task = client, payload, task
+        self.session = uuid.uuid4().hex[:8]
+        self.pending = deque(indices)
+        self.suspects: deque[int] = deque()
+        self.running: dict[Any, list[int]] = {}
+        self.alone: set[Any] = set()  # tasks that had the cluster to themselves all along
+        self.isolated = False  # a suspect is running: nothing else is submitted until it ends
+        self.queue = as_completed(loop=client.loop)
+        self.batcher = _Batcher()
+        self.threads, self.checked = _threads(client), time.monotonic()
+
+    def _next_batch(self) -> list[int]:
+        if self.suspects:
+            self.isolated = True
+            return [self.suspects.popleft()]
+        size = self.batcher.size(len(self.pending), self.threads)
+        return [self.pending.popleft() for _ in range(min(size, len(self.pending)))]
+
+    def _room(self) -> bool:
+        if self.suspects or self.isolated:
+            return not self.running  # a suspect runs alone
+        return bool(self.pending) and len(self.running) < WINDOW_PER_THREAD * self.threads
+
+    def fill(self) -> Iterator[Record]:
+        """Submit tasks until the window is full; yields the records of points that cannot run."""
+        if time.monotonic() - self.checked > 1.0:  # workers may join (or leave) during a sweep
+            self.threads, self.checked = _threads(self.client), time.monotonic()
+        while self._room():
+            payloads = []
+            for index in self._next_batch():
+                item = self.payload(index)
+                if "scenario" in item:
+                    payloads.append(item)
+                else:
+                    yield item
+            if payloads:
+                self._submit(payloads)
+
+    def _submit(self, payloads: list[Payload]) -> None:
+        batch = [p["index"] for p in payloads]
+        key = f"twin-points-{batch[0]}-{len(batch)}-{self.session}"
+        future = self.client.submit(run_batch, self.task, payloads, key=key, pure=False)
+        if self.running:
+            self.alone.clear()
+        else:
+            self.alone.add(future)
+        self.running[future] = batch
+        self.queue.add(future)
+
+    def finished(self, future: Any) -> list[Record]:
+        """The records of a finished task (none when its points must run again alone)."""
+        batch = self.running.pop(future)
+        self.isolated = False
+        records = _outcome(future, batch, future in self.alone)
+        self.alone.discard(future)
+        future.release()
+        if records is None:
+            self.suspects.extend(batch)
+            return []
+        for record in records:
+            self.batcher.took(record)
+        return records
 
 
 def execute(
@@ -157,35 +282,13 @@ def execute(
     """Run the points, yielding each record as it finishes (in any order).
 
     ``payload(i)`` builds point ``i``'s task input, or returns a failed record for a point
-    that cannot run (then nothing is submitted).
+    that cannot run (then nothing is submitted). Points go out in batches (:class:`_Batcher`);
+    the points of a task whose worker died (after the scheduler's retries) run again, each
+    alone (:class:`_Tasks`), so the points beside a crashing one still finish and only the
+    crashing one is recorded as failed.
     """
-    from distributed import as_completed
-
-    session = uuid.uuid4().hex[:8]
-    pending = iter(indices)
-    running: dict[Any, int] = {}
-    queue = as_completed(loop=client.loop)
-    window, checked = WINDOW_PER_THREAD * _threads(client), time.monotonic()
-
-    def fill() -> Iterator[Record]:
-        while len(running) < window:
-            index = next(pending, None)
-            if index is None:
-                return
-            item = payload(index)
-            if "scenario" not in item:
-                yield item
-                continue
-            future = client.submit(task, item, key=f"twin-point-{index}-{session}", pure=False)
-            running[future] = index
-            queue.add(future)
-
-    yield from fill()
-    for future in queue:
-        index = running.pop(future)
-        record = _outcome(future, index)
-        future.release()
-        yield record
-        if time.monotonic() - checked > 1.0:  # workers may join (or leave) during a sweep
-            window, checked = WINDOW_PER_THREAD * _threads(client), time.monotonic()
-        yield from fill()
+    tasks = _Tasks(client, indices, payload, task)
+    yield from tasks.fill()
+    for future in tasks.queue:
+        yield from tasks.finished(future)
+        yield from tasks.fill()
