@@ -86,7 +86,7 @@ def test_killed_run_resumes_to_the_same_signals_byte_for_byte(tmp_path: Path) ->
     code, _, err = finish(twin("run", CONSTANT, "--quiet", "--out", str(full), *duration))
     assert code == 0, err
     proc = twin("run", CONSTANT, "--quiet", "--out", str(part), "--checkpoint-every", "1 h", *duration)
-    checkpoint = part / "checkpoint.pkl"
+    checkpoint = part / "checkpoint.npz"
     deadline = time.monotonic() + 120
     while not checkpoint.exists() and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -110,3 +110,53 @@ def test_killed_run_resumes_to_the_same_signals_byte_for_byte(tmp_path: Path) ->
 def test_resume_without_checkpoint_is_bad_input(tmp_path: Path) -> None:
     code, _, err = finish(twin("resume", str(tmp_path)))
     assert code == 2 and "Traceback" not in err and "run.json" in err
+
+
+def _checkpointed(tmp_path: Path, scenario: Path) -> Path:
+    """A finished 20-min run of ``scenario`` that saved checkpoints (its folder)."""
+    out = tmp_path / "run"
+    args = ("--set", 'scenario.duration="20 min"', "--checkpoint-every", "10 min")
+    code, _, err = finish(twin("run", str(scenario), "--quiet", "--out", str(out), *args))
+    assert code == 0, err
+    assert (out / "checkpoint.npz").is_file()
+    return out
+
+
+def test_resume_of_a_crafted_checkpoint_exits_2_and_runs_nothing(tmp_path: Path) -> None:
+    """A run folder from someone else: its checkpoint replaced by a pickle whose loading would
+    create a marker file, then by an archive carrying a pickled object array: ``twin resume``
+    refuses both with one line and exit 2, and the marker never appears."""
+    import pickle
+
+    out = _checkpointed(tmp_path, Path(CONSTANT))
+    marker = tmp_path / "payload-ran"
+
+    class Payload:
+        def __reduce__(self) -> tuple:
+            return (os.system, (f"touch {marker}",))
+
+    for crafted in ("pickle", "object-array", "legacy"):
+        (out / "checkpoint.npz").unlink(missing_ok=True)
+        if crafted == "pickle":
+            (out / "checkpoint.npz").write_bytes(pickle.dumps(Payload()))
+        elif crafted == "object-array":
+            with open(out / "checkpoint.npz", "wb") as f:
+                np.savez(f, manifest=np.array([Payload()], dtype=object))
+        else:
+            (out / "checkpoint.pkl").write_bytes(pickle.dumps(Payload()))
+        code, _, err = finish(twin("resume", str(out), "--quiet"))
+        assert code == 2, err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert not marker.exists(), f"{crafted}: the payload ran"
+
+
+def test_resume_of_an_edited_scenario_is_refused(tmp_path: Path) -> None:
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(Path(CONSTANT).read_text().replace('extends = "', f'extends = "{REPO}/scenarios/'))
+    out = _checkpointed(tmp_path, scenario)
+    (out / "summary.json").unlink()  # as if killed after the checkpoint
+    code, _, err = finish(twin("resume", str(out), "--quiet"))  # unchanged: resumes
+    assert code == 0, err
+    scenario.write_text(scenario.read_text().replace("[scenario]\n", "[scenario]\nseed = 2\n"))
+    code, _, err = finish(twin("resume", str(out), "--quiet"))
+    assert code == 2 and "changed since the checkpoint" in err and "Traceback" not in err, err

@@ -212,7 +212,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_run, process_start=None)
 
     p = sub.add_parser("resume", help="continue a killed or interrupted run from its last checkpoint")
-    p.add_argument("run_dir", help="the run folder (holds run.json and checkpoint.pkl)")
+    p.add_argument("run_dir", help="the run folder (holds run.json and checkpoint.npz)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
     p.set_defaults(func=_cmd_resume)
 

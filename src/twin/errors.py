@@ -53,6 +53,11 @@ class ConfigErrors(ConfigError):
         return "\n".join(str(p) for p in self.problems)
 
 
+class CheckpointError(ConfigError):
+    """A checkpoint that cannot be trusted or read (a changed or damaged part, another format or
+    version, an old pickle, a scenario changed since it was taken): refused, never executed."""
+
+
 class ToolMissingError(ConfigError, FileNotFoundError):
     """A build tool (C compiler, cmake) is not installed; the message says what to install."""
 

@@ -2,17 +2,27 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import pickle
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from twin.errors import ConfigError
+from twin.errors import CheckpointError, ConfigError
 from twin.outputs.csv import write_signals_csv
 from twin.outputs.plots import BudgetColumns
-from twin.outputs.run_folder import CHECKPOINT_FILE, RUN_FILE, SIGNALS_CSV, Checkpoint, RunFolder, RunMeta
+from twin.outputs.run_folder import (
+    CHECKPOINT_FILE,
+    LEGACY_CHECKPOINT,
+    RUN_FILE,
+    SIGNALS_CSV,
+    Checkpoint,
+    RunFolder,
+    RunMeta,
+)
 
 from .sample import PARTS, make_table
 
@@ -36,25 +46,149 @@ def test_resumable_needs_run_json_and_a_checkpoint(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"no run\.json: not a run folder"):
         folder.resumable()
     folder.start(RunMeta("/abs/s.toml"))
-    with pytest.raises(ConfigError, match=r"no checkpoint\.pkl: the run saved no checkpoint"):
+    with pytest.raises(ConfigError, match=r"no checkpoint\.npz: the run saved no checkpoint"):
         folder.resumable()
     folder.save_checkpoint(Checkpoint({"tick": 1}, {}, "s"))
     assert folder.resumable() == RunMeta("/abs/s.toml")
 
 
-def test_checkpoint_round_trip_in_the_pickle_format(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "text",
+    ["{", "[]", '{"scenario": 5}', '{"scenario": "/a.toml", "overrides": "x"}', '{"scenario": "/a", "loop": "x"}',
+     '{"scenario": "/a", "checkpoint_every_ns": 1.5}', "\udcff"],
+)  # fmt: skip
+def test_malformed_run_json_is_one_line(tmp_path: Path, text: str) -> None:
     folder = RunFolder(tmp_path)
-    ckpt = Checkpoint({"tick": 7}, {"csv_position": [10, 1.5], "kept_time": np.arange(3.0)}, "constant-load")
-    folder.save_checkpoint(ckpt)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [CHECKPOINT_FILE]  # no temporary left
-    with open(folder.file(CHECKPOINT_FILE), "rb") as f:
-        raw = pickle.load(f)
-    assert list(raw) == ["master", "recorder", "scenario"]
-    back = folder.load_checkpoint("constant-load")
-    assert back.master == {"tick": 7} and back.scenario == "constant-load"
+    folder.save_checkpoint(Checkpoint({"tick": 1}, {}, "s"))
+    folder.file(RUN_FILE).write_text(text, encoding="utf-8", errors="surrogateescape")
+    with pytest.raises(ConfigError) as err:
+        folder.resumable()
+    assert str(err.value).startswith(str(folder.file(RUN_FILE))) and "\n" not in str(err.value)
+
+
+def _saved(tmp_path: Path, fingerprint: str = "f1") -> RunFolder:
+    folder = RunFolder(tmp_path)
+    folder.file(SIGNALS_CSV).write_bytes(b"x" * 10)
+    master = {
+        "tick": 7,
+        "instances": [{"state": b"\x00\x01fmu", "raw": np.arange(4.0)}],
+        "driven": [("constant", 1.5)],
+    }
+    recorder = {"csv_position": [10, 1.5], "kept_time": np.arange(3.0), "kept_rows": np.zeros((3, 0))}
+    folder.save_checkpoint(Checkpoint(master, recorder, "constant-load", fingerprint))
+    return folder
+
+
+def test_checkpoint_round_trip_as_checked_data(tmp_path: Path) -> None:
+    folder = _saved(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [CHECKPOINT_FILE, SIGNALS_CSV]  # no temporary left
+    with np.load(folder.file(CHECKPOINT_FILE), allow_pickle=False) as archive:  # plain arrays only
+        assert {"manifest", "manifest_sha256"} <= set(archive.files)
+    back = folder.load_checkpoint("constant-load", "f1")
+    assert back.master["tick"] == 7 and back.scenario == "constant-load" and back.fingerprint == "f1"
+    assert back.master["instances"][0]["state"] == b"\x00\x01fmu"
+    assert back.master["driven"] == [["constant", 1.5]]
+    np.testing.assert_array_equal(back.master["instances"][0]["raw"], np.arange(4.0))
     np.testing.assert_array_equal(back.recorder["kept_time"], np.arange(3.0))
-    with pytest.raises(ConfigError, match="belongs to another scenario"):
-        folder.load_checkpoint("sine-load")
+    assert back.recorder["kept_rows"].shape == (3, 0) and back.recorder["csv_position"] == [10, 1.5]
+    with pytest.raises(CheckpointError, match="belongs to another scenario"):
+        folder.load_checkpoint("sine-load", "f1")
+    with pytest.raises(CheckpointError, match=r"scenario .* changed since the checkpoint"):
+        folder.load_checkpoint("constant-load", "f2")
+    folder.file(SIGNALS_CSV).write_bytes(b"x" * 9)
+    with pytest.raises(CheckpointError, match="holds 9 bytes, fewer than the 10"):
+        folder.load_checkpoint("constant-load", "f1")
+
+
+def _rewrite(path: Path, change: Callable[[dict[str, np.ndarray]], None]) -> None:
+    with np.load(path, allow_pickle=False) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    change(arrays)
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+
+
+def _flip_part(a: dict[str, np.ndarray]) -> None:
+    part = a["p0"].copy()
+    part.view(np.uint8)[0] ^= 1
+    a["p0"] = part
+
+
+def _new_manifest(edit: Callable[[dict], None]) -> Callable[[dict[str, np.ndarray]], None]:
+    def change(a: dict[str, np.ndarray]) -> None:
+        manifest = json.loads(a["manifest"].tobytes())
+        edit(manifest)
+        raw = json.dumps(manifest).encode()
+        a["manifest"] = np.frombuffer(raw, dtype=np.uint8)
+        a["manifest_sha256"] = np.frombuffer(hashlib.sha256(raw).hexdigest().encode(), dtype=np.uint8)
+
+    return change
+
+
+BREAKS = {
+    "a part's bit flipped": (_flip_part, "part p0: SHA-256 does not match"),
+    "the manifest edited": (
+        lambda a: a.update(manifest=a["manifest"][:-1]),
+        "manifest's SHA-256 does not match",
+    ),
+    "a part removed": (lambda a: a.pop("p1"), "parts differ from the manifest"),
+    "a part added": (lambda a: a.update(p99=np.zeros(2)), "parts differ from the manifest"),
+    "an object array": (lambda a: a.update(p0=np.array([object()], dtype=object)), "unreadable"),
+    "another version": (_new_manifest(lambda m: m.update(version=99)), "version 99"),
+    "another format": (_new_manifest(lambda m: m.update(format="x")), "not a twin checkpoint"),
+    "a dangling reference": (
+        _new_manifest(lambda m: m["data"].update(master={"$bytes": "p77"})),
+        "missing part",
+    ),
+    "a shape lie": (_new_manifest(lambda m: m["parts"]["p0"].update(shape=[1])), "dtype or shape differs"),
+    "no manifest": (lambda a: a.pop("manifest"), "no manifest"),
+}
+
+
+@pytest.mark.parametrize("how", sorted(BREAKS))
+def test_a_changed_checkpoint_is_refused(tmp_path: Path, how: str) -> None:
+    folder = _saved(tmp_path)
+    change, message = BREAKS[how]
+    _rewrite(folder.file(CHECKPOINT_FILE), change)
+    with pytest.raises(CheckpointError, match=message):
+        folder.load_checkpoint("constant-load", "f1")
+
+
+@pytest.mark.parametrize("junk", [b"", b"PK\x03\x04junk", b"\x80\x05K\x01.", b"x" * 1000])
+def test_a_file_that_is_no_checkpoint_is_refused(tmp_path: Path, junk: bytes) -> None:
+    folder = RunFolder(tmp_path)
+    folder.file(CHECKPOINT_FILE).write_bytes(junk)
+    with pytest.raises(CheckpointError):
+        folder.load_checkpoint("s", "f")
+
+
+class _Payload:
+    """A pickle that, if it were ever loaded, would create a marker file."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self) -> tuple:
+        return (Path.touch, (self.marker,))
+
+
+def test_a_pickled_checkpoint_is_never_read(tmp_path: Path) -> None:
+    folder = RunFolder(tmp_path / "run")
+    folder.start(RunMeta("/abs/s.toml"))
+    marker = tmp_path / "pwned"
+    folder.file(LEGACY_CHECKPOINT).write_bytes(pickle.dumps(_Payload(marker)))
+    with pytest.raises(CheckpointError, match="is a pickle"):
+        folder.resumable()
+    # the same payload where the checkpoint lives now: refused as no checkpoint, never unpickled
+    folder.file(CHECKPOINT_FILE).write_bytes(pickle.dumps(_Payload(marker)))
+    with pytest.raises(CheckpointError):
+        folder.load_checkpoint("s", "f")
+    # and a payload inside an otherwise valid archive (an object array holds a pickle)
+    with open(folder.file(CHECKPOINT_FILE), "wb") as f:
+        np.savez(f, manifest=np.array([_Payload(marker)], dtype=object))
+    with pytest.raises(CheckpointError):
+        folder.load_checkpoint("s", "f")
+    assert not marker.exists()
 
 
 def test_resumed_sinks_cut_the_csv_back_to_the_checkpoint(tmp_path: Path) -> None:

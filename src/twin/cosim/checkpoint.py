@@ -2,7 +2,7 @@
 
 A snapshot is a plain dict (FMU states as bytes, buffers as numpy arrays, driven inputs as
 the data that rebuilds them, clock and counters); how it is stored is the caller's business
-(the pipeline pickles it atomically next to the run's files).
+(the run folder writes it as checked data that cannot run code: twin.outputs.checkpoint_file).
 """
 
 from __future__ import annotations

@@ -9,26 +9,27 @@ A run folder holds
 ``error_budget.png``  the predicted error and its parts beside the probe's drift
 ``summary.json``      the run's numbers; written last, so its presence means "over"
 ``run.json``          how the run was started (for ``twin resume``)
-``checkpoint.pkl``    the whole twin at the last checkpoint (with ``--checkpoint-every``)
+``checkpoint.npz``    the whole twin at the last checkpoint (with ``--checkpoint-every``)
 ====================  ==========================================================
 
 This module is the one place that knows those names, makes the sinks that write them
 (:meth:`RunFolder.run_sinks`, :meth:`RunFolder.result_sinks`) and reads and writes the
-checkpoint. The checkpoint is a pickle of ``{"master", "recorder", "scenario"}``: it is only
-ever read back from a folder this twin wrote (a later issue replaces it by a checked format).
+checkpoint. The checkpoint holds ``{"master", "recorder", "scenario", "fingerprint"}`` as data
+that cannot run code, every part checked by its SHA-256 (:mod:`twin.outputs.checkpoint_file`);
+the fingerprint of the scenario it was taken from makes a resume of an edited scenario refuse.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
-import os
-import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from twin.errors import ConfigError
+from twin.errors import CheckpointError, ConfigError
+from twin.outputs import checkpoint_file
 from twin.outputs.summary import write_json_atomic
 
 if TYPE_CHECKING:
@@ -55,7 +56,9 @@ ERRORMODEL_CSV = "errormodel.csv"
 ERROR_BUDGET_PNG = "error_budget.png"
 SUMMARY_JSON = "summary.json"
 RUN_FILE = "run.json"
-CHECKPOINT_FILE = "checkpoint.pkl"
+CHECKPOINT_FILE = "checkpoint.npz"
+#: the pickled checkpoint of twins before 0.2: never read (a pickle can execute code)
+LEGACY_CHECKPOINT = "checkpoint.pkl"
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,18 @@ class Checkpoint:
     master: dict[str, Any]
     recorder: dict[str, Any]
     scenario: str
+    #: :func:`scenario_fingerprint` of the scenario the checkpoint was taken from
+    fingerprint: str = ""
+
+
+def scenario_fingerprint(scenario: object) -> str:
+    """A hash of everything a loaded scenario holds (its frozen spec's repr: values, files'
+    parameters, connections, events), so a scenario edited between a kill and a resume is seen."""
+    import dataclasses
+
+    # the file's path as typed (relative for `twin run`, absolute in run.json) is not content
+    spec = dataclasses.replace(scenario, source_path="") if dataclasses.is_dataclass(scenario) else scenario
+    return hashlib.sha256(repr(spec).encode("utf-8")).hexdigest()
 
 
 class RunFolder:
@@ -98,6 +113,7 @@ class RunFolder:
         """Make the folder for a new run: drop an old checkpoint, write ``run.json``."""
         self.make()
         self.file(CHECKPOINT_FILE).unlink(missing_ok=True)
+        self.file(LEGACY_CHECKPOINT).unlink(missing_ok=True)
         text = json.dumps(
             {
                 "scenario": meta.scenario,
@@ -111,42 +127,68 @@ class RunFolder:
 
     def resumable(self) -> RunMeta:
         """``run.json`` of a folder that can be resumed; :class:`ConfigError` if it cannot."""
+        where = str(self.path)
         if not self.file(RUN_FILE).is_file():
-            raise ConfigError(f"no {RUN_FILE}: not a run folder", source=str(self.path))
+            raise ConfigError(f"no {RUN_FILE}: not a run folder", source=where)
+        if self.file(LEGACY_CHECKPOINT).exists() and not self.file(CHECKPOINT_FILE).exists():
+            raise CheckpointError(
+                f"{LEGACY_CHECKPOINT} is a pickle (an older twin's format, which can execute code): "
+                "not read; run the scenario again",
+                source=where,
+            )
         if not self.file(CHECKPOINT_FILE).is_file():
             raise ConfigError(
-                f"no {CHECKPOINT_FILE}: the run saved no checkpoint (use --checkpoint-every)",
-                source=str(self.path),
+                f"no {CHECKPOINT_FILE}: the run saved no checkpoint (use --checkpoint-every)", source=where
             )
-        data = json.loads(self.file(RUN_FILE).read_text())
-        return RunMeta(
-            scenario=data["scenario"],
-            overrides=tuple(data.get("overrides", [])),
-            loop=data.get("loop", "fast"),
-            checkpoint_every_ns=data.get("checkpoint_every_ns"),
-        )
+        return _run_meta(self.file(RUN_FILE))
 
     # -- the checkpoint ------------------------------------------------------------------
 
     def save_checkpoint(self, checkpoint: Checkpoint) -> None:
         """Write the checkpoint atomically: a kill never leaves half of one."""
-        data = {"master": checkpoint.master, "recorder": checkpoint.recorder, "scenario": checkpoint.scenario}
-        path = self.file(CHECKPOINT_FILE)
-        tmp = path.with_name(CHECKPOINT_FILE + ".tmp")
-        with open(tmp, "wb") as f:
-            pickle.dump(data, f, protocol=5)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
+        data = {
+            "master": checkpoint.master,
+            "recorder": checkpoint.recorder,
+            "scenario": checkpoint.scenario,
+            "fingerprint": checkpoint.fingerprint,
+        }
+        checkpoint_file.save(self.file(CHECKPOINT_FILE), data)
 
-    def load_checkpoint(self, scenario: str) -> Checkpoint:
-        """The folder's checkpoint, which must belong to the scenario named ``scenario``."""
+    def load_checkpoint(self, scenario: str, fingerprint: str) -> Checkpoint:
+        """The folder's checkpoint, which must have been taken from the scenario named
+        ``scenario`` as it is now (``fingerprint``), with signals.csv still holding its rows."""
         path = self.file(CHECKPOINT_FILE)
-        with open(path, "rb") as f:
-            data = pickle.load(f)
-        if data.get("scenario") != scenario:
-            raise ConfigError("the checkpoint belongs to another scenario", source=str(path))
-        return Checkpoint(data["master"], data["recorder"], data["scenario"])
+        data = checkpoint_file.load(path)
+        master, recorder = data.get("master"), data.get("recorder")
+        if (
+            not isinstance(master, dict)
+            or not isinstance(recorder, dict)
+            or not isinstance(data.get("scenario"), str)
+        ):
+            raise CheckpointError("malformed checkpoint (master, recorder, scenario)", source=str(path))
+        if data["scenario"] != scenario:
+            raise CheckpointError("the checkpoint belongs to another scenario", source=str(path))
+        if data.get("fingerprint") != fingerprint:
+            raise CheckpointError(
+                "the scenario (its file, an included file or --set) changed since the checkpoint: "
+                "resuming would mix two scenarios",
+                source=str(path),
+            )
+        self._check_csv(recorder, str(path))
+        return Checkpoint(master, recorder, data["scenario"], fingerprint)
+
+    def _check_csv(self, recorder: dict[str, Any], source: str) -> None:
+        position = recorder.get("csv_position")
+        if not isinstance(position, list) or not position or type(position[0]) is not int:
+            raise CheckpointError("malformed checkpoint (csv_position)", source=source)
+        csv = self.file(SIGNALS_CSV)
+        size = csv.stat().st_size if csv.is_file() else -1
+        if size < position[0]:
+            raise CheckpointError(
+                f"{SIGNALS_CSV} holds {max(size, 0)} bytes, fewer than the {position[0]} the checkpoint "
+                "continues from: it was cut or replaced",
+                source=source,
+            )
 
     # -- the sinks -----------------------------------------------------------------------
 
@@ -200,3 +242,30 @@ class RunFolder:
             ErrorBudgetSink(self.file(ERROR_BUDGET_PNG), plot, f"{name}: predicted error and its parts"),
             SummarySink(self.file(SUMMARY_JSON)),
         ]
+
+
+def _run_meta(path: Path) -> RunMeta:
+    """Read ``run.json``; a malformed one is one line, exit code 2."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ConfigError(f"unreadable: {type(exc).__name__}: {exc}", source=str(path)) from None
+    ok = (
+        isinstance(data, dict)
+        and isinstance(data.get("scenario"), str)
+        and isinstance(data.get("overrides", []), list)
+        and all(isinstance(o, str) for o in data.get("overrides", []))
+        and data.get("loop", "fast") in ("fast", "python")
+        and (data.get("checkpoint_every_ns") is None or type(data.get("checkpoint_every_ns")) is int)
+    )
+    if not ok:
+        raise ConfigError(
+            "malformed: expected scenario (a path), overrides (strings), loop, checkpoint_every_ns",
+            source=str(path),
+        )
+    return RunMeta(
+        scenario=data["scenario"],
+        overrides=tuple(data.get("overrides", [])),
+        loop=data.get("loop", "fast"),
+        checkpoint_every_ns=data.get("checkpoint_every_ns"),
+    )

@@ -33,7 +33,7 @@ from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_sign
 from twin.errormodel.factors import FACTORS
 from twin.errors import ConfigError, RunError
 from twin.outputs.plots import BudgetColumns
-from twin.outputs.run_folder import Checkpoint, RunFolder, RunMeta
+from twin.outputs.run_folder import Checkpoint, RunFolder, RunMeta, scenario_fingerprint
 from twin.outputs.sink import Outcome, Sink
 from twin.paper import DRIFT_M, TEMPERATURE_RISE_K
 from twin.pipeline.run_summary import RunSummary, Timing
@@ -97,7 +97,9 @@ def simulate(
 
     def save(snapshot: dict[str, Any]) -> None:
         assert on_checkpoint is not None
-        on_checkpoint(Checkpoint(snapshot, recorder.checkpoint(), scenario.name))
+        on_checkpoint(
+            Checkpoint(snapshot, recorder.checkpoint(), scenario.name, scenario_fingerprint(scenario))
+        )
 
     master = Master(
         scenario,
@@ -286,5 +288,5 @@ def resume_run(
         overrides=meta.overrides,
         stop=stop,
         checkpoint_every_ns=meta.checkpoint_every_ns,
-        resume=folder.load_checkpoint(scenario.name),
+        resume=folder.load_checkpoint(scenario.name, scenario_fingerprint(scenario)),
     )
