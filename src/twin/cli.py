@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from twin import __version__, identify_cli
 from twin.errors import ConfigError, TwinError
 from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
+from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
 
 if TYPE_CHECKING:
     from twin.pipeline import RunSummary
@@ -243,6 +244,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)
     add_sweep_parser(sub)
+    heldout_cli.add_parser(sub)
     return parser
 
 
