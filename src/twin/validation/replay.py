@@ -70,14 +70,20 @@ def _check(p: list[ConfigError], src: str, table: Mapping[str, Any]) -> None:
     for k, lo in (("samples", 0), ("seed", 0)):
         v = table.get(k, lo)
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-            p.append(ConfigError(f"expected an integer >= {lo}, got {v!r}", source=src, key=f"uncertainty.{k}"))
+            p.append(
+                ConfigError(f"expected an integer >= {lo}, got {v!r}", source=src, key=f"uncertainty.{k}")
+            )
     drift = table.get("room_drift_K", 1.0)
     if isinstance(drift, bool) or not isinstance(drift, int | float) or not 0 <= drift < math.inf:
-        p.append(ConfigError(f"expected a number >= 0, got {drift!r}", source=src, key="uncertainty.room_drift_K"))
+        p.append(
+            ConfigError(f"expected a number >= 0, got {drift!r}", source=src, key="uncertainty.room_drift_K")
+        )
     shapes = table.get("room_shapes", list(ROOM_SHAPES))
     if not isinstance(shapes, list) or not shapes or not set(shapes) <= set(ROOM_SHAPES):
         p.append(
-            ConfigError(f"expected a list from {list(ROOM_SHAPES)}", source=src, key="uncertainty.room_shapes")
+            ConfigError(
+                f"expected a list from {list(ROOM_SHAPES)}", source=src, key="uncertainty.room_shapes"
+            )
         )
 
 
@@ -96,7 +102,9 @@ def parse_uncertainty(path: Path, data: Mapping[str, Any], samples: int | None =
         raise ConfigError("expected a table", source=src, key="uncertainty")
     p: list[ConfigError] = []
     _check(p, src, table)
-    spreads = (path.resolve().parent / str(table.get("spreads", "validation/testers-as-built.toml"))).resolve()
+    spreads = (
+        path.resolve().parent / str(table.get("spreads", "validation/testers-as-built.toml"))
+    ).resolve()
     if not spreads.is_file():
         p.append(ConfigError(f"no such file {spreads}", source=src, key="uncertainty.spreads"))
     if p:
@@ -333,7 +341,9 @@ def write_samples(out: Path, mc: Mapping[str, Any]) -> Path:
     path = out / "uncertainty.csv"
     keep = ["sample", "room_shape", "status", "error", "drift_mm.probe", "drift_mm.predicted"]
     frame = pd.DataFrame.from_records(mc["rows"])
-    frame = frame.reindex(columns=[*keep, *sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))])
+    frame = frame.reindex(
+        columns=[*keep, *sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))]
+    )
     frame.to_csv(path, index=False)
     return path
 
