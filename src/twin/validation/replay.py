@@ -173,7 +173,9 @@ def _testers(unc: Uncertainty, base: Path, data: Mapping[str, Any]) -> Any:
 
 
 def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) -> str:
-    """Sample ``i``'s room: a shape in turn, the scenario's rise at its rise time, a drift."""
+    """Sample ``i``'s room: a rise (an ``exponential`` profile, the paper's) takes a shape in
+    turn, reaching the scenario's rise at its rise time; any other room keeps its own curve;
+    both with a slow drift."""
     from twin.cosim.profiles import profile_function
     from twin.validation.draws import (
         room_profile,
@@ -182,9 +184,15 @@ def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) ->
         set_room,
         shape,
         smooth_drift,
+        with_room_drift,
     )
 
     profile = room_profile(scenario, unc.room.split(".", 1)[1])
+    drift = smooth_drift(np.random.default_rng(sequence(unc.seed, SAMPLE_KEY, i)), unc.room_drift_K)
+    if profile.kind != "exponential":
+        # not a rise of unknown shape (a day's sine, a lab's table): the scenario's own curve
+        with_room_drift(data, scenario, unc.room, drift)
+        return "own"
     f = profile_function(profile)
     end = scenario.duration_ns / NS_PER_S
     rise_at = float(profile.params.get("rise_at", end))
@@ -192,7 +200,6 @@ def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) ->
     rise = float(f(np.array([rise_at]))[0]) - start
     tau_ratio = float(profile.params.get("time_constant", rise_at / 4.0)) / rise_at
     name = unc.room_shapes[i % len(unc.room_shapes)]
-    drift = smooth_drift(np.random.default_rng(sequence(unc.seed, SAMPLE_KEY, i)), unc.room_drift_K)
     t = sample_times(scenario, [rise_at])
     values = start + rise * shape(name, t / rise_at, tau_ratio) + drift(t / end)
     set_room(data, unc.room, t, values, f"twin run uncertainty: room shape {name} plus a slow drift")
