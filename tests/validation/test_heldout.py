@@ -60,6 +60,7 @@ def five(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, pd.DataFrame]:
     return summary, pd.read_parquet(tmp / "out" / "results.parquet")
 
 
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
 def test_one_row_per_tester_and_scenario_and_the_summary_reads_the_table(five) -> None:
     summary, table = five
     assert len(table) == TESTERS and list(table["tester"]) == list(range(TESTERS))
@@ -79,6 +80,7 @@ def test_one_row_per_tester_and_scenario_and_the_summary_reads_the_table(five) -
     assert table["fmu.sensors.parameters.probe_zero_drift"].nunique() == TESTERS
 
 
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
 def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -> None:
     _, table = five
     cfg = load_heldout(write_heldout(tmp_path / "two.toml", testers=2))
@@ -87,6 +89,7 @@ def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -
     pd.testing.assert_frame_equal(two, table.iloc[:2].reset_index(drop=True))
 
 
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
 def test_coefficients_are_what_identify_finds_on_that_tester(five, tmp_path: Path) -> None:
     _, table = five
     cfg = load_heldout(write_heldout(tmp_path / "heldout.toml"))
