@@ -87,6 +87,11 @@ def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -
     run_heldout(cfg, tmp_path / "out", workers=1)
     two = pd.read_parquet(tmp_path / "out" / "results.parquet")
     pd.testing.assert_frame_equal(two, table.iloc[:2].reset_index(drop=True))
+    with pytest.raises(ConfigError, match="already holds"):  # never overwritten unasked
+        run_heldout(cfg, tmp_path / "out", workers=1)
+    summary = run_heldout(cfg, tmp_path / "out", workers=1, resume=True)  # complete: nothing to run
+    assert summary["timing"]["identify_s_mean"] is None
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "out" / "results.parquet"), two)
 
 
 @pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)

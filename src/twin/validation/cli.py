@@ -25,6 +25,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--scheduler", metavar="ADDR", help="an existing Dask scheduler (default: a local cluster)"
     )
     p.add_argument("--workers", type=int, metavar="N", help="local cluster size (default: one per core)")
+    p.add_argument("--resume", action="store_true", help="run only the testers the output folder lacks")
     p.add_argument("--quiet", action="store_true", help="print only the last line")
     p.set_defaults(func=command)
     return p
@@ -43,7 +44,9 @@ def command(args: argparse.Namespace) -> int:
     cfg = load_heldout(Path(args.file) if args.file else scenarios_dir() / DEFAULT_FILE, testers=args.testers)
     out = Path(args.out) if args.out else Path("sweeps") / "heldout"
     echo = (lambda _: None) if args.quiet else print
-    summary = run_heldout(cfg, out, scheduler=args.scheduler, workers=args.workers, echo=echo)
+    summary = run_heldout(
+        cfg, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume, echo=echo
+    )
     for line in report_lines(summary):
         echo(line)
     print(f"heldout: {summary['testers']} testers, outputs in {out}")

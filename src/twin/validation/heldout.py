@@ -342,10 +342,12 @@ def run_heldout(
     *,
     scheduler: str | None = None,
     workers: int | None = None,
+    resume: bool = False,
     echo: Callable[[str], None] = lambda _: None,
 ) -> dict[str, Any]:
     """Run every tester on Dask into ``out`` (``results.parquet``, ``results.csv``,
-    ``summary.json``); returns the summary."""
+    ``summary.json``); returns the summary. ``resume``: run only the testers the folder's
+    table lacks (the same files and settings, else refused)."""
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.summary import write_summary
     from twin.sweep import shipping
@@ -355,8 +357,14 @@ def run_heldout(
 
     testers = Testers(load_testers(cfg.spreads), cfg.seed)
     priors = load_priors()
-    meta = {"heldout": str(cfg.path), "testers": cfg.testers, "seed": cfg.seed, "fingerprint": "heldout"}
-    store = ResultStore(out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=False)
+    meta = {
+        "heldout": str(cfg.path),
+        "testers": cfg.testers,
+        "seed": cfg.seed,
+        "fingerprint": fingerprint(cfg),
+    }
+    store = ResultStore(out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=resume)
+    todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
     timings: list[dict[str, float]] = []
 
     def payload(i: int) -> dict[str, Any]:
@@ -374,7 +382,7 @@ def run_heldout(
         client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
         store.start()
         begin = time.perf_counter()
-        for record in execute(client, range(cfg.testers), payload, tester_task):
+        for record in execute(client, todo, payload, tester_task):
             for row in rows_of(cfg, testers.draw(record["index"]), record):
                 store.add(row)
             timings.append(record.get("timing", {}))
@@ -387,6 +395,24 @@ def run_heldout(
     summary["timing"] = _timing(timings, elapsed, time.perf_counter() - start, threads)
     write_summary(out / "summary.json", summary)
     return summary
+
+
+def fingerprint(cfg: HeldOut) -> str:
+    """A hash of what decides the results: the held-out and spreads files, every scenario
+    file, the number of testers and the seed (a resumed run must be the same one)."""
+    import hashlib
+
+    h = hashlib.sha256(f"{cfg.testers} {cfg.seed}".encode())
+    for path in (cfg.path, cfg.spreads, *(s.path for s in cfg.scenarios)):
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _complete(store: Any, cfg: HeldOut, i: int) -> bool:
+    """Tester ``i`` has an ok row for every scenario in the table already."""
+    n = len(cfg.scenarios)
+    rows = [store.rows.get(i * n + j) for j in range(n)]
+    return all(r is not None and r["status"] == "ok" for r in rows)
 
 
 def _timing(
