@@ -106,3 +106,32 @@ def test_twin_run_of_the_replay_gives_the_interval_and_the_honest_outcome(tmp_pa
 
 #: the computed outcome on this commit's FMUs (see the slow test's text)
 OUTCOME_INSIDE = False
+
+
+def test_calibrated_intervals_replace_the_handbook_spreads(tmp_path: Path) -> None:
+    """Where the thermal network's parameter file gives an interval or a standard error (the
+    calibration's), the Monte Carlo draws from it instead of the facts-6 spread. (The scenario
+    loader accepts such entries once the calibration writes them; read here without loading.)"""
+    from twin.validation.draws import load_testers
+    from twin.validation.replay import calibrated_spreads, merge_spreads
+
+    (tmp_path / "network.toml").write_text(
+        "[parameters]\n"
+        'c_detecting_frame = { value = 3800.0, interval = [3000.0, 4000.0], source = "test" }\n'
+        'g_base_room = { value = 18.0, std_error = 1.8, source = "test" }\n'
+        'g_t_plate_room = { value = 1.2, source = "test: no interval" }\n',
+        encoding="utf-8",
+    )
+    rows = calibrated_spreads({"fmu": {"thermal": {"parameter_files": ["network.toml"]}}}, tmp_path)
+    assert rows == {
+        "fmu.thermal.parameters.c_detecting_frame": ("unif", [3000.0, 4000.0]),
+        "fmu.thermal.parameters.g_base_room": ("lognorm", [pytest.approx(np.log(18.0)), pytest.approx(0.1)]),
+    }
+    data = read_scenario_data(REPLAY)
+    unc = parse_uncertainty(REPLAY, data)
+    problem = merge_spreads(load_testers(unc.spreads, REPLAY, list(data["fmu"])).problem, rows)
+    i = problem["names"].index("fmu.thermal.parameters.c_detecting_frame")
+    assert (problem["dists"][i], problem["bounds"][i]) == ("unif", [3000.0, 4000.0])
+    j = problem["names"].index("fmu.thermal.parameters.g_t_plate_room")
+    assert problem["dists"][j] == "lognorm" and problem["bounds"][j][1] == 0.3  # facts 6 spread kept
+    assert problem["num_vars"] == len(problem["names"]) == len(problem["bounds"])

@@ -154,21 +154,28 @@ def _interval_row(entry: Any) -> tuple[str, list[float]] | None:
     return None
 
 
+def merge_spreads(problem: Mapping[str, Any], rows: Mapping[str, tuple[str, list[float]]]) -> dict[str, Any]:
+    """SALib's problem with ``rows`` (key -> dist, bounds) in place of the same keys' rows,
+    and added where the problem has none."""
+    out = {k: list(problem[k]) for k in ("names", "bounds", "dists")}
+    for key, (dist, bounds) in rows.items():
+        if key in out["names"]:
+            i = out["names"].index(key)
+            out["bounds"][i], out["dists"][i] = bounds, dist
+        else:
+            out["names"].append(key)
+            out["bounds"].append(bounds)
+            out["dists"].append(dist)
+    out["num_vars"] = len(out["names"])
+    return out
+
+
 def _testers(unc: Uncertainty, base: Path, data: Mapping[str, Any]) -> Any:
     """The spreads around this scenario, with the calibrated intervals in place of theirs."""
     from twin.validation.draws import Testers, load_testers
 
     spec = load_testers(unc.spreads, base, list(data.get("fmu", {})))
-    problem = {k: list(v) for k, v in spec.problem.items() if k in ("names", "bounds", "dists")}
-    for key, (dist, bounds) in calibrated_spreads(data, base.resolve().parent).items():
-        if key in problem["names"]:
-            i = problem["names"].index(key)
-            problem["bounds"][i], problem["dists"][i] = bounds, dist
-        else:
-            problem["names"].append(key)
-            problem["bounds"].append(bounds)
-            problem["dists"].append(dist)
-    problem["num_vars"] = len(problem["names"])
+    problem = merge_spreads(spec.problem, calibrated_spreads(data, base.resolve().parent))
     return Testers(dataclasses.replace(spec, problem=problem), unc.seed)
 
 
