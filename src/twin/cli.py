@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from twin import __version__, identify_cli
 from twin.errors import ConfigError, TwinError
 from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
+from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
 
 if TYPE_CHECKING:
     from twin.pipeline import RunSummary
@@ -120,10 +121,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import functools
     import time
 
+    from twin.config.load import default_scenario_path
     from twin.pipeline import run
+    from twin.validation.replay import finish_run, for_run
 
     start = time.perf_counter()
     scenario = _load(args)
+    if args.uncertainty is not None and args.uncertainty < 0:
+        raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
+    path = Path(args.scenario) if args.scenario else default_scenario_path()
+    uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = Path(args.out) if args.out else Path("runs") / scenario.name
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
     stage = functools.partial(
@@ -134,7 +141,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides=args.set or [],
         checkpoint_every_ns=every,
     )
-    return _finish(_supervised(args.quiet, stage), out, args.quiet)
+    summary = _supervised(args.quiet, stage)
+    if uncertainty is not None and summary.status == "completed":
+        finish_run(uncertainty, out, (lambda _: None) if args.quiet else print)
+    return _finish(summary, out, args.quiet)
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
@@ -205,6 +215,13 @@ def make_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
     p.add_argument(
+        "--uncertainty",
+        type=int,
+        metavar="N",
+        help="Monte Carlo samples of the prediction's uncertainty (default: the scenario's "
+        "[uncertainty] samples; 0: none)",
+    )
+    p.add_argument(
         "--checkpoint-every",
         metavar="DURATION",
         help="save the whole twin every DURATION of simulated time (e.g. '1 h')",
@@ -243,6 +260,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)
     add_sweep_parser(sub)
+    heldout_cli.add_parser(sub)
     return parser
 
 

@@ -40,7 +40,8 @@ __all__ = [
     "scenarios_dir",
 ]
 
-_TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"}
+#: "uncertainty" is read by twin run (twin.validation.replay), not by the co-simulation
+_TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel", "uncertainty"}
 
 
 def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None) -> None:

@@ -459,12 +459,17 @@ def _blame(p: _Problems, e: ConfigError, names: list[str]) -> None:
 def load_spec(path: str | Path) -> Spec:
     """Read and check a sweep file; raises :class:`ConfigError` / :class:`ConfigErrors`."""
     path = Path(path)
-    raw = _read(path)
+    return spec_from_data(_read(path), path)
+
+
+def spec_from_data(raw: Mapping[str, Any], path: Path, base: Path | None = None) -> Spec:
+    """Check a sweep file's data read from ``path``; ``base`` replaces its ``sweep.base`` (the
+    spreads of one tester as built, resolved around another scenario's values)."""
     p = _Problems(str(path))
     p.unknown(raw, _TOP_KEYS, "")
     sw = _sweep_table(p, raw, path)
     p.check()
-    base = (path.resolve().parent / raw["sweep"]["base"]).resolve()
+    base = base or (path.resolve().parent / raw["sweep"]["base"]).resolve()
     data, scenario = load_base(path, base, sw["fixed"])
     if sw["design"] == "grid":
         p.unknown(raw, {"sweep", "grid"}, "")

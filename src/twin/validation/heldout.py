@@ -1,0 +1,490 @@
+"""``twin heldout``: the error model judged on testers it was not identified on... by a lab's rules.
+
+For each of N testers as built (:mod:`twin.validation.draws`, the spreads of facts.md
+section 6), on a Dask worker:
+
+1. every calibration experiment of ``twin identify`` (``scenarios/calibration/``) runs on that
+   tester, and :func:`twin.errormodel.identify.fit_records` fits the error model's
+   coefficients from the DAQ channels alone (in memory, no file);
+2. the group's MLR + AR thermal compensation (:mod:`twin.errormodel.baselines`) is fitted on
+   the same thermal calibration records;
+3. operating scenarios the identification never saw run on the same tester (each with a slow
+   random drift on its room, facts 6), and both models compensate them.
+
+One row per tester and scenario: the RMS error before and after, the % of the RMS removed and
+the largest residual, for the MBS model and the baseline, the tester's drawn values and its
+identified coefficients. The held-out file (``scenarios/validation/heldout.toml``) names the
+spreads file, the scenarios and the goals; it names no FMU parameter.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twin.config.spec import Scenario
+from twin.errormodel.baselines import MlrAr, fit_mlr_ar
+from twin.errormodel.coefficients import Prior
+from twin.errormodel.identify import Experiment, Record
+from twin.errors import ConfigError, ConfigErrors, RunError
+
+__all__ = ["HeldOut", "load_heldout", "run_heldout", "run_tester", "summarise"]
+
+#: the identify calibration whose experiments the baseline is fitted on (the thermal ones)
+THERMAL_CALIBRATION = "thermal"
+_TOP = {"heldout", "scenario", "goals"}
+_HELDOUT_KEYS = {"spreads", "testers", "seed", "room", "room_drift_K", "calibration"}
+_SCENARIO_KEYS = {"name", "file", "set", "thermal_only"}
+GOAL_KEYS = ("median_removed_pct", "p10_removed_pct", "thermal_only_max_um")
+MODELS = ("mbs", "mlr_ar")
+
+
+@dataclass(frozen=True)
+class HeldOutScenario:
+    """An operating scenario of the validation: its file, overrides, and whether only
+    thermal errors act in it (no load, no motion)."""
+
+    name: str
+    path: Path
+    overrides: tuple[str, ...] = ()
+    thermal_only: bool = False
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """A checked held-out file."""
+
+    path: Path
+    spreads: Path
+    testers: int
+    seed: int
+    room: str
+    room_drift_K: float
+    calibration: Path
+    scenarios: tuple[HeldOutScenario, ...]
+    goals: Mapping[str, float] = field(default_factory=dict)
+
+
+def _number(p: list[ConfigError], src: str, key: str, v: Any, lo: float) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
+        p.append(ConfigError(f"expected a number >= {lo}, got {v!r}", source=src, key=key))
+        return lo
+    return float(v)
+
+
+def _scenarios(p: list[ConfigError], src: str, folder: Path, raw: Any) -> list[HeldOutScenario]:
+    if not isinstance(raw, list) or not raw:
+        p.append(ConfigError("expected at least one [[scenario]]", source=src, key="scenario"))
+        return []
+    out = []
+    for i, s in enumerate(raw):
+        where = f"scenario[{i}]"
+        if not isinstance(s, dict) or not isinstance(s.get("file"), str):
+            p.append(ConfigError("expected a table with file = '...'", source=src, key=where))
+            continue
+        p += [
+            ConfigError("unknown key", source=src, key=f"{where}.{k}") for k in s if k not in _SCENARIO_KEYS
+        ]
+        path = (folder / s["file"]).resolve()
+        if not path.is_file():
+            p.append(ConfigError(f"no such file {s['file']!r}", source=src, key=f"{where}.file"))
+        sets = s.get("set", [])
+        if not isinstance(sets, list) or not all(isinstance(x, str) for x in sets):
+            p.append(ConfigError("expected a list of KEY=VALUE strings", source=src, key=f"{where}.set"))
+            sets = []
+        name = s.get("name", path.stem)
+        out.append(HeldOutScenario(str(name), path, tuple(sets), bool(s.get("thermal_only", False))))
+    names = [s.name for s in out]
+    if len(set(names)) != len(names):
+        p.append(ConfigError("two scenarios share a name", source=src, key="scenario"))
+    return out
+
+
+def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
+    """Read and check a held-out file; every problem at once (:class:`ConfigErrors`)."""
+    from twin.config.problems import read_toml
+
+    path = Path(path)
+    src, folder = str(path), path.resolve().parent
+    raw = read_toml(path, src)
+    p = [ConfigError("unknown table", source=src, key=k) for k in raw if k not in _TOP]
+    h = raw.get("heldout", {}) if isinstance(raw.get("heldout"), dict) else {}
+    p += [ConfigError("unknown key", source=src, key=f"heldout.{k}") for k in h if k not in _HELDOUT_KEYS]
+    spreads = (folder / str(h.get("spreads", "testers-as-built.toml"))).resolve()
+    if not spreads.is_file():
+        p.append(ConfigError(f"no such file {spreads.name!r}", source=src, key="heldout.spreads"))
+    calibration = (folder / str(h.get("calibration", "../calibration"))).resolve()
+    n = testers if testers is not None else h.get("testers", 50)
+    goals_raw = raw.get("goals", {}) if isinstance(raw.get("goals"), dict) else {}
+    p += [ConfigError("unknown goal", source=src, key=f"goals.{k}") for k in goals_raw if k not in GOAL_KEYS]
+    goals = {k: _number(p, src, f"goals.{k}", v, 0.0) for k, v in goals_raw.items() if k in GOAL_KEYS}
+    cfg = HeldOut(
+        path=path,
+        spreads=spreads,
+        testers=int(_number(p, src, "heldout.testers", n, 1)),
+        seed=int(_number(p, src, "heldout.seed", h.get("seed", 0), 0)),
+        room=str(h.get("room", "input.thermal.t_room")),
+        room_drift_K=_number(p, src, "heldout.room_drift_K", h.get("room_drift_K", 1.0), 0.0),
+        calibration=calibration,
+        scenarios=tuple(_scenarios(p, src, folder, raw.get("scenario"))),
+        goals=goals,
+    )
+    if p:
+        raise p[0] if len(p) == 1 else ConfigErrors(p)
+    return cfg
+
+
+# ----------------------------------------------------------------------------- one tester
+
+
+@dataclass(frozen=True)
+class TesterJob:
+    """Everything a worker needs for one tester, built and checked on the client."""
+
+    index: int
+    values: Mapping[str, float]
+    calibration: tuple[tuple[Experiment, Scenario], ...]
+    heldout: tuple[tuple[HeldOutScenario, Scenario], ...]
+    priors: Mapping[str, Prior]
+
+
+def lab_record(experiment: Experiment, scenario: Scenario) -> Record:
+    """Run one calibration experiment and keep what a lab's DAQ records (as ``twin identify``)."""
+    from twin.cosim.master import Master
+    from twin.errormodel.identify import LabRecorder, known_displacement, lab_channels
+
+    recorder = LabRecorder(lab_channels())
+    result = Master(scenario, recorder=recorder).run()
+    if result.status != "completed":
+        raise RunError(f"calibration experiment {experiment.name!r} {result.status}: {result.error}")
+    table = recorder.table()
+    known, used = known_displacement(scenario, experiment, table.time)
+    return Record(experiment, table, known, used)
+
+
+def _lab_config(values: Mapping[str, float]) -> Any:
+    """The error model's configuration with ``values``, the twin's default columns, no true
+    wear (a lab's record has none)."""
+    from twin.errormodel.config import errormodel_config
+
+    return replace(errormodel_config(values, {}, "twin heldout", 300.0), true_wear=None)
+
+
+def fit_baseline(records: Mapping[str, Record], values: Mapping[str, float]) -> MlrAr:
+    """The MLR + AR model on the thermal calibration's records: the cleaned reading (the same
+    robust spike filter as the MBS model) against the eight temperatures, fitted samples only."""
+    from twin.errormodel.factors import Measured
+    from twin.errormodel.identify import CALIBRATIONS
+    from twin.errormodel.tester import tester_model
+
+    cal = next(c for c in CALIBRATIONS if c.name == THERMAL_CALIBRATION)
+    cfg = _lab_config(values)
+    drifts, temps = [], []
+    for name in cal.experiments:
+        r = records[name]
+        m = Measured.read(r.table, cfg, tester_model())
+        drifts.append(m.cleaned[r.used])
+        temps.append({k: v[r.used] for k, v in m.temperatures.items()})
+    return fit_mlr_ar(drifts, temps)
+
+
+def _figures(before: np.ndarray, after: np.ndarray) -> dict[str, float]:
+    rms_b, rms_a = float(np.sqrt(np.mean(before**2))), float(np.sqrt(np.mean(after**2)))
+    return {
+        "rms_after_um": rms_a * 1e6,
+        "removed_pct": 100.0 * (1.0 - rms_a / rms_b) if rms_b > 0 else math.nan,
+        "max_residual_um": float(np.max(np.abs(after))) * 1e6,
+    }
+
+
+def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: MlrAr) -> dict[str, float]:
+    """Run a held-out scenario, compensate it with the identified ``values`` (MBS) and with the
+    baseline; the figures of both against the twin's true wear."""
+    from twin.errormodel.config import evaluation_config, input_columns
+    from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
+    from twin.pipeline import evaluate_run, simulate
+
+    cfg = replace(
+        evaluation_config(scenario),
+        geometry=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
+        mechanics=MechanicalCoefficients.from_values(values, source="twin heldout: identified"),
+    )
+    sim = simulate(scenario, keep=input_columns(cfg))
+    if sim.result.status != "completed":
+        raise RunError(f"{scenario.name} {sim.result.status}: {sim.result.error}")
+    ev = evaluate_run(sim, cfg)
+    if ev.table is None or not cfg.true_wear:
+        raise RunError(f"{scenario.name}: the error model did not run ({ev.error})")
+    t = ev.table
+    wear = t[cfg.true_wear] - t[cfg.true_wear][0]
+    raw = t["errormodel.reading_change"]
+    before = raw - wear
+    temps = {point: t[col] for point, col in cfg.temperatures.items()}
+    thermal_b = baseline.predict(temps)
+    out = {"rms_before_um": float(np.sqrt(np.mean(before**2))) * 1e6}
+    out["max_before_um"] = float(np.max(np.abs(before))) * 1e6
+    out.update({f"mbs.{k}": v for k, v in _figures(before, t["errormodel.residual"]).items()})
+    after_b = raw - t["errormodel.e_interference"] - thermal_b - wear
+    out.update({f"mlr_ar.{k}": v for k, v in _figures(before, after_b).items()})
+    return out
+
+
+def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
+    """Identify one tester, fit the baseline, judge both on the held-out scenarios.
+
+    Returns one row of figures per held-out scenario and the timings.
+    """
+    from twin.errormodel.identify import fit_records
+
+    start = time.perf_counter()
+    records = {e.name: lab_record(e, s) for e, s in job.calibration}
+    coefficients = fit_records(records, job.priors)
+    identified = coefficients.values()
+    identify_s = time.perf_counter() - start
+    baseline = fit_baseline(records, identified)
+    ident = {f"identified.{k}": v for k, v in identified.items()}
+    rows = []
+    for _, scenario in job.heldout:
+        figures = evaluate_heldout(scenario, identified, baseline)
+        figures["mlr_ar.temperatures_kept"] = float(len(baseline.names))
+        figures["mlr_ar.ar_order"] = float(len(baseline.ar))
+        rows.append({**figures, **ident})
+    return rows, {"identify_s": identify_s, "total_s": time.perf_counter() - start}
+
+
+def tester_task(payload: dict[str, Any]) -> dict[str, Any]:
+    """What a worker runs for one tester: never raises, a failure is a failed record."""
+    import os
+
+    from twin.sweep import shipping
+    from twin.sweep.execute import one_line
+
+    record: dict[str, Any] = {"index": payload["index"], "status": "ok", "error": "", "rows": []}
+    try:
+        shipping.check_worker()
+        record["rows"], record["timing"] = run_tester(payload["scenario"])
+    except Exception as exc:
+        record.update(status="failed", error=one_line(exc))
+    record["pid"] = os.getpid()
+    return record
+
+
+# ----------------------------------------------------------------------------- the client
+
+
+def _heldout_scenario(
+    cfg: HeldOut, ho: HeldOutScenario, values: Mapping[str, float], i: int, j: int
+) -> Scenario:
+    """Held-out scenario ``j`` of tester ``i``: its file, its overrides, the tester's values,
+    a seed of its own and the room's slow drift."""
+    from twin.config.load import read_scenario_data
+    from twin.config.overrides import apply_overrides
+    from twin.sweep.spec import build_scenario
+    from twin.validation.draws import (
+        ROOM_KEY,
+        overrides_for,
+        run_seed,
+        sequence,
+        smooth_drift,
+        with_room_drift,
+    )
+
+    data = read_scenario_data(ho.path)
+    apply_overrides(data, ho.overrides, f"{cfg.path}: {ho.name}: set")
+    sets = [*overrides_for(values, data), f"scenario.seed={run_seed(cfg.seed, i, j)}"]
+    scenario = build_scenario(data, ho.path, sets)
+    if cfg.room_drift_K > 0:
+        rng = np.random.default_rng(sequence(cfg.seed, ROOM_KEY, i, j))
+        with_room_drift(data, scenario, cfg.room, smooth_drift(rng, cfg.room_drift_K))
+        scenario = build_scenario(data, ho.path, sets)
+    return scenario
+
+
+def make_job(cfg: HeldOut, testers: Any, priors: Mapping[str, Prior], i: int) -> TesterJob:
+    """Tester ``i``'s job: its drawn values applied to every calibration experiment and
+    every held-out scenario (scenarios built and checked here, on the client)."""
+    from twin.config.load import read_scenario_data
+    from twin.errormodel.identify import EXPERIMENTS, experiment_scenario
+    from twin.validation.draws import overrides_for, run_seed
+
+    values = testers.draw(i)
+    calibration = []
+    for k, e in enumerate(EXPERIMENTS):
+        data = read_scenario_data(cfg.calibration / e.scenario)
+        sets = [*overrides_for(values, data), f"scenario.seed={run_seed(cfg.seed, i, 1000 + k)}"]
+        calibration.append((e, experiment_scenario(e, sets, cfg.calibration)[0]))
+    heldout = tuple((ho, _heldout_scenario(cfg, ho, values, i, j)) for j, ho in enumerate(cfg.scenarios))
+    return TesterJob(i, values, tuple(calibration), heldout, priors)
+
+
+def rows_of(cfg: HeldOut, values: Mapping[str, float], record: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The table rows of one tester's record (failed: one row per scenario with its error)."""
+    i = record["index"]
+    out = []
+    for j, ho in enumerate(cfg.scenarios):
+        row = {"point": i * len(cfg.scenarios) + j, "seed": cfg.seed, "tester": i, "scenario": ho.name}
+        row.update(thermal_only=ho.thermal_only, **values, status=record["status"], error=record["error"])
+        if record["status"] == "ok":
+            row.update(record["rows"][j])
+        out.append(row)
+    return out
+
+
+def run_heldout(
+    cfg: HeldOut,
+    out: Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    resume: bool = False,
+    echo: Callable[[str], None] = lambda _: None,
+) -> dict[str, Any]:
+    """Run every tester on Dask into ``out`` (``results.parquet``, ``results.csv``,
+    ``summary.json``); returns the summary. ``resume``: run only the testers the folder's
+    table lacks (the same files and settings, else refused)."""
+    from twin.errormodel.coefficients import load_priors
+    from twin.outputs.summary import write_summary
+    from twin.sweep import shipping
+    from twin.sweep.execute import execute, failed, one_line, open_client
+    from twin.sweep.results import ResultStore
+    from twin.validation.draws import Testers, load_testers
+
+    testers = Testers(load_testers(cfg.spreads), cfg.seed)
+    priors = load_priors()
+    meta = {
+        "heldout": str(cfg.path),
+        "testers": cfg.testers,
+        "seed": cfg.seed,
+        "fingerprint": fingerprint(cfg),
+    }
+    store = ResultStore(out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=resume)
+    todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
+    timings: list[dict[str, float]] = []
+
+    def payload(i: int) -> dict[str, Any]:
+        try:
+            return {"index": i, "scenario": make_job(cfg, testers, priors, i)}
+        except ConfigError as exc:
+            return failed(i, one_line(exc)) | {"rows": []}
+
+    start = time.perf_counter()
+    with open_client(scheduler, workers) as client:
+        threads = max(1, sum(client.nthreads().values()))
+        echo(
+            f"heldout: {cfg.testers} testers x {len(cfg.scenarios)} scenarios on {threads} workers; results in {out}"
+        )
+        client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
+        store.start()
+        begin = time.perf_counter()
+        for record in execute(client, todo, payload, tester_task):
+            for row in rows_of(cfg, testers.draw(record["index"]), record):
+                store.add(row)
+            timings.append(record.get("timing", {}))
+            store.flush()
+            echo(f"tester {record['index']}: {record['status']} {record['error']}".rstrip())
+        elapsed = time.perf_counter() - begin
+    store.flush(force=True)
+    table = store.table()
+    summary = summarise(cfg, table)
+    summary["timing"] = _timing(timings, elapsed, time.perf_counter() - start, threads)
+    write_summary(out / "summary.json", summary)
+    return summary
+
+
+def fingerprint(cfg: HeldOut) -> str:
+    """A hash of what decides the results: the held-out and spreads files, every scenario
+    file, the number of testers and the seed (a resumed run must be the same one)."""
+    import hashlib
+
+    h = hashlib.sha256(f"{cfg.testers} {cfg.seed}".encode())
+    for path in (cfg.path, cfg.spreads, *(s.path for s in cfg.scenarios)):
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _complete(store: Any, cfg: HeldOut, i: int) -> bool:
+    """Tester ``i`` has an ok row for every scenario in the table already."""
+    n = len(cfg.scenarios)
+    rows = [store.rows.get(i * n + j) for j in range(n)]
+    return all(r is not None and r["status"] == "ok" for r in rows)
+
+
+def _timing(
+    timings: Sequence[Mapping[str, float]], elapsed: float, wall: float, threads: int
+) -> dict[str, Any]:
+    ident = [t["identify_s"] for t in timings if "identify_s" in t]
+    total = [t["total_s"] for t in timings if "total_s" in t]
+    return {
+        "wall_s": wall,
+        "testers_s": elapsed,
+        "workers": threads,
+        "identify_s_mean": float(np.mean(ident)) if ident else None,
+        "tester_s_mean": float(np.mean(total)) if total else None,
+    }
+
+
+# ----------------------------------------------------------------------------- the summary
+
+
+def _stats(frame: Any, model: str) -> dict[str, Any]:
+    removed = frame[f"{model}.removed_pct"].to_numpy(dtype=float)
+    largest = frame[f"{model}.max_residual_um"].to_numpy(dtype=float)
+    if len(removed) == 0:
+        return {"rows": 0}
+    return {
+        "rows": len(removed),
+        "removed_pct_median": float(np.median(removed)),
+        "removed_pct_p10": float(np.percentile(removed, 10)),
+        "largest_residual_um": float(np.max(largest)),
+        "rms_after_um_median": float(np.median(frame[f"{model}.rms_after_um"].to_numpy(dtype=float))),
+    }
+
+
+def _goals(cfg: HeldOut, models: Mapping[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    figures = {
+        "median_removed_pct": ("removed_pct_median", "all", True),
+        "p10_removed_pct": ("removed_pct_p10", "all", True),
+        "thermal_only_max_um": ("largest_residual_um", "thermal_only", False),
+    }
+    for goal, target in cfg.goals.items():
+        stat, group, at_least = figures[goal]
+        entry: dict[str, Any] = {"goal": target, "at_least" if at_least else "at_most": target}
+        for model in MODELS:
+            value = models[model].get(group, {}).get(stat)
+            met = None if value is None else (value >= target if at_least else value <= target)
+            entry[model] = {"value": value, "met": met}
+        out[goal] = entry
+    return out
+
+
+def summarise(cfg: HeldOut, table: Any) -> dict[str, Any]:
+    """Median and 10th percentile of the % of RMS removed, the largest residual (all rows,
+    thermal-only rows, per scenario) for both models, and the goals."""
+    ok = table[table["status"] == "ok"]
+    models: dict[str, Any] = {}
+    for model in MODELS:
+        models[model] = {
+            "all": _stats(ok, model),
+            "thermal_only": _stats(ok[ok["thermal_only"].astype(bool)], model),
+            "by_scenario": {s.name: _stats(ok[ok["scenario"] == s.name], model) for s in cfg.scenarios},
+        }
+    testers_failed = sorted({int(t) for t in table.loc[table["status"] != "ok", "tester"]})
+    return {
+        "heldout_file": str(cfg.path),
+        "spreads_file": str(cfg.spreads),
+        "testers": cfg.testers,
+        "testers_failed": testers_failed,
+        "seed": cfg.seed,
+        "scenarios": [
+            {"name": s.name, "thermal_only": s.thermal_only, "set": list(s.overrides)} for s in cfg.scenarios
+        ],
+        "models": models,
+        "goals": _goals(cfg, models),
+    }

@@ -1,0 +1,121 @@
+"""The held-out validation, small: 5 testers x 1 short held-out scenario on Dask.
+
+What it checks: the table's shape and the summary's figures against the table, that the
+result does not depend on the number of workers or of testers, that each tester's
+coefficients are what ``twin identify`` finds on that tester's calibration runs (not the
+drawn FMU values, not the committed file), and bad input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from twin.cli import main
+from twin.config.load import read_scenario_data, scenarios_dir
+from twin.errormodel.coefficients import default_path, load_coefficients
+from twin.errormodel.identify import EXPERIMENTS, identify
+from twin.errors import ConfigError
+from twin.validation.draws import Testers as Draws  # not a test class
+from twin.validation.draws import load_testers, overrides_for, run_seed
+from twin.validation.heldout import load_heldout, run_heldout
+
+TESTERS = 5
+SCENARIOS = scenarios_dir()
+
+
+def write_heldout(path: Path, testers: int = TESTERS, extra: str = "") -> Path:
+    path.write_text(
+        f"""
+[heldout]
+spreads = "{SCENARIOS / "validation" / "testers-as-built.toml"}"
+testers = {testers}
+seed = 12
+calibration = "{SCENARIOS / "calibration"}"
+room_drift_K = 1.0
+{extra}
+[[scenario]]
+name = "sine-load-short"
+file = "{SCENARIOS / "sine-load.toml"}"
+set = ['scenario.duration = "20 min"']
+
+[goals]
+median_removed_pct = 90.0
+p10_removed_pct = 80.0
+thermal_only_max_um = 2.0
+""",
+        encoding="utf-8",
+    )
+    return path
+
+
+@pytest.fixture(scope="module")
+def five(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, pd.DataFrame]:
+    tmp = tmp_path_factory.mktemp("heldout")
+    cfg = load_heldout(write_heldout(tmp / "heldout.toml"))
+    summary = run_heldout(cfg, tmp / "out", workers=2)
+    return summary, pd.read_parquet(tmp / "out" / "results.parquet")
+
+
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
+def test_one_row_per_tester_and_scenario_and_the_summary_reads_the_table(five) -> None:
+    summary, table = five
+    assert len(table) == TESTERS and list(table["tester"]) == list(range(TESTERS))
+    assert (table["status"] == "ok").all(), table["error"].tolist()
+    for col in ("rms_before_um", "mbs.removed_pct", "mbs.max_residual_um", "mlr_ar.removed_pct"):
+        assert np.isfinite(table[col]).all(), col
+    before, after = table["rms_before_um"], table["mbs.rms_after_um"]
+    assert np.allclose(table["mbs.removed_pct"], 100 * (1 - after / before))
+    mbs = summary["models"]["mbs"]["all"]
+    assert mbs["removed_pct_median"] == pytest.approx(np.median(table["mbs.removed_pct"]))
+    assert mbs["removed_pct_p10"] == pytest.approx(np.percentile(table["mbs.removed_pct"], 10))
+    assert mbs["largest_residual_um"] == pytest.approx(table["mbs.max_residual_um"].max())
+    goal = summary["goals"]["median_removed_pct"]["mbs"]
+    assert goal["met"] == (goal["value"] >= 90.0)
+    assert summary["goals"]["thermal_only_max_um"]["mbs"]["value"] is None  # no thermal-only row here
+    # the testers differ: the draws reach the FMUs
+    assert table["fmu.sensors.parameters.probe_zero_drift"].nunique() == TESTERS
+
+
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
+def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -> None:
+    _, table = five
+    cfg = load_heldout(write_heldout(tmp_path / "two.toml", testers=2))
+    run_heldout(cfg, tmp_path / "out", workers=1)
+    two = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    pd.testing.assert_frame_equal(two, table.iloc[:2].reset_index(drop=True))
+    with pytest.raises(ConfigError, match="already holds"):  # never overwritten unasked
+        run_heldout(cfg, tmp_path / "out", workers=1)
+    summary = run_heldout(cfg, tmp_path / "out", workers=1, resume=True)  # complete: nothing to run
+    assert summary["timing"]["identify_s_mean"] is None
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "out" / "results.parquet"), two)
+
+
+@pytest.mark.slow  # runs the calibration experiments of 5 testers on Dask (~45 s of CPU)
+def test_coefficients_are_what_identify_finds_on_that_tester(five, tmp_path: Path) -> None:
+    _, table = five
+    cfg = load_heldout(write_heldout(tmp_path / "heldout.toml"))
+    values = Draws(load_testers(cfg.spreads), cfg.seed).draw(0)
+    data = read_scenario_data(SCENARIOS / "calibration" / EXPERIMENTS[0].scenario)
+    seeds = {e.name: [f"scenario.seed={run_seed(cfg.seed, 0, 1000 + k)}"] for k, e in enumerate(EXPERIMENTS)}
+    found = identify(overrides_for(values, data), per_experiment=seeds).values()
+    row = table.iloc[0]
+    for name, value in found.items():
+        assert row[f"identified.{name}"] == value, name
+    # not the drawn FMU value, not the committed nominal file, and different per tester
+    assert row["identified.probe_zero_drift"] != row["fmu.sensors.parameters.probe_zero_drift"]
+    nominal = load_coefficients(default_path()).values()
+    assert all(table[f"identified.{n}"].nunique() == TESTERS for n in nominal)
+    assert all((table[f"identified.{n}"] != v).all() for n, v in nominal.items())
+
+
+def test_bad_heldout_file_is_one_line_per_problem(tmp_path: Path) -> None:
+    path = write_heldout(tmp_path / "bad.toml", extra="colour = 'red'\n")
+    with pytest.raises(ConfigError) as err:
+        load_heldout(path)
+    assert "heldout.colour" in str(err.value)
+    assert main(["heldout", str(path)]) == 2
+    assert main(["heldout", str(write_heldout(tmp_path / "ok.toml")), "--testers", "0"]) == 2

@@ -1,0 +1,137 @@
+"""The paper replay's uncertainty: its inputs, its figures, and the honest outcome."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.cli import main
+from twin.config.load import default_scenario_path, read_scenario_data
+from twin.cosim.profiles import profile_function
+from twin.errors import ConfigError
+from twin.paper import DRIFT_M, FEM_PARTS_M
+from twin.validation.draws import ROOM_SHAPES
+from twin.validation.replay import add_to_summary, parse_uncertainty, sample_scenarios
+
+REPLAY = default_scenario_path()
+
+
+def test_samples_take_each_room_shape_in_turn_reaching_the_papers_rise() -> None:
+    data = read_scenario_data(REPLAY)
+    unc = parse_uncertainty(REPLAY, data)
+    assert unc is not None and unc.samples > 0
+    names, make = sample_scenarios(unc, REPLAY, data, [])
+    assert "fmu.sensors.parameters.probe_zero_drift" in names
+    assert not any(".hydraulic." in n or ".oscillation." in n for n in names)  # the replay has neither
+    end = 480 * 60.0
+    seen, rooms, seeds = [], [], set()
+    for i in range(2 * len(ROOM_SHAPES)):
+        scenario, shape = make(i)
+        seen.append(shape)
+        seeds.add(scenario.seed)
+        room = next(p for p in scenario.profiles if p.target == "thermal.t_room")
+        f = profile_function(room)
+        start, final = f(np.array([0.0, end]))
+        assert start == pytest.approx(293.15) and final - start == pytest.approx(8.9)  # the paper's rise
+        rooms.append(f(np.linspace(0.0, end, 97)))
+    assert seen == [*ROOM_SHAPES, *ROOM_SHAPES]
+    assert len(seeds) == len(seen)
+    # the same shape in samples i and i + 3 differs by the slow drift, at most 1 K
+    for i in range(len(ROOM_SHAPES)):
+        gap = np.max(np.abs(rooms[i] - rooms[i + len(ROOM_SHAPES)]))
+        assert 0.0 < gap <= 2.0
+
+
+def test_probe_zero_drift_is_centred_on_zero_not_on_the_committed_value() -> None:
+    data = read_scenario_data(REPLAY)
+    unc = parse_uncertainty(REPLAY, data, samples=64)
+    _, make = sample_scenarios(unc, REPLAY, data, [])
+    drifts = [make(i)[0].fmu("sensors").parameters["probe_zero_drift"].value for i in range(64)]
+    assert abs(np.mean(drifts)) < 0.3e-6 * 3 / 8  # 3 standard errors of a mean of 64 draws
+    assert 0.2e-6 < np.std(drifts) < 0.4e-6
+    assert min(drifts) < 0 < max(drifts)
+
+
+def test_bad_uncertainty_table_is_refused_before_the_run(tmp_path: Path) -> None:
+    text = REPLAY.read_text(encoding="utf-8").replace("room_drift_K = 1.0", "room_drift_K = -1.0")
+    bad = tmp_path / "replay.toml"
+    bad.write_text(
+        text.replace('"calibration/', f'"{REPLAY.parent}/calibration/').replace(
+            '"validation/', f'"{REPLAY.parent}/validation/'
+        ),
+        encoding="utf-8",
+    )
+    with pytest.raises(ConfigError, match="room_drift_K"):
+        parse_uncertainty(bad, read_scenario_data(bad))
+    assert main(["run", str(bad), "--out", str(tmp_path / "run")]) == 2
+    assert not (tmp_path / "run").exists()
+
+
+def test_fem_components_are_the_papers_beside_the_twins_thermal_parts() -> None:
+    twin = {"bearing_block": -0.019, "t_plate": 0.0031, "detecting_frame": -0.0411, "long_pole": 0.0398}
+    out = add_to_summary({"thermal_parts_mm": twin, "drift_mm": {"probe": -0.02}}, None)
+    fem = out["paper"]["fem_components_mm"]
+    assert set(fem) == set(FEM_PARTS_M)
+    for part, m in FEM_PARTS_M.items():
+        assert fem[part]["paper"] == pytest.approx(m * 1e3)
+        assert fem[part]["twin"] == twin[part]
+        assert fem[part]["derived"] == (part == "bearing_block")
+    assert "interval_90" not in out["drift_mm"]  # no Monte Carlo, no interval
+
+
+@pytest.mark.slow
+def test_twin_run_of_the_replay_gives_the_interval_and_the_honest_outcome(tmp_path: Path) -> None:
+    """The README's main command, with the scenario's own [uncertainty] (64 samples).
+
+    The outcome asserted is the one computed on the FMUs of this commit (issue 12 point 7), not
+    a target: the paper's -0.021 mm lies just OUTSIDE the 90 % interval [-0.0210, -0.0116] mm,
+    0.03 um below its lower end (4 of 64 samples below it; README). When the physics changes,
+    rerun and state the new outcome here.
+    """
+    assert main(["run", "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "run" / "summary.json").read_text(encoding="utf-8"))
+    d = s["drift_mm"]
+    lo, hi = d["interval_90"]
+    assert d["samples"] == 64 and lo < d["uncertainty"]["median"] < hi and d["sigma"] > 0
+    inside = lo <= DRIFT_M * 1e3 <= hi
+    assert d["uncertainty"]["paper_measured_inside_interval_90"] == inside
+    assert inside is OUTCOME_INSIDE
+    assert d["uncertainty"]["paper_measured_quantile"] == pytest.approx(4 / 64)
+    assert (tmp_path / "run" / "uncertainty.csv").is_file()
+    assert set(s["paper"]["fem_components_mm"]) == set(FEM_PARTS_M)
+
+
+#: the computed outcome on this commit's FMUs (see the slow test's text)
+OUTCOME_INSIDE = False
+
+
+def test_calibrated_intervals_replace_the_handbook_spreads(tmp_path: Path) -> None:
+    """Where the thermal network's parameter file gives an interval or a standard error (the
+    calibration's), the Monte Carlo draws from it instead of the facts-6 spread. (The scenario
+    loader accepts such entries once the calibration writes them; read here without loading.)"""
+    from twin.validation.draws import load_testers
+    from twin.validation.replay import calibrated_spreads, merge_spreads
+
+    (tmp_path / "network.toml").write_text(
+        "[parameters]\n"
+        'c_detecting_frame = { value = 3800.0, interval = [3000.0, 4000.0], source = "test" }\n'
+        'g_base_room = { value = 18.0, std_error = 1.8, source = "test" }\n'
+        'g_t_plate_room = { value = 1.2, source = "test: no interval" }\n',
+        encoding="utf-8",
+    )
+    rows = calibrated_spreads({"fmu": {"thermal": {"parameter_files": ["network.toml"]}}}, tmp_path)
+    assert rows == {
+        "fmu.thermal.parameters.c_detecting_frame": ("unif", [3000.0, 4000.0]),
+        "fmu.thermal.parameters.g_base_room": ("lognorm", [pytest.approx(np.log(18.0)), pytest.approx(0.1)]),
+    }
+    data = read_scenario_data(REPLAY)
+    unc = parse_uncertainty(REPLAY, data)
+    problem = merge_spreads(load_testers(unc.spreads, REPLAY, list(data["fmu"])).problem, rows)
+    i = problem["names"].index("fmu.thermal.parameters.c_detecting_frame")
+    assert (problem["dists"][i], problem["bounds"][i]) == ("unif", [3000.0, 4000.0])
+    j = problem["names"].index("fmu.thermal.parameters.g_t_plate_room")
+    assert problem["dists"][j] == "lognorm" and problem["bounds"][j][1] == 0.3  # facts 6 spread kept
+    assert problem["num_vars"] == len(problem["names"]) == len(problem["bounds"])
