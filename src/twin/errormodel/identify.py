@@ -216,9 +216,14 @@ def run_experiment(
     experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
 ) -> Record:
     """Run one calibration experiment on the twin and keep what a lab's DAQ records."""
+    scenario, digest = experiment_scenario(experiment, overrides, folder)
+    return lab_record(experiment, scenario, digest)
+
+
+def lab_record(experiment: Experiment, scenario: Scenario, digest: str = "") -> Record:
+    """Run ``experiment``'s (already built) ``scenario`` and keep what a lab's DAQ records."""
     from twin.cosim.master import Master
 
-    scenario, digest = experiment_scenario(experiment, overrides, folder)
     recorder = LabRecorder(lab_channels())
     result = Master(scenario, recorder=recorder).run()
     if result.status != "completed":

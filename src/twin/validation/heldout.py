@@ -31,7 +31,7 @@ import numpy as np
 from twin.config.spec import Scenario
 from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
-from twin.errormodel.identify import Experiment, Record
+from twin.errormodel.identify import Experiment, Record, lab_record
 from twin.errors import ConfigError, ConfigErrors, RunError
 
 __all__ = ["HeldOut", "load_heldout", "run_heldout", "run_tester", "summarise"]
@@ -152,20 +152,6 @@ class TesterJob:
     calibration: tuple[tuple[Experiment, Scenario], ...]
     heldout: tuple[tuple[HeldOutScenario, Scenario], ...]
     priors: Mapping[str, Prior]
-
-
-def lab_record(experiment: Experiment, scenario: Scenario) -> Record:
-    """Run one calibration experiment and keep what a lab's DAQ records (as ``twin identify``)."""
-    from twin.cosim.master import Master
-    from twin.errormodel.identify import LabRecorder, known_displacement, lab_channels
-
-    recorder = LabRecorder(lab_channels())
-    result = Master(scenario, recorder=recorder).run()
-    if result.status != "completed":
-        raise RunError(f"calibration experiment {experiment.name!r} {result.status}: {result.error}")
-    table = recorder.table()
-    known, used = known_displacement(scenario, experiment, table.time)
-    return Record(experiment, table, known, used)
 
 
 def _lab_config(values: Mapping[str, float]) -> Any:
