@@ -141,6 +141,18 @@ BAD = {
         "outside the physical range",
     ),
     "unknown design": ('design = "taguchi"\n', "sweep.design: expected one of"),
+    "name escaping the folder": (
+        'name = "../../x"\n'
+        + LHS
+        + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',
+        "sweep.name: '../../x' cannot name a folder",
+    ),
+    "absolute name": (
+        'name = "/tmp/x"\n'
+        + LHS
+        + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',
+        "sweep.name: '/tmp/x' cannot name a folder",
+    ),
     "sobol not a power of two": (
         'design = "saltelli"\nsamples = 12\n[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',
         "sweep.samples: saltelli needs a power of two",

@@ -7,6 +7,7 @@ once, one line each (like FMPy's validators), as :class:`~twin.errors.ConfigErro
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -106,3 +107,18 @@ def read_toml(path: Path, source: str) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"TOML syntax error: {exc}", source=source) from None
+
+
+#: a name that becomes a folder or file name (a scenario's run folder, a sweep's folder): no
+#: separators, no "..", nothing hidden, so a derived path stays inside the output folder
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+
+
+def unsafe_name(name: object) -> str | None:
+    """Why ``name`` cannot name a folder (None when it can)."""
+    if isinstance(name, str) and SAFE_NAME.fullmatch(name) and ".." not in name:
+        return None
+    return (
+        f"{name!r} cannot name a folder: 1-100 letters, digits, '.', '_' or '-', starting with a "
+        "letter or digit, no '..'"
+    )

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.durations import MAX_DURATION_NS, format_duration
-from twin.config.problems import Problems, table
+from twin.config.problems import Problems, table, unsafe_name
 from twin.config.spec import NS_PER_S
 
 _SCENARIO_KEYS = {"name", "description", "duration", "step", "output_interval", "seed", "drift_window"}
@@ -86,9 +86,10 @@ def load_scenario_table(p: Problems, data: Mapping[str, Any], source: str) -> Sc
         p.add("scenario", "missing [scenario] table")
     p.unknown_keys(sc, _SCENARIO_KEYS, "scenario.")
     name = sc.get("name", Path(source).stem)
-    if not isinstance(name, str) or not name:
-        p.add("scenario.name", "expected a non-empty string")
-        name = Path(source).stem
+    why = unsafe_name(name)
+    if why is not None:  # the name becomes the run folder's: runs/<name>
+        p.add("scenario.name", why if "name" in sc else f"{why} (the file's name; set scenario.name)")
+        name = "scenario"
     step, duration, interval = _timing(p, sc)
     drift_window = _drift_window(p, sc)
     seed = _seed(p, sc)

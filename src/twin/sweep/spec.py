@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data
+from twin.config.problems import unsafe_name
 from twin.config.spec import Scenario
 from twin.errors import ConfigError, ConfigErrors
 
@@ -354,9 +355,10 @@ def _sweep_table(p: _Problems, raw: Mapping[str, Any], path: Path) -> dict[str, 
     if not isinstance(sw.get("base"), str):
         p.add("sweep.base", "expected the base scenario's file name (relative to this file)")
     name = sw.get("name", path.stem)
-    if not isinstance(name, str) or not name or "/" in name:
-        p.add("sweep.name", "expected a non-empty name without '/'")
-        name = path.stem
+    why = unsafe_name(name)
+    if why is not None:  # the name becomes the sweep's folder: sweeps/<name>
+        p.add("sweep.name", why)
+        name = "sweep"
     samples = _int(p, sw, "samples", 0 if design == "grid" else 1, 0, 10**7)
     if design != "grid" and samples == 0:
         p.add("sweep.samples", "empty design: at least one sample")
