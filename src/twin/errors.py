@@ -58,6 +58,11 @@ class CheckpointError(ConfigError):
     version, an old pickle, a scenario changed since it was taken): refused, never executed."""
 
 
+class UnsafeCacheError(ConfigError, PermissionError):
+    """The cache of built binaries is not private (another user owns it, or others may write
+    into it): nothing is loaded from it, since a planted library would run in this process."""
+
+
 class ToolMissingError(ConfigError, FileNotFoundError):
     """A build tool (C compiler, cmake) is not installed; the message says what to install."""
 

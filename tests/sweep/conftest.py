@@ -30,10 +30,12 @@ def private_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     """TWIN_CACHE_DIR -> a copy of the current binaries, for this package's tests only."""
     from twin.cosim.native import ensure_stepper
     from twin.fmu.build import ensure_fmu, model_names
+    from twin.fmu.toolchain import digest_file
 
     cache = tmp_path_factory.mktemp("cache")
     for path in [ensure_fmu(m) for m in model_names()] + [ensure_stepper()]:
         shutil.copyfile(path, cache / path.name)
+        shutil.copyfile(digest_file(path), digest_file(cache / path.name))
     old = os.environ.get("TWIN_CACHE_DIR")
     os.environ["TWIN_CACHE_DIR"] = str(cache)
     yield cache

@@ -13,6 +13,13 @@ library::
 
 The cache lives in ``TWIN_CACHE_DIR`` or ``$XDG_CACHE_HOME/twin/fmus``; an entry is written
 under a temporary name and renamed into place, so a concurrent reader never sees half a file.
+
+A cached binary is loaded into this process (the FMUs' and the stepper's shared libraries run
+their constructors when loaded), so the cache is trusted only as far as it is private and
+checked: it is created 0700 and refused when another user owns it or group or others may write
+into it (:class:`~twin.errors.UnsafeCacheError`); every entry has a ``.sha256`` file written
+when it was built, and an entry whose bytes do not match it (or that has none: a file somebody
+put there) is never returned: it is built anew over it.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import stat
 import subprocess
 import sys
 import tempfile
@@ -27,7 +35,7 @@ from collections.abc import Callable, Mapping
 from importlib.resources.abc import Traversable
 from pathlib import Path
 
-from twin.errors import BuildError, ToolMissingError
+from twin.errors import BuildError, ToolMissingError, UnsafeCacheError
 
 #: environment variable naming the cache folder
 CACHE_ENV = "TWIN_CACHE_DIR"
@@ -42,6 +50,58 @@ def cache_dir() -> Path:
         return Path(env)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "twin" / "fmus"
+
+
+def private_cache_dir() -> Path:
+    """:func:`cache_dir`, created 0700 when missing; :class:`UnsafeCacheError` when it is not a
+    folder of this user's that only this user may write into."""
+    folder = cache_dir()
+    if not folder.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        os.chmod(folder, 0o700)
+    st = folder.stat()
+    fix = f"(chmod 700 {folder}, or set {CACHE_ENV} to a private folder)"
+    if not stat.S_ISDIR(st.st_mode):
+        raise UnsafeCacheError(f"the FMU cache {folder} is not a folder {fix}", source=CACHE_ENV)
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        raise UnsafeCacheError(f"the FMU cache {folder} belongs to another user {fix}", source=CACHE_ENV)
+    if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        raise UnsafeCacheError(
+            f"the FMU cache {folder} is writable by others (mode {stat.S_IMODE(st.st_mode):o}) {fix}",
+            source=CACHE_ENV,
+        )
+    return folder
+
+
+def digest_file(path: Path) -> Path:
+    """Where the SHA-256 of a cached binary is kept: ``<file>.sha256`` beside it."""
+    return path.with_name(path.name + ".sha256")
+
+
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of a file's bytes, in hex."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def record_digest(path: Path, sha256: str | None = None) -> None:
+    """Write ``path``'s SHA-256 beside it (atomically), as the cache's record of what it built."""
+    record = digest_file(path)
+    tmp = record.with_name(f".{record.name}.{os.getpid()}.tmp")
+    tmp.write_text((sha256 or file_sha256(path)) + "\n", encoding="ascii")
+    os.replace(tmp, record)
+
+
+def verified(path: Path) -> bool:
+    """Whether ``path`` is a cached binary whose bytes match the SHA-256 recorded at its build."""
+    try:
+        expected = digest_file(path).read_text(encoding="ascii").strip()
+        return path.is_file() and file_sha256(path) == expected
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
 def find_tools() -> tuple[str, str]:
@@ -100,16 +160,20 @@ def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *,
     ``make`` returns the file it built inside the scratch folder (removed afterwards). With
     ``prune``, the other entries of ``name`` (older sources) are deleted once the new one is in.
     """
-    target = cache_dir() / f"{name}-{digest}{suffix}"
-    if target.is_file():
+    target = private_cache_dir() / f"{name}-{digest}{suffix}"
+    if verified(target):
         return target
-    target.parent.mkdir(parents=True, exist_ok=True)
+    # missing, or a file whose bytes are not what this cache built: build it anew over it
     with tempfile.TemporaryDirectory(prefix=f"twin-{name}-", dir=target.parent) as tmp:
-        os.replace(make(Path(tmp)), target)  # atomic: the scratch folder is on the same disk
+        built = make(Path(tmp))
+        sha256 = file_sha256(built)
+        os.replace(built, target)  # atomic: the scratch folder is on the same disk
+    record_digest(target, sha256)
     if prune:
         for stale in target.parent.glob(f"{name}-*{suffix}"):
             if stale != target:
                 stale.unlink(missing_ok=True)
+                digest_file(stale).unlink(missing_ok=True)
     return target
 
 

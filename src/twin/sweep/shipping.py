@@ -73,10 +73,9 @@ def install(artifacts: tuple[Artifact, ...]) -> list[Path]:
     Raises :class:`RunError` when a file's bytes do not match their sha256, when a name is
     not a plain file name, or when this twin's sources differ from the client's.
     """
-    from twin.fmu.toolchain import cache_dir
+    from twin.fmu.toolchain import private_cache_dir, record_digest, verified
 
-    target = cache_dir()
-    target.mkdir(parents=True, exist_ok=True)
+    target = private_cache_dir()
     written = []
     for a in artifacts:
         if Path(a.name).name != a.name or a.name.startswith("."):
@@ -84,11 +83,12 @@ def install(artifacts: tuple[Artifact, ...]) -> list[Path]:
         if _sha256(a.data) != a.sha256:
             raise RunError(f"{a.name}: sha256 mismatch (damaged in transfer)")
         path = target / a.name
-        if path.is_file() and _sha256(path.read_bytes()) == a.sha256:
+        if verified(path) and _sha256(path.read_bytes()) == a.sha256:
             continue
         tmp = path.with_name(f".{a.name}.{os.getpid()}.tmp")
         tmp.write_bytes(a.data)
         os.replace(tmp, path)  # atomic: a point starting now sees the old file or the new one
+        record_digest(path, a.sha256)  # the cache loads only what it can check
         written.append(path)
     missing = sorted(_expected_names() - {a.name for a in artifacts})
     if missing:
