@@ -120,7 +120,9 @@ def test_cached_builds_once_and_prunes_older_entries(tmp_path: Path, monkeypatch
     assert toolchain.cached("thing", "aaaa", ".bin", make("again")) == first
     second = toolchain.cached("thing", "bbbb", ".bin", make("two"))
     assert made == ["one", "two"] and second.read_text() == "two"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["thing-bbbb.bin"]
+    # the entry and its record (SHA-256 at build time); the older entry's record went with it
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thing-bbbb.bin", "thing-bbbb.bin.sha256"]
+    assert toolchain.verified(second)
 
 
 _LIBRARY = {

@@ -37,6 +37,7 @@ from twin.config.load import (
     load_scenario_data,
     parse_duration,
 )
+from twin.config.problems import SAFE_NAME
 from twin.config.spec import NS_PER_S
 from twin.errors import ConfigError, ConfigErrors
 from twin.fmu.build import model_names
@@ -331,7 +332,7 @@ def valid_scenarios(d: st.DrawFn) -> tuple[dict[str, Any], Expect]:
     exp.interval = exp.step * d(st.integers(1, exp.duration // exp.step), label="interval / step")
     exp.drift, drift = d(positive_duration(10**16))
     exp.seed = d(st.integers(0, 2**31 - 1))
-    exp.name = d(st.text(TOML_SAFE, min_size=1, max_size=20))
+    exp.name = d(st.from_regex(SAFE_NAME, fullmatch=True).filter(lambda n: ".." not in n))  # names a folder
     sc.update(
         name=exp.name,
         step=d(duration_spelling(exp.step)),
