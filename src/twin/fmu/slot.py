@@ -16,7 +16,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import shutil
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -27,6 +26,7 @@ from fmpy.fmi2 import FMU2Slave
 
 from twin.errors import FMUError
 from twin.fmu.catalog import Variable, describe
+from twin.fmu.workdir import extraction_dir
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
@@ -121,9 +121,7 @@ class FMUSlot:
         self.name = instance_name
         self.description = describe(fmu_path)
         self._own_unzipdir = unzipdir is None
-        self.unzipdir = unzipdir or extract(
-            str(fmu_path), unzipdir=tempfile.mkdtemp(prefix=f"twin-{instance_name}-")
-        )
+        self.unzipdir = unzipdir or extract(str(fmu_path), unzipdir=extraction_dir(f"{instance_name}-"))
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self.time = 0.0

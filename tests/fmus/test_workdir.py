@@ -1,0 +1,72 @@
+"""FMUs are extracted into a private folder per process, removed at exit; the folders a killed
+process left are removed by the next twin process."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from twin.fmu.build import ensure_fmu
+
+HOLD = """
+import sys, time
+from pathlib import Path
+from twin.fmu.slot import FMUSlot
+slot = FMUSlot(Path(sys.argv[1]), "held")
+print(slot.unzipdir, flush=True)
+time.sleep(600)
+"""
+
+EXTRACT = """
+import sys
+from pathlib import Path
+from twin.fmu.slot import FMUSlot
+slot = FMUSlot(Path(sys.argv[1]), "once")
+print(slot.unzipdir, flush=True)
+slot.close()
+"""
+
+
+def _env(tmp: Path) -> dict[str, str]:
+    return {**os.environ, "TMPDIR": str(tmp)}
+
+
+def test_a_killed_process_leaves_no_extracted_fmu_behind_for_long(tmp_path: Path) -> None:
+    fmu = str(ensure_fmu("HydraulicLoader"))
+    held = subprocess.Popen(
+        [sys.executable, "-c", HOLD, fmu], env=_env(tmp_path), stdout=subprocess.PIPE, text=True
+    )
+    try:
+        unzipdir = Path(held.stdout.readline().strip())
+        assert unzipdir.is_dir() and unzipdir.is_relative_to(tmp_path / f"twin-{os.getuid()}")
+        assert (unzipdir.parent.parent.stat().st_mode & 0o777) == 0o700
+    finally:
+        held.send_signal(signal.SIGKILL)
+        held.wait(timeout=30)
+    assert unzipdir.is_dir()  # a SIGKILL runs no clean-up
+    time.sleep(0.1)
+    done = subprocess.run(
+        [sys.executable, "-c", EXTRACT, fmu], env=_env(tmp_path), capture_output=True, text=True, check=True
+    )
+    assert not unzipdir.parent.exists(), "the killed process's folder is still there"
+    own = Path(done.stdout.strip())
+    assert not own.parent.exists(), "a process that ended normally left its folder"
+    assert list((tmp_path / f"twin-{os.getuid()}").iterdir()) == []
+
+
+@pytest.mark.parametrize("mode", [0o777, 0o755])
+def test_a_shared_extraction_parent_is_refused(tmp_path: Path, mode: int) -> None:
+    parent = tmp_path / f"twin-{os.getuid()}"
+    parent.mkdir()
+    os.chmod(parent, mode)
+    done = subprocess.run(
+        [sys.executable, "-c", EXTRACT, str(ensure_fmu("HydraulicLoader"))],
+        env=_env(tmp_path), capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode != 0 and "is not a private folder of this user" in done.stderr
