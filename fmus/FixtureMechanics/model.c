@@ -21,8 +21,8 @@
 
 static const int VR_TEMPS[FM_TEMPS] = {VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
                                        VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base,
-                                       VR_t_pole_lower, VR_t_clamp};
-enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP };
+                                       VR_t_pole_lower, VR_t_clamp, VR_t_detecting_frame_lower};
+enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, FRAME_LOWER };
 
 int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
     double *r = comp->v.r;
@@ -33,12 +33,32 @@ int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
     return 0;
 }
 
+/* The liner's elastic compression under the load: thickness x pressure / E, with the modulus
+ * falling as the bearing warms above its start, E = E0 (1 - c dT) (not below a tenth of E0). */
+static double liner_elastic(const ModelInstance *comp) {
+    const double *r = comp->v.r;
+    double soften = 1.0 - r[VR_liner_modulus_tempco] * (r[VR_t_bearing] - comp->v.m.t_ref[BEARING]);
+    if (soften < 0.1) soften = 0.1;
+    return r[VR_liner_thickness] / (r[VR_liner_modulus] * soften * r[VR_contact_area]) * r[VR_radial_load];
+}
+
+/* Hysteresis of the liner: a play operator of width w on its elastic compression. The output
+ * stays where it was until the compression moves more than w/2 away from it. */
+static double liner_play(const ModelInstance *comp, double elastic) {
+    double half = 0.5 * comp->v.r[VR_liner_hysteresis], y = comp->v.m.liner_play;
+    if (y < elastic - half) y = elastic - half;
+    if (y > elastic + half) y = elastic + half;
+    return y;
+}
+
 fmi2Status model_initialize(ModelInstance *comp) {
     int i;
     for (i = 0; i < FM_TEMPS; i++)
         comp->v.m.t_ref[i] = comp->v.b[VR_reference_at_start] ? comp->v.r[VR_TEMPS[i]] : comp->v.r[VR_t_reference];
     comp->v.m.wear = 0.0;
     comp->v.m.sliding_distance = 0.0;
+    comp->v.m.creep = 0.0; /* the probe is zeroed with the load on: creep starts then */
+    comp->v.m.liner_play = liner_elastic(comp);
     return fmi2OK;
 }
 
@@ -48,8 +68,12 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     double ds = r[VR_sliding_speed] * h, s0 = r[VR_running_in_distance];
     /* exact integral of k(s) p ds over [s, s + ds] */
     double running_in = r[VR_running_in_factor] * s0 * (exp(-m->sliding_distance / s0) - exp(-(m->sliding_distance + ds) / s0));
+    double elastic = liner_elastic(comp);
     m->wear += r[VR_wear_rate] * r[VR_contact_pressure] * (ds + running_in);
     m->sliding_distance += ds;
+    /* creep: first-order approach to ratio x elastic compression, exact for the held load */
+    m->creep += (r[VR_liner_creep_ratio] * elastic - m->creep) * -expm1(-h / r[VR_liner_creep_time]);
+    m->liner_play = liner_play(comp, elastic);
     return fmi2OK;
 }
 
@@ -66,8 +90,12 @@ static double bearing_branch(ModelInstance *comp, const double *dt) {
     r[VR_dz_spindle] = a_st * r[VR_r_spindle] * dt[SPINDLE];
     r[VR_dz_bearing] = r[VR_alpha_bearing_steel] * r[VR_t_bearing_rings] * dt[BEARING];
     r[VR_dz_t_plate] = a_st * r[VR_l_t_plate] * dt[TPLATE];
-    r[VR_dz_loading] = (r[VR_liner_thickness] / (r[VR_liner_modulus] * r[VR_contact_area]) + r[VR_compliance_structure]) *
-                       r[VR_radial_load];
+    /* liner: elastic compression through its hysteresis, plus creep; structure: a compliance
+     * that changes with the swing angle */
+    r[VR_dz_liner_creep] = comp->v.m.creep;
+    r[VR_dz_loading] = liner_play(comp, liner_elastic(comp)) + comp->v.m.creep +
+                       r[VR_compliance_structure] * (1.0 + r[VR_compliance_angle_factor] * (1.0 - cos(r[VR_angle]))) *
+                           r[VR_radial_load];
     r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
     r[VR_dz_vibration] = r[VR_vibration_z];
     r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
@@ -81,7 +109,8 @@ static double bearing_branch(ModelInstance *comp, const double *dt) {
  * contact face. */
 static void detecting_branch(double *r, const double *dt) {
     double a_st = r[VR_alpha_steel];
-    r[VR_dz_detecting_frame] = a_st * r[VR_l_detecting_frame] * dt[FRAME];
+    /* two lumps along the frame: each half grows with its own temperature */
+    r[VR_dz_detecting_frame] = a_st * r[VR_l_detecting_frame] * 0.5 * (dt[FRAME] + dt[FRAME_LOWER]);
     r[VR_dz_long_pole] = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
                                  r[VR_l_pole_lower] * dt[POLE_LOWER]);
     r[VR_dz_clamp] = a_st * r[VR_l_clamp] * dt[CLAMP];
@@ -151,6 +180,7 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
     double s_max = real_var(VR_sliding_speed)->max * elapsed * (1.0 + 1e-6);
     double wear_max = r[VR_wear_rate] * real_var(VR_contact_pressure)->max *
                       (m->sliding_distance + r[VR_running_in_factor] * r[VR_running_in_distance]) * (1.0 + 1e-6);
+    double el_max;
     int i;
     for (i = 0; i < FM_TEMPS; i++) {
         if (comp->v.b[VR_reference_at_start] ? state_bad_follower(c, "reference temperature", m->t_ref[i], VR_TEMPS[i])
@@ -158,8 +188,13 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
                                                               r[VR_t_reference]))
             return -1;
     }
+    /* the liner's compression can reach at most the largest load on a tenth of its modulus */
+    el_max = r[VR_liner_thickness] / (0.1 * r[VR_liner_modulus] * r[VR_contact_area]) *
+             real_var(VR_radial_load)->max * (1.0 + 1e-6);
     if (state_bad_real(c, "sliding_distance", m->sliding_distance, 0.0, s_max) ||
-        state_bad_real(c, "wear", m->wear, 0.0, wear_max))
+        state_bad_real(c, "wear", m->wear, 0.0, wear_max) ||
+        state_bad_real(c, "creep", m->creep, -r[VR_liner_creep_ratio] * el_max, r[VR_liner_creep_ratio] * el_max) ||
+        state_bad_real(c, "liner_play", m->liner_play, -el_max - r[VR_liner_hysteresis], el_max + r[VR_liner_hysteresis]))
         return -1;
     return 0;
 }

@@ -92,11 +92,14 @@ static void take_sample(ModelInstance *comp) {
     const double *r = comp->v.r;
     double sigma_t = r[VR_temp_noise], q_t = r[VR_temp_resolution];
     double lo = r[VR_probe_range_min], hi = r[VR_probe_range_max];
-    double r0, x, y;
+    double r0, x, y, u;
     int i;
     /* first stream: the temperatures, then the probe (the order of the first version) */
     for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * rng_gauss(&m->rng), q_t);
-    r0 = m->probe_filt + r[VR_probe_zero_drift] * (r[VR_t_probe_body] - m->t_probe_body0);
+    /* the probe's bow-shaped linearity error, zero at both ends of its range, then its zero drift */
+    u = (m->probe_filt - lo) / (hi - lo);
+    r0 = m->probe_filt + r[VR_probe_nonlinearity] * (hi - lo) * 4.0 * u * (1.0 - u) +
+         r[VR_probe_zero_drift] * (r[VR_t_probe_body] - m->t_probe_body0);
     x = r0 + r[VR_probe_noise] * rng_gauss(&m->rng);
     /* the spike after filtering and zero drift, before quantization and clipping; added only
      * while one is on, so without a spike x keeps its bits (even a -0.0) */

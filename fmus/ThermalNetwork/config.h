@@ -2,8 +2,8 @@
 #ifndef THERMAL_CONFIG_H
 #define THERMAL_CONFIG_H
 
-#define TN_NODES 13
-#define TN_EDGES 16
+#define TN_NODES 14
+#define TN_EDGES 17
 #define TN_INPUTS 3 /* t_room, q_hydraulic, q_friction */
 #define TN_AUG (2 * TN_NODES + TN_INPUTS)
 

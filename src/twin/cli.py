@@ -185,11 +185,21 @@ def _cmd_compensate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_geometry(args: argparse.Namespace) -> int:
+    from twin.config.load import scenarios_dir
+    from twin.geometry import write_derived_files
+
+    folder = Path(args.scenarios) if args.scenarios else scenarios_dir()
+    for path in write_derived_files(folder):
+        print(f"derived parameters written to {path}")
+    return 0
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from twin.calibrate import calibrate_file
 
     path = calibrate_file(
-        Path(args.scenario) if args.scenario else None, Path(args.out) if args.out else None
+        Path(args.scenario) if args.scenario else None, Path(args.out) if args.out else None, write=args.write
     )
     print(f"calibrated thermal network written to {path}")
     return 0
@@ -250,12 +260,21 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
     p.set_defaults(func=_cmd_compensate)
 
+    p = sub.add_parser(
+        "geometry", help="derive the FMUs' lengths, capacities and conductances from base/tester-geometry.toml"
+    )
+    p.add_argument("--scenarios", metavar="DIR", help="scenarios folder (default: the shipped one)")
+    p.set_defaults(func=_cmd_geometry)
+
     p = sub.add_parser("calibrate", help="fit the thermal network to the paper's measured temperature rises")
     p.add_argument(
         "scenario", nargs="?", help="scenario whose thermal network is calibrated (default: the paper's)"
     )
     p.add_argument(
-        "--out", metavar="FILE", help="parameter file to write (default: the one the scenario includes)"
+        "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
+    )
+    p.add_argument(
+        "--write", action="store_true", help="replace the calibration file the scenario includes (the committed one)"
     )
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)

@@ -26,12 +26,17 @@ _EXPECTED = {"Boolean": "true or false", "Integer": "an integer"}
 
 
 def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
-    """(value, source) of a parameter given as a value or as ``{ value, source }``."""
+    """(value, source) of a parameter given as a value or as ``{ value, source }``; a calibrated
+    value may also carry its ``std_error`` (a positive number, for the replay's Monte Carlo)."""
     if not isinstance(raw, dict):
         return raw, ""
-    extra = set(raw) - {"value", "source"}
+    extra = set(raw) - {"value", "source", "std_error"}
     if extra:
-        p.add(key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source }})")
+        p.add(key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source, std_error }})")
+        return None
+    se = raw.get("std_error", 1.0)
+    if isinstance(se, bool) or not isinstance(se, int | float) or not se > 0 or se == float("inf"):
+        p.add(key + ".std_error", f"must be a finite number > 0, got {se!r}")
         return None
     if "value" not in raw:
         p.add(key, "missing 'value'")

@@ -90,7 +90,7 @@ def simulate(
     ends the run with ``result.status == "failed"`` and the rows up to it recorded.
     """
     if keep is None:
-        keep = input_columns(evaluation_config(scenario))
+        keep = set(input_columns(evaluation_config(scenario))) | truth_columns(scenario)
     recorder = TeeRecorder(
         sinks, keep=frozenset(keep).__contains__, resume=resume.recorder if resume else None
     )
@@ -129,7 +129,41 @@ def evaluate_run(simulation: Simulation, cfg: EvaluationConfig) -> Evaluated:
     # the paper's measured values beside the twin's, to read one against the other
     results["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
     results["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
+    truth = truth_thermal_parts(simulation)
+    if truth:
+        results["thermal_parts_mm_truth"] = truth
     return Evaluated(table, columns, results)
+
+
+#: the paper's FEM parts as sums of FixtureMechanics' outputs, with their sign in the probe's
+#: reading (branch 1 +, the frame -, pole and clamp + as they push the contact face down)
+TRUTH_PARTS: dict[str, tuple[tuple[str, float], ...]] = {
+    "bearing_block": (("dz_bearing_block", 1.0),),
+    "t_plate": (("dz_spindle", 1.0), ("dz_bearing", 1.0), ("dz_t_plate", 1.0)),
+    "detecting_frame": (("dz_detecting_frame", -1.0),),
+    "long_pole": (("dz_long_pole", 1.0), ("dz_clamp", 1.0)),
+}
+
+
+def truth_columns(scenario: Scenario) -> set[str]:
+    """The FixtureMechanics outputs :func:`truth_thermal_parts` reads (kept in memory)."""
+    names = [f.name for f in scenario.fmus if f.model == "FixtureMechanics"]
+    return {f"{n}.{v}" for n in names for terms in TRUTH_PARTS.values() for v, _ in terms}
+
+
+def truth_thermal_parts(simulation: Simulation) -> dict[str, float]:
+    """The tester's own (true, noise-free) displacement of each FEM part over the run, mm: what
+    the twin sets beside the paper's FEM results. Not the error model's: it reads the FMU."""
+    names = [f.name for f in simulation.scenario.fmus if f.model == "FixtureMechanics"]
+    table = simulation.table
+    if len(names) != 1 or len(table) < 2:
+        return {}
+    out: dict[str, float] = {}
+    for part, terms in TRUTH_PARTS.items():
+        cols = [(f"{names[0]}.{v}", sign) for v, sign in terms]
+        if all(c in table for c, _ in cols):
+            out[part] = sum(sign * float(table[c][-1] - table[c][0]) for c, sign in cols) * 1e3
+    return out
 
 
 def summarize(simulation: Simulation, evaluated: Evaluated, *, process_start: float) -> RunSummary:
@@ -221,7 +255,7 @@ def run(
         simulation = simulate(
             scenario,
             sinks=sinks,
-            keep=input_columns(cfg),
+            keep=set(input_columns(cfg)) | truth_columns(scenario),
             progress=progress,
             loop=loop,
             stop=stop,
@@ -262,7 +296,7 @@ def run_point(
     """
     start = time.perf_counter()
     cfg = evaluation_config(scenario)
-    simulation = simulate(scenario, keep=input_columns(cfg), loop=loop, progress=progress, stop=stop)
+    simulation = simulate(scenario, keep=set(input_columns(cfg)) | truth_columns(scenario), loop=loop, progress=progress, stop=stop)
     return summarize(simulation, evaluate_run(simulation, cfg), process_start=start)
 
 

@@ -298,9 +298,13 @@ def fem_components(summary: Mapping[str, Any], rows: list[dict[str, Any]] | None
 
     derived = {"bearing_block"}  # the paper's arithmetic, not a number it prints (facts 2)
     twin = summary.get("thermal_parts_mm", {})
+    truth = summary.get("thermal_parts_mm_truth", {})
     out: dict[str, Any] = {}
     for part, metres in FEM_PARTS_M.items():
         entry: dict[str, Any] = {"paper": metres * 1e3, "derived": part in derived, "twin": twin.get(part)}
+        if part in truth:
+            # the tester's own displacement (FixtureMechanics), beside the error model's part
+            entry["twin_truth"] = truth[part]
         values = _column(rows or [], f"thermal_parts_mm.{part}")
         if len(values):
             entry["twin_interval_90"] = _stats(values)["interval_90"]

@@ -1,0 +1,361 @@
+"""The tester as drawn: one geometry and materials source for the FMUs and the error model.
+
+``scenarios/base/tester-geometry.toml`` holds every body's dimensions and material with its
+source (paper, handbook, drawing estimate). From it this module derives
+
+- the positions of the detecting system (spindle axis, T-plate bottom, frame, sensor, clamp, the
+  long pole's segments), which the error model's characteristic matrices use
+  (``errormodel/tester_topology.toml`` must agree: a test checks it);
+- FixtureMechanics' lengths and expansion coefficients;
+- ThermalNetwork's heat capacities (volume x density x specific heat) and conductances (exposed
+  area x (convection + radiation) to the room; contact area x joint conductance, air gaps and
+  axial conduction between bodies);
+- OscillationDrive's bearing size;
+- the error model's thermal priors (alpha x drawn length).
+
+``twin geometry`` writes the derived parameter files ``scenarios/base/geometry-<model>.toml``
+that the scenarios include; ``tests/test_geometry.py`` checks that they are current and that
+every value lies in a physical range. Nothing here reads the paper's FEM results or its measured
+drift: lengths come from the drawing, so the FEM comparison stays a comparison.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from twin.config.problems import read_toml
+from twin.errors import ConfigError
+
+__all__ = [
+    "GEOMETRY_FILE",
+    "Derived",
+    "Geometry",
+    "derive",
+    "derived_file_text",
+    "load_geometry",
+    "write_derived_files",
+]
+
+#: the geometry source, relative to the scenarios folder
+GEOMETRY_FILE = Path("base") / "tester-geometry.toml"
+
+
+@dataclass(frozen=True)
+class Derived:
+    """A derived number with the arithmetic that made it (the ``source`` of a parameter)."""
+
+    value: float
+    source: str
+
+
+class Geometry:
+    """Read access to the geometry file: ``g.dim("bodies.t_plate.x")`` returns the number."""
+
+    def __init__(self, data: dict[str, Any], source: str) -> None:
+        self.data = data
+        self.source = source
+
+    def entry(self, dotted: str) -> dict[str, Any]:
+        node: Any = self.data
+        for part in dotted.split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise ConfigError("missing", source=self.source, key=dotted)
+            node = node[part]
+        if not isinstance(node, dict) or "value" not in node or "source" not in node:
+            raise ConfigError("must be a table { value = ..., source = ... }", source=self.source, key=dotted)
+        v = node["value"]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+            raise ConfigError(f"must be a finite number >= 0, got {v!r}", source=self.source, key=dotted)
+        return node
+
+    def dim(self, dotted: str) -> float:
+        return float(self.entry(dotted)["value"])
+
+    def material(self, body: str) -> str:
+        name = self.data.get("bodies", {}).get(body, {}).get("material")
+        if name not in self.data.get("materials", {}):
+            raise ConfigError(f"unknown material {name!r}", source=self.source, key=f"bodies.{body}.material")
+        return str(name)
+
+    def prop(self, body: str, what: str) -> float:
+        """A material property (rho, c, alpha, k) of a body's material."""
+        return self.dim(f"materials.{self.material(body)}.{what}")
+
+    def h_room(self, body: str) -> float:
+        """Convection + radiation coefficient of a body's exposed surface, W/(m2 K)."""
+        finish = self.data["bodies"][body].get("finish")
+        if finish not in ("painted", "bare"):
+            raise ConfigError("finish must be 'painted' or 'bare'", source=self.source, key=f"bodies.{body}.finish")
+        return self.dim("surfaces.h_convection") + self.dim(f"surfaces.h_radiation_{finish}")
+
+
+def load_geometry(scenarios_dir: Path) -> Geometry:
+    """The geometry file of a scenarios folder."""
+    path = scenarios_dir / GEOMETRY_FILE
+    return Geometry(read_toml(path, str(path)), str(path))
+
+
+# --- positions (base frame, Z down, origin on the base top at the pole's axis) ----------------
+
+
+def positions(g: Geometry) -> dict[str, Derived]:
+    """Z positions of the detecting system's points and the pole's segment lengths, m."""
+    heel = g.dim("bodies.heel_block.z")
+    axis = -(heel + g.dim("bodies.bearing_block.axis_height"))
+    plate_bottom = axis + g.dim("bodies.t_plate.centre_to_bottom")
+    frame_top = g.dim("bodies.detecting_frame.inset")
+    frame_len = g.dim("bodies.detecting_frame.z")
+    head = frame_top + frame_len - g.dim("bodies.sensor.length")
+    clamp_fixing = head - g.dim("bodies.clamp.thickness")
+    base_bottom = g.dim("bodies.base.z")
+    pole_len = g.dim("bodies.long_pole.length")
+    if clamp_fixing - plate_bottom > pole_len:
+        raise ConfigError("the pole does not reach the clamp", source=g.source, key="bodies.long_pole.length")
+    return {
+        "spindle_axis_z": Derived(axis, "-(heel block z + bearing block axis_height)"),
+        "t_plate_bottom_z": Derived(plate_bottom, "spindle axis + T-plate centre_to_bottom"),
+        "frame_top_z": Derived(frame_top, "detecting frame inset"),
+        "head_z": Derived(head, "frame inset + frame length - sensor length"),
+        "pole_heel": Derived(-plate_bottom, "T-plate bottom to the base top (heel block and the free length under the plate)"),
+        "pole_base": Derived(base_bottom, "base thickness"),
+        "pole_lower": Derived(clamp_fixing - base_bottom, "base bottom to the clamp's fixing on the pole"),
+        "pole_below_clamp": Derived(pole_len - (clamp_fixing - plate_bottom), "rest of the 730 mm pole below the clamp"),
+        "pole_top_to_head": Derived(head - plate_bottom, "pole top (T-plate bottom) to the head's contact face"),
+    }
+
+
+# --- FixtureMechanics ---------------------------------------------------------------------------
+
+
+def mechanics(g: Geometry) -> dict[str, Derived]:
+    """FixtureMechanics' lengths and expansion coefficients from the drawing."""
+    pos = positions(g)
+    bearing = "bodies.bearing"
+    ring = (g.dim(f"{bearing}.outer_diameter") - g.dim(f"{bearing}.bore")) / 2
+    plate = g.dim("bodies.t_plate.centre_to_bottom") - g.dim(f"{bearing}.outer_diameter") / 2
+    rod = math.pi / 4 * g.dim("bodies.long_pole.diameter") ** 2 * g.dim("bodies.long_pole.length")
+    return {
+        "alpha_cast_iron": Derived(g.dim("materials.grey_cast_iron.alpha"), "handbook: facts 5"),
+        "alpha_steel": Derived(g.dim("materials.steel_45.alpha"), "handbook: facts 5"),
+        "alpha_bearing_steel": Derived(g.dim("materials.bearing_steel.alpha"), "handbook: facts 5"),
+        "h_heel_block": Derived(g.dim("bodies.heel_block.z"), "drawing estimate: heel block height"),
+        "h_bearing_block": Derived(g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"),
+        "r_spindle": Derived(g.dim("bodies.spindle.seat_radius"), "handbook: GE 30 ES bore / 2"),
+        "t_bearing_rings": Derived(ring, "handbook: GE 30 ES (D - d) / 2"),
+        "l_t_plate": Derived(plate, "drawing estimate: bearing centre to plate bottom minus the outer radius"),
+        "l_detecting_frame": Derived(g.dim("bodies.detecting_frame.z"), "paper: frame about 362 mm"),
+        "l_pole_heel": Derived(pos["pole_heel"].value, "drawing: " + pos["pole_heel"].source),
+        "l_pole_base": Derived(pos["pole_base"].value, "drawing: " + pos["pole_base"].source),
+        "l_pole_lower": Derived(pos["pole_lower"].value, "drawing: " + pos["pole_lower"].source),
+        "l_clamp": Derived(g.dim("bodies.clamp.thickness"), "drawing estimate: clamp fixing to contact face"),
+        "contact_area": Derived(
+            g.dim(f"{bearing}.ball_diameter") * g.dim(f"{bearing}.liner_width"), "handbook: GE 30 ES d_k x B"
+        ),
+        "abbe_offset": Derived(g.dim("bodies.sensor.abbe_offset"), "drawing estimate: probe axis beside the pole"),
+        "m_pole": Derived(
+            rod * g.prop("long_pole", "rho") + g.dim("bodies.clamp.mass"),
+            "paper: 730 mm x 10 mm steel rod, plus the clamp (estimate)",
+        ),
+    }
+
+
+# --- ThermalNetwork ------------------------------------------------------------------------------
+
+
+def _volume(g: Geometry, body: str) -> float:
+    b = g.data["bodies"][body]
+    key = f"bodies.{body}"
+    if b.get("shape") == "box":
+        v = g.dim(f"{key}.x") * g.dim(f"{key}.y") * g.dim(f"{key}.z")
+        if "bore_diameter" in b:
+            v -= math.pi / 4 * g.dim(f"{key}.bore_diameter") ** 2 * g.dim(f"{key}.bore_length")
+        return v
+    if b.get("shape") == "rod":
+        return math.pi / 4 * g.dim(f"{key}.diameter") ** 2 * g.dim(f"{key}.length")
+    if b.get("shape") == "lumped":
+        return g.dim(f"{key}.mass") / g.prop(body, "rho")
+    raise ConfigError("shape must be box, rod or lumped", source=g.source, key=f"{key}.shape")
+
+
+def mass(g: Geometry, body: str) -> float:
+    """Mass of a body, kg (volume x density)."""
+    return _volume(g, body) * g.prop(body, "rho")
+
+
+def capacity(g: Geometry, body: str) -> float:
+    """Heat capacity of a body, J/K."""
+    return mass(g, body) * g.prop(body, "c")
+
+
+def _pole_capacity(g: Geometry, length: float) -> float:
+    area = math.pi / 4 * g.dim("bodies.long_pole.diameter") ** 2
+    return area * length * g.prop("long_pole", "rho") * g.prop("long_pole", "c")
+
+
+def _pole_room(g: Geometry, length: float) -> float:
+    return math.pi * g.dim("bodies.long_pole.diameter") * length * g.h_room("long_pole")
+
+
+def _room(g: Geometry, body: str) -> float:
+    return g.dim(f"bodies.{body}.exposed_area") * g.h_room(body)
+
+
+def thermal_capacities(g: Geometry) -> dict[str, Derived]:
+    """Heat capacities of the network's nodes from volume x density x c."""
+    pos = positions(g)
+    frame = capacity(g, "detecting_frame") / 2
+    oil = g.dim("hydraulic_station.oil_volume") * g.dim("materials.hydraulic_oil.rho") * g.dim(
+        "materials.hydraulic_oil.c"
+    ) + g.dim("hydraulic_station.tank_mass") * g.dim("materials.steel_45.c")
+    lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
+    return {
+        "c_base": Derived(capacity(g, "base"), "geometry: base box x rho x c"),
+        "c_heel_block": Derived(capacity(g, "heel_block"), "geometry: heel block box x rho x c"),
+        "c_bearing_block": Derived(capacity(g, "bearing_block"), "geometry: bearing block box minus bore x rho x c"),
+        "c_spindle": Derived(
+            capacity(g, "spindle") + capacity(g, "drive_train"), "geometry: spindle rod + drive train mass, x c"
+        ),
+        "c_bearing": Derived(capacity(g, "bearing"), "handbook: GE 30 ES mass x c"),
+        "c_t_plate": Derived(capacity(g, "t_plate"), "geometry: T-plate box minus bore x rho x c"),
+        "c_detecting_frame": Derived(frame, "geometry: upper half of the 362 x 50 mm frame x rho x c"),
+        "c_detecting_frame_lower": Derived(frame, "geometry: lower half of the 362 x 50 mm frame x rho x c"),
+        "c_pole_heel": Derived(_pole_capacity(g, pos["pole_heel"].value), "geometry: pole segment x rho x c"),
+        "c_pole_base": Derived(_pole_capacity(g, pos["pole_base"].value), "geometry: pole segment x rho x c"),
+        "c_pole_lower": Derived(_pole_capacity(g, lower), "geometry: pole below the base (to its end) x rho x c"),
+        "c_clamp": Derived(capacity(g, "clamp"), "geometry: clamp mass x c"),
+        "c_sensor": Derived(capacity(g, "sensor"), "geometry: probe housing mass x c"),
+        "c_oil": Derived(oil, "geometry: oil volume x rho x c + tank mass x c"),
+    }
+
+
+def thermal_room(g: Geometry) -> dict[str, Derived]:
+    """Conductances of the nodes to the room air: exposed area x (h_conv + h_rad)."""
+    pos = positions(g)
+    frame = _room(g, "detecting_frame") / 2
+    under_plate = pos["pole_heel"].value - g.dim("bodies.heel_block.z")
+    lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
+    return {
+        "g_base_room": Derived(_room(g, "base"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_heel_block_room": Derived(_room(g, "heel_block"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_bearing_block_room": Derived(_room(g, "bearing_block"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_spindle_room": Derived(
+            _room(g, "spindle") + _room(g, "drive_train"), "geometry: spindle + drive train areas x (h_conv + h_rad)"
+        ),
+        "g_bearing_room": Derived(_room(g, "bearing"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_t_plate_room": Derived(_room(g, "t_plate"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_detecting_frame_room": Derived(frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"),
+        "g_detecting_frame_lower_room": Derived(frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"),
+        "g_pole_heel_room": Derived(_pole_room(g, under_plate), "geometry: the pole's free length under the T-plate"),
+        "g_pole_base_room": Derived(0.0, "geometry: enclosed in the base"),
+        "g_pole_lower_room": Derived(_pole_room(g, lower), "geometry: pole surface below the base x (h_conv + h_rad)"),
+        "g_clamp_room": Derived(_room(g, "clamp"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_sensor_room": Derived(_room(g, "sensor"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_oil_room": Derived(
+            g.dim("hydraulic_station.tank_area") * g.dim("surfaces.h_tank"), "handbook: tank area x 12 W/(m2 K)"
+        ),
+    }
+
+
+def _axial(g: Geometry, body: str, area: float, length: float) -> float:
+    return g.prop(body, "k") * area / length
+
+
+def thermal_joints(g: Geometry) -> dict[str, Derived]:
+    """Conductances between bodies: bolted contact area x h, air gaps, axial conduction."""
+    pos = positions(g)
+    h = g.dim("joints.h_bolted")
+    gap = g.dim("joints.k_air") * math.pi * g.dim("bodies.long_pole.diameter") / g.dim("joints.pole_gap")
+    rod = math.pi / 4 * g.dim("bodies.long_pole.diameter") ** 2
+    frame_section = g.dim("bodies.detecting_frame.x") * g.dim("bodies.detecting_frame.y")
+    frame_len = g.dim("bodies.detecting_frame.z")
+    inset = g.dim("bodies.detecting_frame.inset")
+    lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
+    seat_in = math.pi * g.dim("bodies.bearing.bore") * g.dim("bodies.bearing.liner_width")
+    seat_out = math.pi * g.dim("bodies.bearing.outer_diameter") * g.dim("bodies.t_plate.bore_length")
+    return {
+        "g_base__heel_block": Derived(
+            h * g.dim("bodies.heel_block.x") * g.dim("bodies.heel_block.y"), "geometry: heel block foot x h_bolted"
+        ),
+        "g_heel_block__bearing_block": Derived(
+            h * g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.y"), "geometry: block foot x h_bolted"
+        ),
+        "g_bearing_block__spindle": Derived(2.0, "estimate: through the rollers of the spindle's roller bearing"),
+        "g_spindle__bearing": Derived(h * seat_in, "geometry: inner ring seat (pi d B) x h_bolted"),
+        "g_bearing__t_plate": Derived(h * seat_out, "geometry: outer ring seat (pi D t) x h_bolted"),
+        "g_base__detecting_frame": Derived(
+            h * (frame_section + 2 * g.dim("bodies.detecting_frame.x") * inset),
+            "geometry: frame top and its inset faces x h_bolted",
+        ),
+        "g_detecting_frame__detecting_frame_lower": Derived(
+            _axial(g, "detecting_frame", frame_section, frame_len / 2), "handbook: axial k A / (L/2) of the frame"
+        ),
+        "g_heel_block__pole_heel": Derived(
+            gap * g.dim("bodies.heel_block.z"), "geometry: air gap k_air pi d L / gap in the heel block"
+        ),
+        "g_base__pole_base": Derived(gap * pos["pole_base"].value, "geometry: air gap k_air pi d L / gap in the base"),
+        "g_detecting_frame_lower__pole_lower": Derived(0.05, "estimate: linear bearing guiding the pole"),
+        "g_pole_heel__pole_base": Derived(
+            _axial(g, "long_pole", rod, (pos["pole_heel"].value + pos["pole_base"].value) / 2),
+            "handbook: axial k A / L between segment centres",
+        ),
+        "g_pole_base__pole_lower": Derived(
+            _axial(g, "long_pole", rod, (pos["pole_base"].value + lower) / 2),
+            "handbook: axial k A / L between segment centres",
+        ),
+        "g_pole_lower__clamp": Derived(0.2, "estimate: clamp screwed on the pole"),
+        "g_clamp__sensor": Derived(0.005, "estimate: point contact of the measuring head"),
+        "g_sensor__detecting_frame_lower": Derived(0.1, "estimate: probe clamped in the frame's lower end"),
+        "g_t_plate__pole_heel": Derived(0.005, "estimate: point contact of the pole top"),
+        "g_oil__base": Derived(0.0, "estimate: the station stands apart from the tester"),
+    }
+
+
+def oscillation(g: Geometry) -> dict[str, Derived]:
+    """OscillationDrive's bearing size."""
+    return {
+        "d_k": Derived(g.dim("bodies.bearing.ball_diameter"), "handbook: GE 30 ES d_k"),
+        "liner_width": Derived(g.dim("bodies.bearing.liner_width"), "handbook: GE 30 ES B"),
+    }
+
+
+def derive(g: Geometry) -> dict[str, dict[str, Derived]]:
+    """Every derived FMU parameter, by model."""
+    return {
+        "FixtureMechanics": mechanics(g),
+        "ThermalNetwork": thermal_capacities(g) | thermal_room(g) | thermal_joints(g),
+        "OscillationDrive": oscillation(g),
+    }
+
+
+def derived_file_text(model: str, params: dict[str, Derived]) -> str:
+    """A scenario parameter file of one model's derived parameters."""
+    lines = [
+        f"# {model}'s parameters derived from tester-geometry.toml by `twin geometry`.",
+        "# Do not edit: change the geometry file and rerun `twin geometry` (tests check this file is current).",
+        "",
+        "[parameters]",
+    ]
+    for k in sorted(params):
+        d = params[k]
+        # six significant digits: the drawing is not more exact, and the file stays readable
+        lines.append(f'{k} = {{ value = {float(f"{d.value:.6g}")!r}, source = "derived: {d.source}" }}')
+    return "\n".join(lines) + "\n"
+
+
+def derived_file(scenarios_dir: Path, model: str) -> Path:
+    """Where a model's derived parameter file lives."""
+    stem = {"FixtureMechanics": "mechanics", "ThermalNetwork": "thermal", "OscillationDrive": "oscillation"}[model]
+    return scenarios_dir / "base" / f"geometry-{stem}.toml"
+
+
+def write_derived_files(scenarios_dir: Path) -> list[Path]:
+    """Write every derived parameter file; returns their paths."""
+    out = []
+    for model, params in derive(load_geometry(scenarios_dir)).items():
+        path = derived_file(scenarios_dir, model)
+        path.write_text(derived_file_text(model, params), encoding="utf-8")
+        out.append(path)
+    return out
