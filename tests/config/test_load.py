@@ -252,14 +252,16 @@ def test_paper_fmus(paper, raw) -> None:
         assert f.model == raw["fmu"][f.name]["model"]
         assert f.period_ns == parse_duration(raw["fmu"][f.name]["period"])
     thermal = paper.fmu("thermal")
-    calibration = tomllib.loads(
-        (default_scenario_path().parent / raw["fmu"]["thermal"]["parameter_files"][0]).read_text()
-    )["parameters"]
-    assert set(thermal.parameters) == set(calibration)
+    # the drawing's values, then the calibration's over them (later files win)
+    merged: dict = {}
+    for f in raw["fmu"]["thermal"]["parameter_files"]:
+        merged.update(tomllib.loads((default_scenario_path().parent / f).read_text())["parameters"])
+    assert set(thermal.parameters) == set(merged)
     for name, p in thermal.parameters.items():
-        assert p.value == calibration[name]["value"]
-        assert p.source == calibration[name]["source"]
-    assert {k: p.value for k, p in paper.fmu("mechanics").parameters.items()} == {"solver_step": 1.0}
+        assert p.value == merged[name]["value"]
+        assert p.source == merged[name]["source"]
+    mech = {k: p.value for k, p in paper.fmu("mechanics").parameters.items()}
+    assert mech["solver_step"] == 1.0 and mech["l_detecting_frame"] == 0.362  # inline, and the drawing's
 
 
 def test_paper_connections_are_what_the_file_says(paper, raw) -> None:
@@ -268,7 +270,7 @@ def test_paper_connections_are_what_the_file_says(paper, raw) -> None:
         for dst in [dsts] if isinstance(dsts, str) else dsts:
             expected.append(Connection(src, dst))
     assert list(paper.connections) == expected
-    assert len(expected) == 20
+    assert len(expected) == 21
     assert Connection("thermal.t_pole_lower", "sensors.t_long_pole") in paper.connections
     assert Connection("mechanics.probe_true", "sensors.probe_true") in paper.connections
     assert not any(c.delay for c in paper.connections)
@@ -308,7 +310,7 @@ def test_overrides_reach_the_scenario() -> None:
     )
     assert s.seed == 7 and s.duration_ns == 30 * 60 * NS_PER_S
     assert not any(c.src == "thermal.t_clamp" for c in s.connections)
-    assert len(s.connections) == 19
+    assert len(s.connections) == 20
 
 
 # ----------------------------------------------------------------------------- more of the loader

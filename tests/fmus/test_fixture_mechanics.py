@@ -13,12 +13,13 @@ from .fmi_driver import Driver
 T0 = 293.15
 TEMPS = (
     "t_heel_block", "t_bearing_block", "t_spindle", "t_bearing", "t_t_plate",
-    "t_detecting_frame", "t_pole_heel", "t_pole_base", "t_pole_lower", "t_clamp",
+    "t_detecting_frame", "t_pole_heel", "t_pole_base", "t_pole_lower", "t_clamp", "t_detecting_frame_lower",
 )  # fmt: skip
+M_POLE = 0.650072  # kg, the default: 730 mm x 10 mm steel rod + 0.2 kg clamp (tester-geometry.toml)
 # the paper's measured rises, applied where its FEM applied them (facts.md 2)
 PAPER_RISES = {
     "t_heel_block": 5.8, "t_bearing_block": 6.5, "t_spindle": 3.2, "t_bearing": 3.2, "t_t_plate": 6.3,
-    "t_detecting_frame": 8.9, "t_pole_heel": 5.8, "t_pole_base": 6.0, "t_pole_lower": 9.6, "t_clamp": 9.6,
+    "t_detecting_frame": 8.9, "t_detecting_frame_lower": 8.9, "t_pole_heel": 5.8, "t_pole_base": 6.0, "t_pole_lower": 9.6, "t_clamp": 9.6,
 }  # fmt: skip
 
 
@@ -43,20 +44,23 @@ def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> 
             "dz_clamp",
         ]
     )
-    assert bb == pytest.approx(FEM_PARTS_M["bearing_block"], abs=5e-9)
-    assert sp + br + tp == pytest.approx(FEM_PARTS_M["t_plate"], abs=5e-9)
-    assert fr == pytest.approx(FEM_PARTS_M["detecting_frame"], abs=5e-9)
-    assert pole + cl == pytest.approx(FEM_PARTS_M["long_pole"], abs=5e-9)
-    # and the probe sees the paper's FEM total: -0.016 mm
+    # compared, not fitted: the drawing's lengths (tester-geometry.toml) give each part within
+    # 25 % of the paper's FEM result at the paper's rises (the lumped model cannot follow the FEM's
+    # temperature field inside each body)
+    assert bb == pytest.approx(FEM_PARTS_M["bearing_block"], rel=0.25)
+    assert sp + br + tp == pytest.approx(FEM_PARTS_M["t_plate"], rel=0.25)
+    assert fr == pytest.approx(FEM_PARTS_M["detecting_frame"], rel=0.25)
+    assert pole + cl == pytest.approx(FEM_PARTS_M["long_pole"], rel=0.25)
     (probe,) = mech.get(["probe_true"])
-    assert probe - 4.805e-3 == pytest.approx(-0.016e-3, abs=5e-9)
+    assert probe - 4.805e-3 == pytest.approx(bb + sp + br + tp + pole + cl - fr, abs=1e-12)
 
 
 def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
-    mech.set({"t_detecting_frame": T0 + 1.0, "t_bearing_block": T0 + 2.0})
+    # the frame's upper lump +1 K, its lower lump +3 K: each half of the 362 mm grows with its own
+    mech.set({"t_detecting_frame": T0 + 1.0, "t_detecting_frame_lower": T0 + 3.0, "t_bearing_block": T0 + 2.0})
     fr, bb = mech.get(["dz_detecting_frame", "dz_bearing_block"])
-    assert fr == pytest.approx(11.7e-6 * 0.3937 * 1.0, rel=1e-12)
-    assert bb == pytest.approx(-11e-6 * 0.1625 * 2.0, rel=1e-12)
+    assert fr == pytest.approx(11.7e-6 * 0.362 * (1.0 + 3.0) / 2, rel=1e-12)
+    assert bb == pytest.approx(-11e-6 * 0.1 * 2.0, rel=1e-12)
 
 
 def test_wear_moves_the_probe_one_to_one(mech: Driver) -> None:
@@ -66,7 +70,7 @@ def test_wear_moves_the_probe_one_to_one(mech: Driver) -> None:
     assert p1 - p0 == pytest.approx(50e-6, abs=1e-15)
     assert z_t == pytest.approx(50e-6, abs=1e-15)
     # the pole is pushed down: spring and head compress, the contact force grows
-    assert force == pytest.approx(20.0 + 0.9 - 0.65 * 9.80665 + (2000.0 + 60.0) * 50e-6, rel=1e-12)
+    assert force == pytest.approx(20.0 + 0.9 - M_POLE * 9.80665 + (2000.0 + 60.0) * 50e-6, rel=1e-12)
 
 
 def test_lift_off_is_reported_not_hidden(fmu_paths: dict[str, Path]) -> None:
@@ -76,7 +80,7 @@ def test_lift_off_is_reported_not_hidden(fmu_paths: dict[str, Path]) -> None:
     d.set({"wear_offset": -1e-3})
     gap, lift, force, top = d.get(["pole_gap", "lift_off", "contact_force", "z_pole_top"])
     d.close()
-    f_free = 5.6 + 0.9 - 0.65 * 9.80665
+    f_free = 5.6 + 0.9 - M_POLE * 9.80665
     assert force == 0.0 and lift == 1.0
     assert top == pytest.approx(-f_free / 160.0, rel=1e-12)  # where spring + head balance gravity
     assert gap == pytest.approx(top + 1e-3, rel=1e-12)
