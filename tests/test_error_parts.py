@@ -95,11 +95,14 @@ def test_loading_alone_follows_the_load(tmp_path: Path) -> None:
     np.testing.assert_allclose(loading - loading[0], identified.value * (load - load[0]), rtol=0, atol=1e-12)
     # and it explains the reading: the compensated wear stays at the true (zero) wear, within
     # what the identified compliance's error (a few standard errors) makes of the load swing
-    truth = 0.4e-3 / (3.1e9 * 8.8e-4) + 0.5e-10
-    assert abs(identified.value - truth) < 5 * identified.std_error
-    assert np.max(np.abs(table["errormodel.wear_compensated"])) < 0.05e-6 + 5 * identified.std_error * np.ptp(
-        load
-    )
+    # the liner as built is richer than the model's linear compliance: its 1 um hysteresis loop
+    # (play operator, half-width 0.5 um) and its creep under the held 150 kN (10 % of the
+    # elastic 22 um towards a 2 h time constant: 0.1 x 22 x (1 - exp(-600/7200)) = 0.18 um in
+    # this 10 min run) stay in the compensated wear; the identified compliance's own error adds
+    # a few standard errors times the load swing
+    hysteresis, creep = 0.5e-6, 0.1 * 0.4e-3 * (150e3 / 8.8e-4) / 3.1e9 * -np.expm1(-600 / 7200)
+    bound = hysteresis + creep + 0.05e-6 + 5 * identified.std_error * np.ptp(load)
+    assert np.max(np.abs(table["errormodel.wear_compensated"])) < bound
 
 
 def test_thermal_alone_follows_the_room(tmp_path: Path) -> None:
