@@ -55,7 +55,9 @@ def test_the_fit_meets_the_rises_within_five_sigma(rerun: Path) -> None:
     rep = _report(rerun)
     assert set(BODIES) | {"room"} == set(TEMPERATURE_RISE_K)
     for body in BODIES:
-        assert rep["rises_K"][body]["twin"] == pytest.approx(TEMPERATURE_RISE_K[body], abs=5 * SIGMA_MEAS_K), body
+        assert rep["rises_K"][body]["twin"] == pytest.approx(
+            TEMPERATURE_RISE_K[body], abs=5 * SIGMA_MEAS_K
+        ), body
 
 
 def test_calibrate_writes_elsewhere_unless_asked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -87,7 +87,9 @@ def test_the_error_models_topology_agrees_with_the_drawing() -> None:
     sensor_z = spec.body("displacement_sensor").position["z"].value
     assert pos["frame_top_z"].value + sensor_z == pytest.approx(pos["head_z"].value)
     assert -spec.body("long_pole").position["z"].value == pytest.approx(pos["pole_top_to_head"].value)
-    assert spec.body("displacement_sensor").position["x"].value == pytest.approx(G.dim("bodies.sensor.abbe_offset"))
+    assert spec.body("displacement_sensor").position["x"].value == pytest.approx(
+        G.dim("bodies.sensor.abbe_offset")
+    )
     assert spec.body("spherical_plain_bearing").dimensions["outer_diameter"].value == pytest.approx(
         G.dim("bodies.bearing.outer_diameter")
     )

@@ -80,7 +80,9 @@ class Calibration:
 def thermal_instance(scenario: Scenario) -> str:
     names = [f.name for f in scenario.fmus if f.model == "ThermalNetwork"]
     if len(names) != 1:
-        raise ConfigError("calibration needs exactly one ThermalNetwork instance", source=scenario.source_path)
+        raise ConfigError(
+            "calibration needs exactly one ThermalNetwork instance", source=scenario.source_path
+        )
     return names[0]
 
 
@@ -132,7 +134,9 @@ def calibrate(scenario: Scenario) -> Calibration:
     """The regularised fit of :data:`PRIORS` to the paper's rises under the scenario's room."""
     if scenario.duration_ns != EXPERIMENT_S * NS_PER_S:
         raise ConfigError(
-            "the calibration replays the 480 min experiment", source=scenario.source_path, key="scenario.duration"
+            "the calibration replays the 480 min experiment",
+            source=scenario.source_path,
+            key="scenario.duration",
         )
     est = _estimates(scenario)
     names = list(PRIORS)
@@ -185,7 +189,9 @@ def _with_room_shape(data: dict[str, Any], scenario: Scenario, name: str) -> dic
     tau_ratio = float(profile.params.get("time_constant", rise_at / 4.0)) / rise_at
     t = sample_times(scenario, [rise_at])
     out = copy.deepcopy(data)
-    set_room(out, ROOM_KEY, t, start + rise * shape(name, t / rise_at, tau_ratio), f"twin calibrate: room {name}")
+    set_room(
+        out, ROOM_KEY, t, start + rise * shape(name, t / rise_at, tau_ratio), f"twin calibrate: room {name}"
+    )
     return out
 
 
@@ -214,7 +220,9 @@ def write_parameter_file(path: Path, cal: Calibration, by_shape: Mapping[str, Ca
             f"calibrated: drawing {cal.estimates[k]:.4g}, prior sigma {sigma:.0%} ({why}), posterior "
             f"{se:.0%}, 95 % [{lo:.4g}, {hi:.4g}]" + (f"; tied to {src}" if k in TIED else "")
         )
-        lines.append(f'{k} = {{ value = {float(f"{value:.6g}")!r}, std_error = {float(f"{value * se:.3g}")!r}, source = "{note}" }}')
+        lines.append(
+            f'{k} = {{ value = {float(f"{value:.6g}")!r}, std_error = {float(f"{value * se:.3g}")!r}, source = "{note}" }}'
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
@@ -255,19 +263,27 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
     fmus = data.get("fmu", {})
     thermal = [n for n, f in fmus.items() if isinstance(f, dict) and f.get("model") == "ThermalNetwork"]
     if len(thermal) != 1:
-        raise ConfigError("calibration needs exactly one ThermalNetwork instance", source=str(path), key="fmu")
+        raise ConfigError(
+            "calibration needs exactly one ThermalNetwork instance", source=str(path), key="fmu"
+        )
     files = fmus[thermal[0]].get("parameter_files", [])
     own = [f for f in files if "calibration/" in str(f)]
     fmus[thermal[0]]["parameter_files"] = [f for f in files if f not in own]
-    committed = path.parent / own[0] if own else path.parent / "calibration" / f"{path.stem}-thermal-network.toml"
+    committed = (
+        path.parent / own[0] if own else path.parent / "calibration" / f"{path.stem}-thermal-network.toml"
+    )
     target = out or (committed if write else Path("runs") / "calibrate" / committed.name)
     scenario = load_scenario_data(data, str(path), path.resolve().parent)
     cal = calibrate(scenario)
     # the scenario's own room is the first shape; the others keep its start, rise and rise time
     by_shape = {ROOM_SHAPES[0]: cal} | {
-        name: calibrate(load_scenario_data(_with_room_shape(data, scenario, name), str(path), path.resolve().parent))
+        name: calibrate(
+            load_scenario_data(_with_room_shape(data, scenario, name), str(path), path.resolve().parent)
+        )
         for name in ROOM_SHAPES[1:]
     }
     write_parameter_file(target, cal, by_shape)
-    target.with_suffix(".json").write_text(json.dumps(report(cal, by_shape), indent=2) + "\n", encoding="utf-8")
+    target.with_suffix(".json").write_text(
+        json.dumps(report(cal, by_shape), indent=2) + "\n", encoding="utf-8"
+    )
     return target

@@ -261,7 +261,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_compensate)
 
     p = sub.add_parser(
-        "geometry", help="derive the FMUs' lengths, capacities and conductances from base/tester-geometry.toml"
+        "geometry",
+        help="derive the FMUs' lengths, capacities and conductances from base/tester-geometry.toml",
     )
     p.add_argument("--scenarios", metavar="DIR", help="scenarios folder (default: the shipped one)")
     p.set_defaults(func=_cmd_geometry)
@@ -274,7 +275,9 @@ def make_parser() -> argparse.ArgumentParser:
         "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
     )
     p.add_argument(
-        "--write", action="store_true", help="replace the calibration file the scenario includes (the committed one)"
+        "--write",
+        action="store_true",
+        help="replace the calibration file the scenario includes (the committed one)",
     )
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)

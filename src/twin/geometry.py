@@ -88,7 +88,9 @@ class Geometry:
         """Convection + radiation coefficient of a body's exposed surface, W/(m2 K)."""
         finish = self.data["bodies"][body].get("finish")
         if finish not in ("painted", "bare"):
-            raise ConfigError("finish must be 'painted' or 'bare'", source=self.source, key=f"bodies.{body}.finish")
+            raise ConfigError(
+                "finish must be 'painted' or 'bare'", source=self.source, key=f"bodies.{body}.finish"
+            )
         return self.dim("surfaces.h_convection") + self.dim(f"surfaces.h_radiation_{finish}")
 
 
@@ -119,11 +121,17 @@ def positions(g: Geometry) -> dict[str, Derived]:
         "t_plate_bottom_z": Derived(plate_bottom, "spindle axis + T-plate centre_to_bottom"),
         "frame_top_z": Derived(frame_top, "detecting frame inset"),
         "head_z": Derived(head, "frame inset + frame length - sensor length"),
-        "pole_heel": Derived(-plate_bottom, "T-plate bottom to the base top (heel block and the free length under the plate)"),
+        "pole_heel": Derived(
+            -plate_bottom, "T-plate bottom to the base top (heel block and the free length under the plate)"
+        ),
         "pole_base": Derived(base_bottom, "base thickness"),
         "pole_lower": Derived(clamp_fixing - base_bottom, "base bottom to the clamp's fixing on the pole"),
-        "pole_below_clamp": Derived(pole_len - (clamp_fixing - plate_bottom), "rest of the 730 mm pole below the clamp"),
-        "pole_top_to_head": Derived(head - plate_bottom, "pole top (T-plate bottom) to the head's contact face"),
+        "pole_below_clamp": Derived(
+            pole_len - (clamp_fixing - plate_bottom), "rest of the 730 mm pole below the clamp"
+        ),
+        "pole_top_to_head": Derived(
+            head - plate_bottom, "pole top (T-plate bottom) to the head's contact face"
+        ),
     }
 
 
@@ -142,10 +150,14 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
         "alpha_steel": Derived(g.dim("materials.steel_45.alpha"), "handbook: facts 5"),
         "alpha_bearing_steel": Derived(g.dim("materials.bearing_steel.alpha"), "handbook: facts 5"),
         "h_heel_block": Derived(g.dim("bodies.heel_block.z"), "drawing estimate: heel block height"),
-        "h_bearing_block": Derived(g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"),
+        "h_bearing_block": Derived(
+            g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"
+        ),
         "r_spindle": Derived(g.dim("bodies.spindle.seat_radius"), "handbook: GE 30 ES bore / 2"),
         "t_bearing_rings": Derived(ring, "handbook: GE 30 ES (D - d) / 2"),
-        "l_t_plate": Derived(plate, "drawing estimate: bearing centre to plate bottom minus the outer radius"),
+        "l_t_plate": Derived(
+            plate, "drawing estimate: bearing centre to plate bottom minus the outer radius"
+        ),
         "l_detecting_frame": Derived(g.dim("bodies.detecting_frame.z"), "paper: frame about 362 mm"),
         "l_pole_heel": Derived(pos["pole_heel"].value, "drawing: " + pos["pole_heel"].source),
         "l_pole_base": Derived(pos["pole_base"].value, "drawing: " + pos["pole_base"].source),
@@ -154,7 +166,9 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
         "contact_area": Derived(
             g.dim(f"{bearing}.ball_diameter") * g.dim(f"{bearing}.liner_width"), "handbook: GE 30 ES d_k x B"
         ),
-        "abbe_offset": Derived(g.dim("bodies.sensor.abbe_offset"), "drawing estimate: probe axis beside the pole"),
+        "abbe_offset": Derived(
+            g.dim("bodies.sensor.abbe_offset"), "drawing estimate: probe axis beside the pole"
+        ),
         "m_pole": Derived(
             rod * g.prop("long_pole", "rho") + g.dim("bodies.clamp.mass"),
             "paper: 730 mm x 10 mm steel rod, plus the clamp (estimate)",
@@ -214,9 +228,12 @@ def thermal_capacities(g: Geometry) -> dict[str, Derived]:
     return {
         "c_base": Derived(capacity(g, "base"), "geometry: base box x rho x c"),
         "c_heel_block": Derived(capacity(g, "heel_block"), "geometry: heel block box x rho x c"),
-        "c_bearing_block": Derived(capacity(g, "bearing_block"), "geometry: bearing block box minus bore x rho x c"),
+        "c_bearing_block": Derived(
+            capacity(g, "bearing_block"), "geometry: bearing block box minus bore x rho x c"
+        ),
         "c_spindle": Derived(
-            capacity(g, "spindle") + capacity(g, "drive_train"), "geometry: spindle rod + drive train mass, x c"
+            capacity(g, "spindle") + capacity(g, "drive_train"),
+            "geometry: spindle rod + drive train mass, x c",
         ),
         "c_bearing": Derived(capacity(g, "bearing"), "handbook: GE 30 ES mass x c"),
         "c_t_plate": Derived(capacity(g, "t_plate"), "geometry: T-plate box minus bore x rho x c"),
@@ -224,7 +241,9 @@ def thermal_capacities(g: Geometry) -> dict[str, Derived]:
         "c_detecting_frame_lower": Derived(frame, "geometry: lower half of the 362 x 50 mm frame x rho x c"),
         "c_pole_heel": Derived(_pole_capacity(g, pos["pole_heel"].value), "geometry: pole segment x rho x c"),
         "c_pole_base": Derived(_pole_capacity(g, pos["pole_base"].value), "geometry: pole segment x rho x c"),
-        "c_pole_lower": Derived(_pole_capacity(g, lower), "geometry: pole below the base (to its end) x rho x c"),
+        "c_pole_lower": Derived(
+            _pole_capacity(g, lower), "geometry: pole below the base (to its end) x rho x c"
+        ),
         "c_clamp": Derived(capacity(g, "clamp"), "geometry: clamp mass x c"),
         "c_sensor": Derived(capacity(g, "sensor"), "geometry: probe housing mass x c"),
         "c_oil": Derived(oil, "geometry: oil volume x rho x c + tank mass x c"),
@@ -240,21 +259,33 @@ def thermal_room(g: Geometry) -> dict[str, Derived]:
     return {
         "g_base_room": Derived(_room(g, "base"), "geometry: exposed area x (h_conv + h_rad)"),
         "g_heel_block_room": Derived(_room(g, "heel_block"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_bearing_block_room": Derived(_room(g, "bearing_block"), "geometry: exposed area x (h_conv + h_rad)"),
+        "g_bearing_block_room": Derived(
+            _room(g, "bearing_block"), "geometry: exposed area x (h_conv + h_rad)"
+        ),
         "g_spindle_room": Derived(
-            _room(g, "spindle") + _room(g, "drive_train"), "geometry: spindle + drive train areas x (h_conv + h_rad)"
+            _room(g, "spindle") + _room(g, "drive_train"),
+            "geometry: spindle + drive train areas x (h_conv + h_rad)",
         ),
         "g_bearing_room": Derived(_room(g, "bearing"), "geometry: exposed area x (h_conv + h_rad)"),
         "g_t_plate_room": Derived(_room(g, "t_plate"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_detecting_frame_room": Derived(frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"),
-        "g_detecting_frame_lower_room": Derived(frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"),
-        "g_pole_heel_room": Derived(_pole_room(g, under_plate), "geometry: the pole's free length under the T-plate"),
+        "g_detecting_frame_room": Derived(
+            frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"
+        ),
+        "g_detecting_frame_lower_room": Derived(
+            frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"
+        ),
+        "g_pole_heel_room": Derived(
+            _pole_room(g, under_plate), "geometry: the pole's free length under the T-plate"
+        ),
         "g_pole_base_room": Derived(0.0, "geometry: enclosed in the base"),
-        "g_pole_lower_room": Derived(_pole_room(g, lower), "geometry: pole surface below the base x (h_conv + h_rad)"),
+        "g_pole_lower_room": Derived(
+            _pole_room(g, lower), "geometry: pole surface below the base x (h_conv + h_rad)"
+        ),
         "g_clamp_room": Derived(_room(g, "clamp"), "geometry: exposed area x (h_conv + h_rad)"),
         "g_sensor_room": Derived(_room(g, "sensor"), "geometry: exposed area x (h_conv + h_rad)"),
         "g_oil_room": Derived(
-            g.dim("hydraulic_station.tank_area") * g.dim("surfaces.h_tank"), "handbook: tank area x 12 W/(m2 K)"
+            g.dim("hydraulic_station.tank_area") * g.dim("surfaces.h_tank"),
+            "handbook: tank area x 12 W/(m2 K)",
         ),
     }
 
@@ -277,12 +308,16 @@ def thermal_joints(g: Geometry) -> dict[str, Derived]:
     seat_out = math.pi * g.dim("bodies.bearing.outer_diameter") * g.dim("bodies.t_plate.bore_length")
     return {
         "g_base__heel_block": Derived(
-            h * g.dim("bodies.heel_block.x") * g.dim("bodies.heel_block.y"), "geometry: heel block foot x h_bolted"
+            h * g.dim("bodies.heel_block.x") * g.dim("bodies.heel_block.y"),
+            "geometry: heel block foot x h_bolted",
         ),
         "g_heel_block__bearing_block": Derived(
-            h * g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.y"), "geometry: block foot x h_bolted"
+            h * g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.y"),
+            "geometry: block foot x h_bolted",
         ),
-        "g_bearing_block__spindle": Derived(2.0, "estimate: through the rollers of the spindle's roller bearing"),
+        "g_bearing_block__spindle": Derived(
+            2.0, "estimate: through the rollers of the spindle's roller bearing"
+        ),
         "g_spindle__bearing": Derived(h * seat_in, "geometry: inner ring seat (pi d B) x h_bolted"),
         "g_bearing__t_plate": Derived(h * seat_out, "geometry: outer ring seat (pi D t) x h_bolted"),
         "g_base__detecting_frame": Derived(
@@ -290,12 +325,15 @@ def thermal_joints(g: Geometry) -> dict[str, Derived]:
             "geometry: frame top and its inset faces x h_bolted",
         ),
         "g_detecting_frame__detecting_frame_lower": Derived(
-            _axial(g, "detecting_frame", frame_section, frame_len / 2), "handbook: axial k A / (L/2) of the frame"
+            _axial(g, "detecting_frame", frame_section, frame_len / 2),
+            "handbook: axial k A / (L/2) of the frame",
         ),
         "g_heel_block__pole_heel": Derived(
             gap * g.dim("bodies.heel_block.z"), "geometry: air gap k_air pi d L / gap in the heel block"
         ),
-        "g_base__pole_base": Derived(gap * pos["pole_base"].value, "geometry: air gap k_air pi d L / gap in the base"),
+        "g_base__pole_base": Derived(
+            gap * pos["pole_base"].value, "geometry: air gap k_air pi d L / gap in the base"
+        ),
         "g_detecting_frame_lower__pole_lower": Derived(0.05, "estimate: linear bearing guiding the pole"),
         "g_pole_heel__pole_base": Derived(
             _axial(g, "long_pole", rod, (pos["pole_heel"].value + pos["pole_base"].value) / 2),
@@ -347,7 +385,9 @@ def derived_file_text(model: str, params: dict[str, Derived]) -> str:
 
 def derived_file(scenarios_dir: Path, model: str) -> Path:
     """Where a model's derived parameter file lives."""
-    stem = {"FixtureMechanics": "mechanics", "ThermalNetwork": "thermal", "OscillationDrive": "oscillation"}[model]
+    stem = {"FixtureMechanics": "mechanics", "ThermalNetwork": "thermal", "OscillationDrive": "oscillation"}[
+        model
+    ]
     return scenarios_dir / "base" / f"geometry-{stem}.toml"
 
 

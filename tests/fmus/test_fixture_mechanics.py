@@ -57,7 +57,9 @@ def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> 
 
 def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
     # the frame's upper lump +1 K, its lower lump +3 K: each half of the 362 mm grows with its own
-    mech.set({"t_detecting_frame": T0 + 1.0, "t_detecting_frame_lower": T0 + 3.0, "t_bearing_block": T0 + 2.0})
+    mech.set(
+        {"t_detecting_frame": T0 + 1.0, "t_detecting_frame_lower": T0 + 3.0, "t_bearing_block": T0 + 2.0}
+    )
     fr, bb = mech.get(["dz_detecting_frame", "dz_bearing_block"])
     assert fr == pytest.approx(11.7e-6 * 0.362 * (1.0 + 3.0) / 2, rel=1e-12)
     assert bb == pytest.approx(-11e-6 * 0.1 * 2.0, rel=1e-12)

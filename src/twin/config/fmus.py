@@ -32,7 +32,9 @@ def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
         return raw, ""
     extra = set(raw) - {"value", "source", "std_error"}
     if extra:
-        p.add(key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source, std_error }})")
+        p.add(
+            key, f"unknown key(s) {sorted(extra)} (a parameter is a value or {{ value, source, std_error }})"
+        )
         return None
     se = raw.get("std_error", 1.0)
     if isinstance(se, bool) or not isinstance(se, int | float) or not se > 0 or se == float("inf"):

@@ -296,7 +296,13 @@ def run_point(
     """
     start = time.perf_counter()
     cfg = evaluation_config(scenario)
-    simulation = simulate(scenario, keep=set(input_columns(cfg)) | truth_columns(scenario), loop=loop, progress=progress, stop=stop)
+    simulation = simulate(
+        scenario,
+        keep=set(input_columns(cfg)) | truth_columns(scenario),
+        loop=loop,
+        progress=progress,
+        stop=stop,
+    )
     return summarize(simulation, evaluate_run(simulation, cfg), process_start=start)
 
 
