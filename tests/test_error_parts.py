@@ -136,8 +136,9 @@ def test_positioning_alone_from_a_tilted_probe(tmp_path: Path) -> None:
     )
     assert_alone(parts, "positioning")
     # cosine error: the probe reads the 50 um as 50 cos(0.05) um
-    assert parts["positioning"][-1] == pytest.approx(-50e-6 * (1 - np.cos(0.05)), rel=1e-6)
-    assert table["errormodel.wear_compensated"][-1] == pytest.approx(50e-6, rel=1e-9)
+    # (to 1e-3: the probe's linearity bow, 0.05 % of its range, moves the identified scale a little)
+    assert parts["positioning"][-1] == pytest.approx(-50e-6 * (1 - np.cos(0.05)), rel=1e-3)
+    assert table["errormodel.wear_compensated"][-1] == pytest.approx(50e-6, abs=0.01e-6)  # the bow: 3 nm
 
 
 def test_interference_alone_from_spikes(tmp_path: Path) -> None:

@@ -50,7 +50,7 @@ def test_spreads_compile_to_salib_rows_around_the_base_values(tmp_path: Path) ->
         """design = "montecarlo"
 samples = 4
 [spread]
-# from the calibration file the paper's scenario includes: 6.0 W/K
+# from the calibration file the paper's scenario includes: 0.538856 W/K
 "fmu.thermal.parameters.g_detecting_frame_room" = { dist = "lognormal", sigma = 0.3 }
 # from the FMU's declared start value: 1.17e-5 1/K, 4 % of it
 "fmu.mechanics.parameters.alpha_steel" = { dist = "normal", sigma = 0.04, relative = true }
@@ -63,7 +63,9 @@ samples = 4
     pairs = zip(spec.problem["dists"], spec.problem["bounds"], strict=True)
     rows = dict(zip(spec.problem["names"], pairs, strict=True))
     assert rows["fmu.thermal.parameters.g_detecting_frame_room"][0] == "lognorm"
-    assert rows["fmu.thermal.parameters.g_detecting_frame_room"][1] == pytest.approx([math.log(6.0), 0.3])
+    assert rows["fmu.thermal.parameters.g_detecting_frame_room"][1] == pytest.approx(
+        [math.log(0.538856), 0.3]
+    )
     assert rows["fmu.mechanics.parameters.alpha_steel"] == ("norm", pytest.approx([1.17e-5, 0.04 * 1.17e-5]))
     assert rows["fmu.sensors.parameters.probe_zero_drift"] == ("norm", [0.0, 0.3e-6])
     tilt = float(model_variables("FixtureMechanics")["sensor_tilt"].start)
