@@ -122,11 +122,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import time
 
     from twin.config.load import default_scenario_path
+    from twin.errormodel.config import check_recorded_columns
     from twin.pipeline import run
     from twin.validation.replay import finish_run, for_run
 
     start = time.perf_counter()
     scenario = _load(args)
+    check_recorded_columns(scenario)
     if args.uncertainty is not None and args.uncertainty < 0:
         raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
     path = Path(args.scenario) if args.scenario else default_scenario_path()
@@ -160,10 +162,11 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from twin.errormodel.config import evaluation_config
+    from twin.errormodel.config import check_recorded_columns, evaluation_config
 
     scenario = _load(args)
     evaluation_config(scenario)
+    check_recorded_columns(scenario)
     print(
         f"{scenario.source_path}: ok ({scenario.name}: {len(scenario.fmus)} FMUs, "
         f"{len(scenario.connections)} connections, {len(scenario.profiles)} profiles, {len(scenario.events)} events)"

@@ -91,4 +91,6 @@ def write(path: Path, data: dict[str, Any] | str | bytes) -> Path:
 def paper_text() -> str:
     """The paper's scenario as text, parameter files made absolute."""
     text = PAPER.read_text(encoding="utf-8")
-    return text.replace('"calibration/', f'"{PAPER.parent / "calibration"}/')
+    for folder in ("calibration", "base"):
+        text = text.replace(f'"{folder}/', f'"{PAPER.parent / folder}/')
+    return text

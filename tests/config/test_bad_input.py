@@ -115,7 +115,7 @@ CASES = [
     Case(
         "file-bad-utf8",
         None,
-        "UnicodeDecodeError",
+        "UTF-8",
         content=lambda: paper_text().encode() + b"\n# caf\xe9\xff\n",
     ),
     Case("file-empty", "scenario", "missing", content=lambda: "", lines=5),

@@ -95,6 +95,10 @@ def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+#: the longest ``extends`` chain (the shipped scenarios use 2 files)
+MAX_EXTENDS = 16
+
+
 def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     """A scenario file's data with its ``extends`` chain resolved.
 
@@ -111,7 +115,17 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
     base_path = (path.resolve().parent / parent).resolve()
     if base_path in _seen or base_path == path.resolve():
         raise ConfigError(f"circular extends through {base_path.name}", source=str(path), key="extends")
-    base = read_scenario_data(base_path, (*_seen, path.resolve()))
+    if len(_seen) >= MAX_EXTENDS:
+        raise ConfigError(
+            f"an extends chain longer than {MAX_EXTENDS} files", source=str(path), key="extends"
+        )
+    try:
+        base = read_scenario_data(base_path, (*_seen, path.resolve()))
+    except ConfigError as exc:
+        if exc.source != str(base_path) or exc.key is not None:
+            raise
+        # the base itself cannot be read: say so where it is named
+        raise ConfigError(f"{parent}: {exc.message}", source=str(path), key="extends") from None
     # a base's parameter files are named relative to the base's folder
     for spec in base.get("fmu", {}).values():
         if isinstance(spec, dict) and isinstance(spec.get("parameter_files"), list):

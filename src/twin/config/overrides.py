@@ -51,6 +51,12 @@ def _apply_override(data: dict[str, Any], item: str, source: str) -> None:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except (RecursionError, ValueError):
+        raise ConfigError(
+            "the value is nested too deeply or has too many digits", source=source, key=key
+        ) from None
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**63 - 1:
+        raise ConfigError("integer out of range (TOML integers are 64-bit)", source=source, key=key)
     node = data
     for p in parts[:-1]:
         child = node.get(p)

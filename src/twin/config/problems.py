@@ -7,7 +7,9 @@ once, one line each (like FMPy's validators), as :class:`~twin.errors.ConfigErro
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -93,20 +95,93 @@ def table(p: Problems, data: Mapping[str, Any], key: str, prefix: str = "") -> d
     return v
 
 
-def read_toml(path: Path, source: str) -> dict[str, Any]:
-    """A TOML file's data; :class:`ConfigError` (naming ``source``) when it cannot be read."""
+#: the largest TOML file the twin reads (a scenario is a few kB; a parameter file some 10 kB)
+MAX_TOML_BYTES = 1_000_000
+#: the deepest nesting of tables and arrays a TOML file may have (a scenario needs 5)
+MAX_TOML_DEPTH = 32
+#: TOML integers are 64-bit signed (TOML 1.0); Python's reader accepts any size
+_INT_LIMIT = 2**63 - 1
+
+
+def _read_regular_file(path: Path, source: str) -> bytes:
+    """At most :data:`MAX_TOML_BYTES` of a regular file: a FIFO, device (/dev/zero), socket or
+    directory is refused before anything is read from it, so none can hang or exhaust memory."""
     try:
-        text = path.read_text(encoding="utf-8")
+        # O_NONBLOCK: opening a FIFO without a writer would block forever otherwise
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
         raise ConfigError("file not found", source=source) from None
     except IsADirectoryError:
         raise ConfigError("is a directory, expected a TOML file", source=source) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read: {exc.__class__.__name__}: {exc}", source=source) from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc.strerror or exc}", source=source) from None
+    st = os.fstat(fd)
+    problem = None
+    if stat.S_ISDIR(st.st_mode):
+        problem = "is a directory, expected a TOML file"
+    elif not stat.S_ISREG(st.st_mode):
+        problem = "is not a regular file (a device, FIFO or socket), expected a TOML file"
+    elif st.st_size > MAX_TOML_BYTES:
+        problem = f"is {st.st_size} bytes, more than the {MAX_TOML_BYTES} a TOML file may have"
+    if problem:
+        os.close(fd)
+        raise ConfigError(problem, source=source)
+    with os.fdopen(fd, "rb") as f:
+        try:
+            data = f.read(MAX_TOML_BYTES + 1)
+        except OSError as exc:
+            raise ConfigError(f"cannot read: {exc.strerror or exc}", source=source) from None
+    if len(data) > MAX_TOML_BYTES:  # it grew while being read
+        raise ConfigError(f"is more than the {MAX_TOML_BYTES} bytes a TOML file may have", source=source)
+    return data
+
+
+def _check_values(data: Any, source: str) -> None:
+    """Depth and integer range of parsed TOML, walked without recursion."""
+    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+    while stack:
+        node, key, depth = stack.pop()
+        if depth > MAX_TOML_DEPTH:
+            raise ConfigError(
+                f"nested more than {MAX_TOML_DEPTH} levels deep", source=source, key=key or None
+            )
+        if isinstance(node, dict):
+            stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(node))
+        elif isinstance(node, int) and not isinstance(node, bool) and abs(node) > _INT_LIMIT:
+            raise ConfigError(
+                "integer out of range (TOML integers are 64-bit)", source=source, key=key or None
+            )
+
+
+def read_toml(path: Path, source: str) -> dict[str, Any]:
+    """A TOML file's data; :class:`ConfigError` (naming ``source``) when it cannot be read.
+
+    Only a regular file of at most :data:`MAX_TOML_BYTES` is read; nesting deeper than
+    :data:`MAX_TOML_DEPTH` and integers beyond 64 bits are refused, each with one line."""
+    raw = _read_regular_file(path, source)
     try:
-        return tomllib.loads(text)
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not UTF-8 text (byte {exc.start})", source=source) from None
+    return parse_toml(text, source)
+
+
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """TOML text's data, with the checks of :func:`read_toml`."""
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"TOML syntax error: {exc}", source=source) from None
+    except RecursionError:
+        raise ConfigError(f"nested more than {MAX_TOML_DEPTH} levels deep", source=source) from None
+    except ValueError:  # an integer of thousands of digits (Python's int-str limit)
+        raise ConfigError(
+            "a number with thousands of digits (TOML integers are 64-bit)", source=source
+        ) from None
+    _check_values(data, source)
+    return data
 
 
 #: a name that becomes a folder or file name (a scenario's run folder, a sweep's folder): no

@@ -35,7 +35,7 @@ from twin.errormodel.sources import (
     MechanicalCoefficients,
     ThermalCoefficients,
 )
-from twin.errors import ConfigError
+from twin.errors import ConfigError, ConfigErrors
 
 
 def model_defaults() -> dict[str, float]:
@@ -148,3 +148,41 @@ def input_columns(cfg: EvaluationConfig) -> set[str]:
     """
     names = {name for f in FACTORS for field in (*f.columns, *f.sensors) for name in cfg.names(field)}
     return names | set(cfg.names("true_wear"))
+
+
+def _named_columns(em: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(key, column) of every column an ``[errormodel]`` table names explicitly."""
+    named = [(f"errormodel.{k}", em[k]) for k in ("reading", "true_wear", *_sensor_fields()) if k in em]
+    temps = em.get("temperatures")
+    if isinstance(temps, Mapping):
+        named += [(f"errormodel.temperatures.{p}", c) for p, c in temps.items()]
+    return [(k, c) for k, c in named if isinstance(c, str)]
+
+
+def check_recorded_columns(scenario: Scenario) -> None:
+    """Every column the scenario's ``[errormodel]`` names is one the run records (an output or a
+    driven input of one of its FMU instances): a misspelt column would otherwise let the run
+    complete without an error model. Checked before the run (``twin validate`` and ``twin run``)."""
+    import difflib
+
+    from twin.cosim.plan import make_plan
+
+    em = {k: p.value for k, p in scenario.errormodel.items()}
+    named = _named_columns(em)
+    if not named:
+        return
+    recorded = {c.meta.name for c in make_plan(scenario).columns}
+    problems = []
+    for key, column in named:
+        if column not in recorded:
+            close = difflib.get_close_matches(column, sorted(recorded), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            problems.append(
+                ConfigError(
+                    f"column {column!r} is not recorded by this scenario{hint}",
+                    source=scenario.source_path,
+                    key=key,
+                )
+            )
+    if problems:
+        raise problems[0] if len(problems) == 1 else ConfigErrors(problems)

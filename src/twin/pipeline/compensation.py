@@ -6,7 +6,6 @@ run's signals.csv (whose errormodel.csv it then reproduces byte for byte).
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -65,12 +64,9 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
 
 
 def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("file not found", source=source) from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError(f"cannot read: {exc}", source=source) from None
+    from twin.config.problems import read_toml
+
+    data = read_toml(path, source)
     unknown = sorted(set(data) - {"errormodel"})
     if unknown:
         raise ConfigError(f"unknown key(s) {unknown} (expected [errormodel])", source=source)
