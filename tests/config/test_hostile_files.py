@@ -127,9 +127,7 @@ HOSTILE = [
     ),
     Hostile("float-inf-parameter", "finite", _thermal_parameter("inf")),
     Hostile("float-nan-parameter", "finite", _thermal_parameter("nan")),
-    Hostile(
-        "float-overflow-parameter", "finite", _thermal_parameter("1e999")
-    ),
+    Hostile("float-overflow-parameter", "finite", _thermal_parameter("1e999")),
     # the error model's columns, checked against what the run records
     Hostile(
         "errormodel-misspelt-reading",
