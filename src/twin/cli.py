@@ -81,20 +81,29 @@ def _stop_on_signals():
     return lambda: caught.get("name")
 
 
-def _supervised(quiet: bool, stage: Callable[..., RunSummary]) -> RunSummary:
-    """Call a run stage with a progress bar and SIGINT/SIGTERM asking it to stop."""
+def _supervised(quiet: bool, stage: Callable[..., RunSummary]) -> tuple[RunSummary, Callable[[], str | None]]:
+    """Call a run stage with a progress bar and SIGINT/SIGTERM asking it to stop; returns the
+    summary and the handler's question "which signal came?" (also one that comes after the
+    co-simulation, while the error model and the outputs are written, or later: the run then
+    completes its files and exits as interrupted)."""
     stop = _stop_on_signals()
     update, done = _progress_bar(quiet)
     try:
-        return stage(progress=update, stop=stop)
+        return stage(progress=update, stop=stop), stop
     finally:
         done()
 
 
-def _finish(summary: RunSummary, out: Path, quiet: bool) -> int:
+def _finish(summary: RunSummary, out: Path, quiet: bool, caught: str | None = None) -> int:
     if not quiet:
         print(summary.line())
         print(f"outputs: {out}")
+    if summary.status == "completed" and caught is not None:
+        print(
+            f"twin: interrupted by {caught} after the co-simulation; the run's outputs are complete in {out}",
+            file=sys.stderr,
+        )
+        return _EXIT_ON_SIGNAL.get(caught, 130)
     if summary.status == "interrupted":
         why = summary.error or ""
         print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
@@ -123,6 +132,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from twin.config.load import default_scenario_path
     from twin.errormodel.config import check_recorded_columns
+    from twin.outputs.run_folder import output_folder
     from twin.pipeline import run
     from twin.validation.replay import finish_run, for_run
 
@@ -133,7 +143,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
     path = Path(args.scenario) if args.scenario else default_scenario_path()
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
-    out = Path(args.out) if args.out else Path("runs") / scenario.name
+    out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
     stage = functools.partial(
         run,
@@ -143,10 +153,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides=args.set or [],
         checkpoint_every_ns=every,
     )
-    summary = _supervised(args.quiet, stage)
-    if uncertainty is not None and summary.status == "completed":
-        finish_run(uncertainty, out, (lambda _: None) if args.quiet else print)
-    return _finish(summary, out, args.quiet)
+    summary, stop = _supervised(args.quiet, stage)
+    if uncertainty is not None and summary.status == "completed" and stop() is None:
+        # the handler stays: a Ctrl-C ends the Monte Carlo after its finished samples
+        finish_run(uncertainty, out, (lambda _: None) if args.quiet else print, stop)
+    return _finish(summary, out, args.quiet, stop())
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
@@ -158,7 +169,8 @@ def _cmd_resume(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     out = Path(args.run_dir)
     stage = functools.partial(resume_run, out, process_start=start)
-    return _finish(_supervised(args.quiet, stage), out, args.quiet)
+    summary, stop = _supervised(args.quiet, stage)
+    return _finish(summary, out, args.quiet, stop())
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -178,7 +190,9 @@ def _cmd_compensate(args: argparse.Namespace) -> int:
     from twin.pipeline import compensate
 
     csv = Path(args.csv)
-    out = Path(args.out) if args.out else csv.with_name(csv.stem + "-compensated")
+    from twin.outputs.run_folder import output_folder
+
+    out = output_folder(args.out, csv.with_name(csv.stem + "-compensated"))
     summary = compensate(csv, Path(args.config) if args.config else None, out)
     parts = summary["error_parts_mm"]
     print(
@@ -297,6 +311,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args.func(args))
+    except KeyboardInterrupt:
+        # Ctrl-C before a run's own handler is in place (imports, the FMU build) or after it
+        # (the replay's Monte Carlo): nothing half-written is left behind by either
+        print("twin: interrupted", file=sys.stderr)
+        return 130
     except TwinError as exc:
         for line in str(exc).splitlines():  # several problems: one line each
             print(f"twin: {line}", file=sys.stderr)

@@ -19,6 +19,7 @@ CSV (fmpy ignores it) so :func:`read_signals_csv` can rebuild the full table.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -75,6 +76,10 @@ def _check_names(names: Sequence[str]) -> None:
         if name in seen:
             raise ValueError(f"signal name {name!r} appears twice")
         seen.add(name)
+
+
+#: bytes of text written and flushed at a time (about: a value takes up to 24 characters)
+_SLICE_BYTES = 1 << 16
 
 
 class SignalsCsvWriter(ClosesOnExit):
@@ -134,6 +139,7 @@ class SignalsCsvWriter(ClosesOnExit):
             with open(self.path, "r+b") as f:
                 f.truncate(offset)
             self._file: IO[str] | None = open(self.path, "a", encoding="utf-8", newline="\n")  # noqa: SIM115
+            self._good = offset
             return
         if sidecar:
             write_units_sidecar(self.path, self.signals)
@@ -141,6 +147,7 @@ class SignalsCsvWriter(ClosesOnExit):
         self._file = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
         self._file.write(",".join([TIME, *self.names]) + "\n")
         self._flush()
+        self._good = self._file.tell()
 
     def position(self) -> tuple[int, float]:
         """(bytes written, last time): where a resumed run continues."""
@@ -191,10 +198,33 @@ class SignalsCsvWriter(ClosesOnExit):
             block[:, j] = values
         # tolist() gives Python floats, whose repr is the shortest exact one (numpy scalars
         # would print as "np.float64(...)").
-        self._file.write((self._row * t.size) % tuple(block.ravel().tolist()))
-        self._flush()
-        self._last_time = float(t[-1])
-        self.rows += t.size
+        # in slices of rows, each flushed: a write that fails (a full disk) loses at most one
+        # slice, and abandon() cuts the file back to the last whole one
+        rows = max(1, _SLICE_BYTES // (24 * block.shape[1]))
+        for i in range(0, t.size, rows):
+            part = block[i : i + rows]
+            try:
+                self._file.write((self._row * len(part)) % tuple(part.ravel().tolist()))
+                self._flush()
+            except OSError as exc:
+                exc.filename = exc.filename or str(self.path)
+                raise
+            self._good = self._file.tell()
+            self._last_time = float(part[-1, 0])
+            self.rows += len(part)
+
+    def abandon(self) -> None:
+        """Close after a failed write (a full disk): the file is cut back to its last whole
+        row, so what it holds stays readable. Closing cannot fail here: the unflushed rest
+        of the failed chunk is dropped."""
+        if self._file is None:
+            return
+        # the buffer may not flush: those bytes are the ones cut off below
+        with contextlib.suppress(OSError):
+            self._file.close()
+        self._file = None
+        with open(self.path, "r+b") as f:
+            f.truncate(self._good)  # truncation frees space, it needs none
 
     def _flush(self) -> None:
         assert self._file is not None
@@ -253,9 +283,10 @@ class SignalsCsvSink:
             self._writer.close()
 
     def fail(self, error: BaseException) -> None:
-        # every appended row is already flushed to the OS: closing is all there is to do
+        # every whole appended row is already flushed to the OS; a failed write may have left
+        # part of a chunk behind it, which abandon() cuts off
         if self._writer is not None:
-            self._writer.close()
+            self._writer.abandon()
 
 
 class DerivedCsvSink(OutcomeSink):

@@ -21,8 +21,10 @@ the fingerprint of the scenario it was taken from makes a resume of an edited sc
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,6 +61,58 @@ RUN_FILE = "run.json"
 CHECKPOINT_FILE = "checkpoint.npz"
 #: the pickled checkpoint of twins before 0.2: never read (a pickle can execute code)
 LEGACY_CHECKPOINT = "checkpoint.pkl"
+UNCERTAINTY_CSV = "uncertainty.csv"
+#: the lock a run holds on its folder for as long as it writes there (fcntl, advisory)
+LOCK_FILE = ".twin.lock"
+#: every file a run writes: a new run in a used folder removes these first, so no file of an
+#: earlier run stays beside the new run's (files twin does not write are left alone)
+RUN_OUTPUTS = (
+    "signals.csv",
+    "signals.units.json",
+    "recording.rrd",
+    "errormodel.csv",
+    "errormodel.units.json",
+    "error_budget.png",
+    "summary.json",
+    "uncertainty.csv",
+    "checkpoint.npz",
+    "checkpoint.pkl",
+)
+#: file systems no run folder may be on
+_SPECIAL_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
+#: the errors of a full disk or a file-size limit
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
+
+
+def output_folder(raw: str | None, default: Path, option: str = "--out") -> Path:
+    """The output folder an option names (``default`` without it), checked by
+    :func:`check_output_folder`; an empty name is refused, not taken as the default."""
+    if raw is not None and not raw.strip():
+        raise ConfigError("is empty: name a folder", source=option)
+    path = Path(raw) if raw is not None else default
+    check_output_folder(path, option)
+    return path
+
+
+def check_output_folder(path: Path, option: str) -> None:
+    """Refuse an output folder no run can write (before anything runs): an empty name, an
+    existing file, a folder on /proc, /sys or /dev, or one that is not writable."""
+    if str(path) == "" or str(path).strip() == "":
+        raise ConfigError("is empty: name a folder", source=option)
+    resolved = path.resolve()
+    if any(resolved == root or root in resolved.parents for root in _SPECIAL_ROOTS):
+        raise ConfigError(
+            f"{path} is on a special file system ({resolved.parts[1]}), not a folder for outputs",
+            source=option,
+        )
+    if resolved.exists() and not resolved.is_dir():
+        raise ConfigError(f"{path} is a file, expected a folder", source=option)
+    existing = next(p for p in (resolved, *resolved.parents) if p.exists())
+    if not existing.is_dir():
+        raise ConfigError(f"{existing} is a file, so {path} cannot be a folder", source=option)
+    read_only = (os.statvfs(existing).f_flag & os.ST_RDONLY) != 0
+    if read_only or not os.access(existing, os.W_OK | os.X_OK):
+        raise ConfigError(f"{existing} is not writable", source=option)
 
 
 @dataclass(frozen=True)
@@ -109,11 +163,39 @@ class RunFolder:
         """Make the folder (and its parents) if it is not there."""
         self.path.mkdir(parents=True, exist_ok=True)
 
-    def start(self, meta: RunMeta) -> None:
-        """Make the folder for a new run: drop an old checkpoint, write ``run.json``."""
+    def lock(self) -> None:
+        """Hold the folder's lock until :meth:`unlock` (or the process ends): a second twin
+        process on the same folder is refused with :class:`ConfigError` (exit 2) instead of
+        interleaving its rows with this one's."""
+        import fcntl
+
         self.make()
-        self.file(CHECKPOINT_FILE).unlink(missing_ok=True)
-        self.file(LEGACY_CHECKPOINT).unlink(missing_ok=True)
+        fd = os.open(self.file(LOCK_FILE), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 32).decode("ascii", "replace").strip() or "?"
+            os.close(fd)
+            raise ConfigError(
+                f"is in use by another twin process (pid {holder})", source=str(self.path)
+            ) from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._lock_fd = fd
+
+    def unlock(self) -> None:
+        """Release the folder's lock (idempotent)."""
+        fd = getattr(self, "_lock_fd", None)
+        if fd is not None:
+            os.close(fd)  # closing the descriptor releases the flock
+            self._lock_fd = None
+
+    def start(self, meta: RunMeta) -> None:
+        """Make the folder for a new run: remove every output of an earlier run (and its
+        checkpoint), write ``run.json``."""
+        self.make()
+        for name in RUN_OUTPUTS:
+            self.file(name).unlink(missing_ok=True)
         text = json.dumps(
             {
                 "scenario": meta.scenario,

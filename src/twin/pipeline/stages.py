@@ -33,7 +33,14 @@ from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_sign
 from twin.errormodel.factors import FACTORS
 from twin.errors import ConfigError, RunError
 from twin.outputs.plots import BudgetColumns
-from twin.outputs.run_folder import Checkpoint, RunFolder, RunMeta, scenario_fingerprint
+from twin.outputs.run_folder import (
+    DISK_FULL_ERRNOS,
+    SUMMARY_JSON,
+    Checkpoint,
+    RunFolder,
+    RunMeta,
+    scenario_fingerprint,
+)
 from twin.outputs.sink import Outcome, Sink
 from twin.paper import DRIFT_M, TEMPERATURE_RISE_K
 from twin.pipeline.run_summary import RunSummary, Timing
@@ -239,11 +246,31 @@ def run(
     process_start = process_start or time.perf_counter()
     cfg = evaluation_config(scenario)  # checked before anything runs
     folder = RunFolder(out_dir)
+    folder.lock()  # before anything in the folder changes: a second process is refused
+    try:
+        return _run_locked(
+            scenario, folder, cfg, progress, process_start, loop, overrides, stop, checkpoint_every_ns, resume
+        )
+    finally:
+        folder.unlock()
+
+
+def _run_locked(
+    scenario: Scenario,
+    folder: RunFolder,
+    cfg: EvaluationConfig,
+    progress: Callable[[int, int], None] | None,
+    process_start: float,
+    loop: Loop,
+    overrides: Sequence[str],
+    stop: Callable[[], str | None] | None,
+    checkpoint_every_ns: int | None,
+    resume: Checkpoint | None,
+) -> RunSummary:
+    out_dir = folder.path
     if resume is None:
         meta = RunMeta(str(Path(scenario.source_path).resolve()), tuple(overrides), loop, checkpoint_every_ns)
         folder.start(meta)
-    else:
-        folder.make()
     sinks = folder.run_sinks(
         name=scenario.name,
         late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
@@ -266,12 +293,38 @@ def run(
         evaluated = evaluate_run(simulation, cfg)
         summary = functools.cache(lambda: summarize(simulation, evaluated, process_start=process_start))
         write_outputs(sinks, evaluated, lambda: summary().to_dict())
+    except OSError as exc:
+        _fail(sinks, exc)
+        if exc.errno in DISK_FULL_ERRNOS:
+            raise _disk_full(folder, scenario, exc) from None
+        raise
     except BaseException as exc:
         _fail(sinks, exc)
         raise
     if simulation.result.error is not None:
         raise RunError(f"{simulation.result.error} (everything recorded up to it is in {out_dir})")
     return summary()
+
+
+def _disk_full(folder: RunFolder, scenario: Scenario, exc: OSError) -> RunError:
+    """The error of a run stopped by a full disk (or a file-size limit), after writing what
+    can be written: the sinks have cut their files back to whole rows; summary.json says so
+    (it is small, but on a full disk it may not fit: the error then says that too)."""
+    from twin.outputs.summary import write_summary
+
+    where = exc.filename or "an output file"
+    status = "failed: disk full"
+    try:
+        write_summary(
+            folder.file(SUMMARY_JSON),
+            {"scenario": scenario.name, "status": status, "error": f"{exc.strerror} while writing {where}"},
+        )
+        note = "summary.json says so"
+    except OSError:
+        note = "summary.json could not be written either"
+    return RunError(
+        f"disk full ({exc.strerror}) while writing {where}; every whole row recorded so far is in {folder.path}; {note}"
+    )
 
 
 def _fail(sinks: Sequence[Sink], error: BaseException) -> None:

@@ -101,7 +101,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.scheduler is not None and args.workers is not None:
         raise ConfigError("applies to the local cluster only, not with --scheduler", source="--workers")
     spec = load_spec(args.spec)
-    out = Path(args.out) if args.out else Path("sweeps") / spec.name
+    from twin.outputs.run_folder import output_folder
+
+    out = output_folder(args.out, Path("sweeps") / spec.name)
     echo = (lambda _: None) if args.quiet else (lambda line: print(line, flush=True))
     update, close = _progress_bar(args.quiet)
     for signum in _EXIT_ON_SIGNAL:

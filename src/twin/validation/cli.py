@@ -42,7 +42,9 @@ def command(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise ConfigError("expected at least one worker", source="--workers")
     cfg = load_heldout(Path(args.file) if args.file else scenarios_dir() / DEFAULT_FILE, testers=args.testers)
-    out = Path(args.out) if args.out else Path("sweeps") / "heldout"
+    from twin.outputs.run_folder import output_folder
+
+    out = output_folder(args.out, Path("sweeps") / "heldout")
     echo = (lambda _: None) if args.quiet else print
     summary = run_heldout(
         cfg, out, scheduler=args.scheduler, workers=args.workers, resume=args.resume, echo=echo

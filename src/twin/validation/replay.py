@@ -246,9 +246,11 @@ def run_uncertainty(
     *,
     scheduler: str | None = None,
     workers: int | None = None,
+    stop: Callable[[], str | None] | None = None,
 ) -> dict[str, Any]:
     """Run the Monte Carlo on Dask; per sample its room shape and figures (flattened summary
-    numbers, :func:`twin.sweep.point.flatten`), in sample order."""
+    numbers, :func:`twin.sweep.point.flatten`), in sample order. ``stop`` returning a signal's
+    name ends it after the samples done so far (``"interrupted"`` then names it)."""
     from twin.sweep import shipping
     from twin.sweep.execute import execute, failed, one_line, open_client, run_task
 
@@ -269,12 +271,20 @@ def run_uncertainty(
         threads = max(1, sum(client.nthreads().values()))
         for record in execute(client, range(unc.samples), payload, run_task):
             records[record["index"]] = record
+            if stop is not None and stop():
+                break  # the client closes the cluster on the way out
     rows = [
         {"sample": i, "room_shape": shapes.get(i, ""), "status": records[i]["status"],
          "error": records[i]["error"], **records[i]["figures"]}
         for i in sorted(records)
     ]  # fmt: skip
-    return {"inputs": names, "rows": rows, "wall_s": time.perf_counter() - start, "workers": threads}
+    return {
+        "inputs": names,
+        "rows": rows,
+        "wall_s": time.perf_counter() - start,
+        "workers": threads,
+        "interrupted": stop() if stop is not None else None,
+    }
 
 
 def _stats(values: np.ndarray) -> dict[str, Any]:
@@ -393,9 +403,12 @@ def for_run(path: Path, overrides: list[str], samples: int | None) -> RunUncerta
     return RunUncertainty(path, data, tuple(overrides), parse_uncertainty(path, data, samples))
 
 
-def finish_run(ru: RunUncertainty, out: Path, echo: Callable[[str], None]) -> None:
+def finish_run(
+    ru: RunUncertainty, out: Path, echo: Callable[[str], None], stop: Callable[[], str | None] | None = None
+) -> str | None:
     """Run the Monte Carlo (if any samples), add its figures and the FEM comparison to the
-    run folder's summary.json, write uncertainty.csv."""
+    run folder's summary.json, write uncertainty.csv. Returns the name of a signal that
+    stopped the Monte Carlo (the run's own outputs then stay as they were), else None."""
     import json
 
     from twin.outputs.summary import write_summary
@@ -404,7 +417,9 @@ def finish_run(ru: RunUncertainty, out: Path, echo: Callable[[str], None]) -> No
     if ru.uncertainty is not None:
         unc = ru.uncertainty
         echo(f"uncertainty: {unc.samples} samples of {ru.path.name} on Dask")
-        mc = run_uncertainty(unc, ru.path, ru.data, list(ru.overrides))
+        mc = run_uncertainty(unc, ru.path, ru.data, list(ru.overrides), stop=stop)
+        if mc["interrupted"]:
+            return str(mc["interrupted"])
         write_samples(out, mc)
     path = out / "summary.json"
     summary = add_to_summary(json.loads(path.read_text(encoding="utf-8")), mc)
@@ -416,3 +431,4 @@ def finish_run(ru: RunUncertainty, out: Path, echo: Callable[[str], None]) -> No
             f"drift (probe) {d['probe']:+.4f} mm, sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm "
             f"({d['samples']} samples, {mc['wall_s']:.1f} s); paper {d['paper_measured']:+.4f} mm"
         )
+    return None
