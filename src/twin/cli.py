@@ -194,6 +194,14 @@ def _cmd_compensate(args: argparse.Namespace) -> int:
 
     out = output_folder(args.out, csv.with_name(csv.stem + "-compensated"))
     summary = compensate(csv, Path(args.config) if args.config else None, out)
+    flagged = summary["input_rows"]["flagged"]
+    if flagged:
+        first = summary["input_rows"]["flagged_times_s"][0]
+        print(
+            f"twin: {csv}: {flagged} row(s) with a missing or non-finite value in a column the error model reads "
+            f"were left out (the first at t = {first:g} s; summary.json input_rows)",
+            file=sys.stderr,
+        )
     parts = summary["error_parts_mm"]
     print(
         f"{csv}: predicted error over the record {parts['total']:+.4f} mm "

@@ -318,13 +318,15 @@ def _read_sidecar(csv_path: Path) -> dict[str, dict[str, str]]:
     return data
 
 
-def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
+def read_signals_csv(path: str | os.PathLike[str], *, keep_whole_last_line: bool = False) -> SignalTable:
     """Read a signals CSV (ours or a user's measurement in the same format) into a table.
 
     Rules: the header is ``time,<name>,...`` (names may be double-quoted); every row has one
     number per column (``nan``/``inf`` allowed); times are finite and strictly increasing;
     blank lines are skipped. A last line without its terminating newline is taken as the
-    partial row of an interrupted run and ignored (a :class:`RuntimeWarning` says so).
+    partial row of an interrupted run and ignored (a :class:`RuntimeWarning` says so); with
+    ``keep_whole_last_line`` (a lab's file, which an editor may save without the final line
+    break) such a line is kept when it holds one number per column.
     Units and subsystems come from the ``<stem>.units.json`` sidecar when present, else the
     unit is ``""`` and the subsystem the name's prefix before the first dot.
 
@@ -334,6 +336,8 @@ def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
     source = str(path)
     lines = _read_lines(path)
     header = _header(lines, source)
+    if keep_whole_last_line and lines and not lines[-1].endswith("\n") and _whole(lines[-1], len(header)):
+        lines[-1] += "\n"
     data = _rows(_complete_lines(lines, source), header, source)
     time = data[:, 0]
     _check_time(time, source)
@@ -375,6 +379,12 @@ def _header(lines: list[str], source: str) -> list[str]:
         dup = next(n for n in header if header.count(n) > 1)
         raise ConfigError(f"line 1: column {dup!r} appears twice", source=source)
     return header
+
+
+def _whole(line: str, ncol: int) -> bool:
+    """Whether ``line`` holds one number per column."""
+    fields = line.split(",")
+    return len(fields) == ncol and all(_is_float(v) for v in fields)
 
 
 def _complete_lines(lines: list[str], source: str) -> list[str]:

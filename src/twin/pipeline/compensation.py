@@ -9,13 +9,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from twin.config.spec import NS_PER_S
-from twin.errormodel.config import errormodel_config, model_defaults
+from twin.errormodel.config import errormodel_config, input_columns, model_defaults
 from twin.errormodel.evaluate import EvaluationConfig, evaluate
 from twin.errors import ConfigError
 from twin.outputs.csv import read_signals_csv
 from twin.outputs.run_folder import RunFolder
 from twin.pipeline.stages import Evaluated, budget_columns, write_outputs
+from twin.signals.table import SignalTable
 
 __all__ = ["compensate", "compensation_config"]
 
@@ -34,15 +37,45 @@ def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[
     into ``out_dir``; returns the summary.
     """
     cfg, source = compensation_config(config_path)
-    table = read_signals_csv(csv_path)
+    table = read_signals_csv(csv_path, keep_whole_last_line=True)
+    table, flagged = _without_bad_rows(table, input_columns(cfg), str(csv_path))
     evaluation = evaluate(table, cfg)
     folder = RunFolder(out_dir)
     folder.make()
-    summary = {"input": str(csv_path), "config": source, "status": "completed", **evaluation.summary}
+    summary = {
+        "input": str(csv_path),
+        "config": source,
+        "status": "completed",
+        "input_rows": {"used": len(table), "flagged": len(flagged), "flagged_times_s": flagged[:20]},
+        **evaluation.summary,
+    }
     columns = tuple(n for n in table.names() if n.startswith("errormodel."))
     sinks = folder.result_sinks(name=csv_path.name, plot=budget_columns(cfg))
     write_outputs(sinks, Evaluated(table, columns, evaluation.summary), lambda: summary)
     return summary
+
+
+def _without_bad_rows(table: SignalTable, columns: set[str], source: str) -> tuple[SignalTable, list[float]]:
+    """The table without the rows where a column the error model reads is not a finite number
+    (a sensor's dropout written as nan, an inf), and the times of those rows. One bad row
+    would otherwise make every result of the error model nan; the rest is computed, and the
+    summary says which rows were left out (``input_rows``)."""
+    used = [n for n in table.names() if n in columns]
+    good = np.ones(len(table), dtype=bool)
+    for name in used:
+        good &= np.isfinite(table[name])
+    if good.all():
+        return table, []
+    if good.sum() < 2:
+        raise ConfigError(
+            f"fewer than two rows with finite values in every column the error model reads ({', '.join(used)})",
+            source=source,
+        )
+    flagged = [float(t) for t in table.time[~good]]
+    out = SignalTable(time=np.ascontiguousarray(table.time[good]))
+    for name in table.names():
+        out.add(table.meta[name], np.ascontiguousarray(table[name][good]))
+    return out, flagged
 
 
 def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str]:
@@ -60,6 +93,12 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
             window_s = parse_duration(em.pop("drift_window")) / NS_PER_S
         except ValueError as exc:
             raise ConfigError(str(exc), source=source, key="errormodel.drift_window") from None
+        if window_s <= 0:
+            raise ConfigError(
+                "must be positive (the drift's ends are lines through this much of the record)",
+                source=source,
+                key="errormodel.drift_window",
+            )
     return errormodel_config(model_defaults(), em, source, window_s), source
 
 
@@ -70,4 +109,9 @@ def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
     unknown = sorted(set(data) - {"errormodel"})
     if unknown:
         raise ConfigError(f"unknown key(s) {unknown} (expected [errormodel])", source=source)
-    return dict(data.get("errormodel", {}))
+    table = data.get("errormodel", {})
+    if not isinstance(table, dict):
+        raise ConfigError(
+            f"expected a table [errormodel], got {type(table).__name__}", source=source, key="errormodel"
+        )
+    return dict(table)
