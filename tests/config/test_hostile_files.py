@@ -10,10 +10,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tests.config.scenario_toml import paper_text
 from twin.cli import main
-from twin.config.problems import MAX_TOML_BYTES, MAX_TOML_DEPTH
+from twin.config.problems import MAX_TOML_BYTES, MAX_TOML_DEPTH, read_toml
+from twin.errors import ConfigError
 
 
 @dataclass(frozen=True)
@@ -167,3 +170,49 @@ def test_a_hostile_file_gets_one_line_and_exit_2(case: Hostile, tmp_path: Path, 
     if case.key:
         assert f"{case.key}: " in lines[0] or f"{case.key}." in lines[0], err
     assert case.word.lower() in lines[0].lower(), err
+
+
+# ----------------------------------------------------------------------------- any bytes at all
+
+
+_TOMLISH = st.lists(
+    st.sampled_from(
+        [
+            "[",
+            "]",
+            "{",
+            "}",
+            "=",
+            '"',
+            "'",
+            ",",
+            "\n",
+            "a",
+            "x.y",
+            " ",
+            "1",
+            "9" * 30,
+            "1e999",
+            "nan",
+            "[[",
+            "]]",
+            "#",
+        ]
+    ),
+    max_size=400,
+).map("".join)
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@given(st.one_of(st.binary(max_size=2000), _TOMLISH.map(str.encode)))
+def test_any_bytes_give_data_or_one_config_error(
+    tmp_path_factory: pytest.TempPathFactory, data: bytes
+) -> None:
+    path = tmp_path_factory.mktemp("any") / "x.toml"
+    path.write_bytes(data)
+    try:
+        out = read_toml(path, str(path))
+    except ConfigError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        return
+    assert isinstance(out, dict)
