@@ -37,7 +37,8 @@ def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[
     into ``out_dir``; returns the summary.
     """
     cfg, source = compensation_config(config_path)
-    table = read_signals_csv(csv_path, keep_whole_last_line=True)
+    # only the columns the error model reads: a run's wide signals.csv need not fit in memory
+    table = read_signals_csv(csv_path, keep_whole_last_line=True, only=input_columns(cfg))
     table, flagged = _without_bad_rows(table, input_columns(cfg), str(csv_path))
     evaluation = evaluate(table, cfg)
     folder = RunFolder(out_dir)
