@@ -144,7 +144,7 @@ def test_a_full_disk_mid_run_keeps_every_whole_row_and_says_so(tmp_path: Path) -
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed: disk full"
     text = (out / "signals.csv").read_bytes()
-    assert 300_000 < len(text) <= 400_000 and text.endswith(b"\n")  # cut back to whole rows
+    assert 100_000 < len(text) <= 400_000 and text.endswith(b"\n")  # cut back to whole rows
     table = read_signals_csv(out / "signals.csv")
     assert len(table) > 100 and table.time[-1] < 28800.0
 
