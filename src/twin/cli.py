@@ -25,7 +25,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse that reports bad arguments as one line and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        raise ConfigError(message, source=self.prog)
+        # the line starts "twin: " already: name the subcommand, not "twin" a second time
+        raise ConfigError(message, source=self.prog.removeprefix("twin").strip() or None)
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
@@ -37,11 +38,56 @@ def _cmd_build(args: argparse.Namespace) -> int:
     return 0
 
 
-def _load(args: argparse.Namespace):
-    from twin.config.load import default_scenario_path, load_scenario
+def _scenario_path(name: str | None) -> Path:
+    """The scenario a command names: a file, or the name of a shipped scenario (``sine-load``
+    for ``scenarios/sine-load.toml``); none: the paper's experiment."""
+    from twin.config.load import default_scenario_path, scenarios_dir
+    from twin.config.problems import did_you_mean
 
-    path = Path(args.scenario) if args.scenario else default_scenario_path()
-    return load_scenario(path, args.set or [])
+    if not name:
+        return default_scenario_path()
+    path = Path(name)
+    if path.exists() or path.suffix == ".toml" or len(path.parts) > 1:
+        return path  # a file (a missing one is reported by the loader, naming it)
+    shipped = {p.stem: p for p in sorted(scenarios_dir().glob("*.toml"))}
+    if name in shipped:
+        return shipped[name]
+    raise ConfigError(
+        f"no scenario file or shipped scenario named {name!r}{did_you_mean(name, shipped)} (`twin list` shows them)",
+        source="scenario",
+    )
+
+
+def _load(args: argparse.Namespace):
+    from twin.config.load import load_scenario
+
+    return load_scenario(_scenario_path(args.scenario), args.set or [])
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    """The shipped scenarios with their descriptions."""
+    from twin.config.load import scenarios_dir
+    from twin.config.problems import read_toml
+
+    folder = scenarios_dir()
+    groups = [
+        ("scenarios", sorted(folder.glob("*.toml"))),
+        ("calibration experiments", sorted((folder / "calibration").glob("*.toml"))),
+    ]
+    for title, paths in groups:
+        rows = []
+        for p in paths:
+            desc = read_toml(p, str(p)).get("scenario", {})
+            if isinstance(desc, dict) and "description" in desc:
+                rows.append(
+                    (p.stem if title == "scenarios" else f"calibration/{p.name}", str(desc["description"]))
+                )
+        if rows:
+            print(f"{title} (in {folder if title == 'scenarios' else folder / 'calibration'}):")
+            width = max(len(n) for n, _ in rows)
+            for n, d in rows:
+                print(f"  {n:<{width}}  {d}")
+    return 0
 
 
 def _progress_bar(quiet: bool):
@@ -130,7 +176,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import functools
     import time
 
-    from twin.config.load import default_scenario_path
     from twin.errormodel.config import check_recorded_columns
     from twin.outputs.run_folder import output_folder
     from twin.pipeline import run
@@ -141,7 +186,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     check_recorded_columns(scenario)
     if args.uncertainty is not None and args.uncertainty < 0:
         raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
-    path = Path(args.scenario) if args.scenario else default_scenario_path()
+    path = _scenario_path(args.scenario)
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
@@ -240,9 +285,16 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="write the .fmu files here instead of the cache")
     p.set_defaults(func=_cmd_build)
 
+    p = sub.add_parser(
+        "list", help="the shipped scenarios and calibration experiments, with their descriptions"
+    )
+    p.set_defaults(func=_cmd_list)
+
     p = sub.add_parser("run", help="run a scenario (default: the paper's 480 min thermal experiment)")
     p.add_argument(
-        "scenario", nargs="?", help="scenario TOML file (default: scenarios/li2017-thermal-experiment.toml)"
+        "scenario",
+        nargs="?",
+        help="scenario TOML file or a shipped scenario's name, e.g. sine-load (default: li2017-thermal-experiment)",
     )
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
     p.add_argument(

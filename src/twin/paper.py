@@ -7,6 +7,10 @@ real-time wear-depth detecting for spherical plain bearing tester. J. Cent. Sout
 
 from __future__ import annotations
 
+#: the name of the scenario that replays the paper's experiment: only its summary sets the
+#: paper's measured values beside the twin's (other scenarios have nothing to do with them)
+PAPER_SCENARIO = "li2017-thermal-experiment"
+
 #: duration of the thermal experiment, s [paper]
 EXPERIMENT_S = 480 * 60
 

@@ -15,7 +15,7 @@ from types import MappingProxyType
 from typing import Any
 
 from twin.config.durations import format_duration
-from twin.config.problems import Problems, read_toml, table
+from twin.config.problems import Problems, did_you_mean, read_toml, table
 from twin.config.spec import FMUSpec, Parameter
 from twin.errors import ConfigError
 from twin.fmu.catalog import Variable, model_names
@@ -120,7 +120,8 @@ def _parameters(p: Problems, model: str, given: Mapping[str, tuple[Any, str]]) -
     for k, (v, where) in given.items():
         var = variables.get(k)
         if var is None or var.causality != "parameter":
-            p.add(where, f"{model} has no parameter '{k}'")
+            known = [n for n, v in variables.items() if v.causality == "parameter"]
+            p.add(where, f"{model} has no parameter '{k}'{did_you_mean(k, known)}")
             continue
         param = _parameter_value(p, model, var, v, where)
         if param is not None:

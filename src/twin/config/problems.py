@@ -11,7 +11,7 @@ import os
 import re
 import stat
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +41,9 @@ class Problems:
         for k in table:
             if k not in allowed:
                 hint = ", ".join(sorted(allowed))
-                self.add(f"{prefix}{k}", f"unknown key (expected one of: {hint})")
+                self.add(
+                    f"{prefix}{k}", f"unknown key{did_you_mean(str(k), allowed)} (expected one of: {hint})"
+                )
 
     def duration(
         self, table: Mapping[str, Any], key: str, prefix: str, *, required: bool = True
@@ -153,6 +155,14 @@ def _check_values(data: Any, source: str) -> None:
             raise ConfigError(
                 "integer out of range (TOML integers are 64-bit)", source=source, key=key or None
             )
+
+
+def did_you_mean(word: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` to a misspelt ``word``, or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(word, sorted(known), n=1, cutoff=0.7)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def read_toml(path: Path, source: str) -> dict[str, Any]:

@@ -127,10 +127,8 @@ class RunSummary:
         """A short human line for the terminal."""
         d = self.results.get("drift_mm", {})
         if "predicted" in d:
-            return (
-                f"{self.scenario}: {self.status}; drift predicted {d['predicted']:+.4f} mm, "
-                f"probe {d['probe']:+.4f} mm (paper {d.get('paper_measured', float('nan')):+.3f} mm)"
-            )
+            paper = f" (paper {d['paper_measured']:+.3f} mm)" if "paper_measured" in d else ""
+            return f"{self.scenario}: {self.status}; drift predicted {d['predicted']:+.4f} mm, probe {d['probe']:+.4f} mm{paper}"
         return f"{self.scenario}: {self.status}"
 
 

@@ -42,7 +42,7 @@ from twin.outputs.run_folder import (
     scenario_fingerprint,
 )
 from twin.outputs.sink import Outcome, Sink
-from twin.paper import DRIFT_M, TEMPERATURE_RISE_K
+from twin.paper import DRIFT_M, PAPER_SCENARIO, TEMPERATURE_RISE_K
 from twin.pipeline.run_summary import RunSummary, Timing
 from twin.signals.recorder import TeeRecorder
 from twin.signals.table import SignalTable
@@ -133,9 +133,10 @@ def evaluate_run(simulation: Simulation, cfg: EvaluationConfig) -> Evaluated:
         return Evaluated(None, error=str(exc))
     columns = tuple(s.name for s in evaluation_signals(with_true_wear=bool(cfg.true_wear)) if s.name in table)
     results = dict(evaluation.summary)
-    # the paper's measured values beside the twin's, to read one against the other
-    results["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
-    results["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
+    if simulation.scenario.name == PAPER_SCENARIO:
+        # the paper's measured values beside the twin's, to read one against the other
+        results["drift_mm"]["paper_measured"] = DRIFT_M * 1e3
+        results["temperature_rise_C_paper"] = dict(TEMPERATURE_RISE_K)
     truth = truth_thermal_parts(simulation)
     if truth:
         results["thermal_parts_mm_truth"] = truth

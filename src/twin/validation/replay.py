@@ -348,10 +348,18 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any] | None) -> dic
         **s,
         "samples": len(probe),
         "failed": sum(r["status"] != "ok" for r in rows),
-        "paper_measured_inside_interval_90": bool(s["interval_90"][0] <= paper <= s["interval_90"][1]),
-        # where the measured value falls in the distribution: near 0.05 or 0.95 the inside/outside
-        # verdict is within the quantiles' sampling error
-        "paper_measured_quantile": float(np.mean(probe <= paper)),
+        **(
+            {
+                "paper_measured_inside_interval_90": bool(
+                    s["interval_90"][0] <= paper <= s["interval_90"][1]
+                ),
+                # where the measured value falls in the distribution: near 0.05 or 0.95 the
+                # inside/outside verdict is within the quantiles' sampling error
+                "paper_measured_quantile": float(np.mean(probe <= paper)),
+            }
+            if "paper_measured" in drift
+            else {}
+        ),
         "predicted": _stats(_column(rows, "drift_mm.predicted")),
         "median_by_room_shape": {
             k: float(np.median(_column([r for r in rows if r["room_shape"] == k], "drift_mm.probe")))
@@ -429,6 +437,7 @@ def finish_run(
         lo, hi = d["interval_90"]
         echo(
             f"drift (probe) {d['probe']:+.4f} mm, sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm "
-            f"({d['samples']} samples, {mc['wall_s']:.1f} s); paper {d['paper_measured']:+.4f} mm"
+            f"({d['samples']} samples, {mc['wall_s']:.1f} s)"
+            + (f"; paper {d['paper_measured']:+.4f} mm" if "paper_measured" in d else "")
         )
     return None

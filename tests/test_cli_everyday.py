@@ -1,0 +1,64 @@
+"""The everyday command line (issue 14, first part): shipped scenarios by name, `twin list`,
+"did you mean" for a misspelt scenario, key or parameter, one `twin: ` per line, and the
+paper's measured drift only beside the paper's replay."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.cli import main
+from twin.config.load import scenarios_dir
+
+
+def test_twin_list_shows_every_shipped_scenario_with_its_description(capsys) -> None:
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for p in scenarios_dir().glob("*.toml"):
+        line = next(ln for ln in out.splitlines() if ln.strip().startswith(p.stem + " "))
+        assert len(line.split(None, 1)[1]) > 10  # a description, not just the name
+    assert "calibration/thermal-soak.toml" in out
+
+
+def test_a_shipped_scenario_runs_by_its_name(tmp_path: Path, capsys) -> None:
+    assert main(["validate", "sine-load"]) == 0
+    assert "sine-load.toml: ok" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["validate", "sine-lod"], "did you mean 'sine-load'?"),
+        (["run", "constant_load", "--uncertainty", "0"], "did you mean 'constant-load'?"),
+        (["validate", "sine-load", "--set", "scenario.duraton=1"], "did you mean 'duration'?"),
+        (
+            ["validate", "sine-load", "--set", "fmu.mechanics.parameters.sensor_tlt=0.1"],
+            "did you mean 'sensor_tilt'?",
+        ),
+    ],
+    ids=["scenario", "scenario-underscore", "key", "parameter"],
+)
+def test_a_misspelling_gets_did_you_mean(argv: list[str], expected: str, capsys) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expected in err[0], err
+
+
+def test_argument_errors_say_twin_once(capsys) -> None:
+    assert main(["run", "--bogus"]) == 2
+    assert main(["frob"]) == 2
+    for line in capsys.readouterr().err.strip().splitlines():
+        assert line.startswith("twin: ") and not line.startswith("twin: twin"), line
+
+
+def test_the_papers_drift_is_shown_only_beside_the_papers_replay(tmp_path: Path, capsys) -> None:
+    assert (
+        main(["run", "constant-load", "--out", str(tmp_path / "a"), "--set", 'scenario.duration="2 min"'])
+        == 0
+    )
+    assert main(["run", "--uncertainty", "0", "--out", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    other = next(ln for ln in out if ln.startswith("constant-load:"))
+    paper = next(ln for ln in out if ln.startswith("li2017-thermal-experiment:"))
+    assert "paper" not in other and "(paper -0.021 mm)" in paper
