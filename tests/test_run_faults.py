@@ -112,7 +112,10 @@ def test_a_reused_folder_keeps_no_file_of_an_earlier_run(tmp_path: Path) -> None
     for stale in ("uncertainty.csv", "errormodel.csv", "checkpoint.npz", "recording.rrd"):
         (out / stale).write_text("from an earlier run")
     (out / "notes.txt").write_text("the lab's own notes")
-    r = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet")
+    refused = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet")
+    assert refused.returncode == 2 and "--force" in _one_line(refused.stderr)
+    assert (out / "uncertainty.csv").read_text() == "from an earlier run"  # nothing touched
+    r = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet", "--force")
     assert r.returncode == 0, r.stderr
     assert not (out / "uncertainty.csv").exists() and not (out / "checkpoint.npz").exists()
     assert (out / "errormodel.csv").read_text() != "from an earlier run"
@@ -190,5 +193,8 @@ def test_the_lock_file_names_the_holder_and_a_finished_run_releases_it(tmp_path:
     assert _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet").returncode == 0
     assert (out / ".twin.lock").read_text().strip().isdigit()
     # released: the next run takes it
-    assert _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet").returncode == 0
+    assert (
+        _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet", "--force").returncode
+        == 0
+    )
     assert os.path.getsize(out / "summary.json") > 0

@@ -189,6 +189,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     path = _scenario_path(args.scenario)
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
+    _refuse_an_earlier_run(out, args.force)
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
     stage = functools.partial(
         run,
@@ -203,6 +204,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
         # the handler stays: a Ctrl-C ends the Monte Carlo after its finished samples
         finish_run(uncertainty, out, (lambda _: None) if args.quiet else print, stop)
     return _finish(summary, out, args.quiet, stop())
+
+
+def _refuse_an_earlier_run(out: Path, force: bool) -> None:
+    """A run folder holding an earlier run's outputs is replaced only with ``--force`` (then
+    the run removes them first, so none stays beside the new ones)."""
+    from twin.outputs.run_folder import RUN_OUTPUTS, RunFolder
+
+    if not out.is_dir():
+        return
+    folder = RunFolder(out)
+    folder.lock()  # a folder another process writes in is "in use", whatever it holds
+    folder.unlock()
+    if force:
+        return
+    earlier = sorted(n for n in RUN_OUTPUTS if (out / n).exists())
+    if earlier:
+        raise ConfigError(
+            f"{out} holds an earlier run ({', '.join(earlier[:3])}{', ...' if len(earlier) > 3 else ''}): "
+            "--force replaces it, or name another --out",
+            source="--out",
+        )
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
@@ -297,6 +319,9 @@ def make_parser() -> argparse.ArgumentParser:
         help="scenario TOML file or a shipped scenario's name, e.g. sine-load (default: li2017-thermal-experiment)",
     )
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
+    p.add_argument(
+        "--force", action="store_true", help="replace the outputs of an earlier run in the run folder"
+    )
     p.add_argument(
         "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
     )
