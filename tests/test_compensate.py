@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from twin.cli import main
@@ -79,3 +80,33 @@ def test_bad_compensate_config_is_bad_input(tmp_path: Path, capsys) -> None:
     assert main(["compensate", str(csv), "--config", str(config)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "errormodel: coefficients" in err[0] and "no_such" in err[0]
+
+
+def test_compensate_a_run_folder_reproduces_its_errormodel_csv(tmp_path: Path) -> None:
+    # issue 14: no hand-written config; the run's own scenario (run.json) gives the error model
+    run_dir = tmp_path / "run"
+    assert (
+        main(["run", "sine-load", "--out", str(run_dir), "--quiet", "--set", 'scenario.duration="10 min"'])
+        == 0
+    )
+    assert main(["compensate", str(run_dir), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "errormodel.csv").read_bytes() == (run_dir / "errormodel.csv").read_bytes()
+    again = json.loads((tmp_path / "again" / "summary.json").read_text())
+    assert again["config"].startswith(str(run_dir / "run.json"))
+
+
+def test_the_template_runs_as_it_is(tmp_path: Path, capsys) -> None:
+    assert main(["compensate", "--template", str(tmp_path / "tpl")]) == 0
+    toml = (tmp_path / "tpl" / "LAB.toml").read_text()
+    assert toml.count("#") > 10  # commented
+    assert (
+        main(
+            ["compensate", str(tmp_path / "tpl" / "lab.csv"), "--config", str(tmp_path / "tpl" / "LAB.toml")]
+        )
+        == 0
+    )
+    summary = json.loads((tmp_path / "tpl" / "lab-compensated" / "summary.json").read_text())
+    assert summary["temperature_rise_C"]["room"] == pytest.approx(2.0 * (1 - np.exp(-3.0)), abs=0.01)
+    # and it does not overwrite a lab's files
+    assert main(["compensate", "--template", str(tmp_path / "tpl")]) == 2
+    assert "does not overwrite" in capsys.readouterr().err

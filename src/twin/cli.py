@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from twin import __version__, identify_cli
+from twin import __version__, identify_cli, inspect_cli
 from twin.errors import ConfigError, TwinError
 from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
 from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
@@ -254,13 +254,31 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_compensate(args: argparse.Namespace) -> int:
-    from twin.pipeline import compensate
-
-    csv = Path(args.csv)
     from twin.outputs.run_folder import output_folder
+    from twin.pipeline import compensate
+    from twin.pipeline.compensation import run_folder_config, write_template
 
-    out = output_folder(args.out, csv.with_name(csv.stem + "-compensated"))
-    summary = compensate(csv, Path(args.config) if args.config else None, out)
+    if args.template is not None:
+        for path in write_template(Path(args.template)):
+            print(f"written: {path}")
+        print(
+            f"try: twin compensate {Path(args.template) / 'lab.csv'} --config {Path(args.template) / 'LAB.toml'}"
+        )
+        return 0
+    if args.csv is None:
+        raise ConfigError("name a CSV or a run folder (or --template DIR)", source="compensate")
+    csv, config = Path(args.csv), None
+    if csv.is_dir():  # a run folder: its signals.csv with its own run's error model
+        if args.config:
+            raise ConfigError(
+                "a run folder brings its own error model: leave out --config", source="--config"
+            )
+        run_dir = csv
+        csv, config = run_folder_config(run_dir)
+        out = output_folder(args.out, run_dir.with_name(run_dir.name + "-compensated"))
+    else:
+        out = output_folder(args.out, csv.with_name(csv.stem + "-compensated"))
+    summary = compensate(csv, Path(args.config) if args.config else None, out, config)
     flagged = summary["input_rows"]["flagged"]
     if flagged:
         first = summary["input_rows"]["flagged_times_s"][0]
@@ -353,7 +371,14 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_validate)
 
     p = sub.add_parser("compensate", help="run the error model on a CSV of measurements (a lab's or a run's)")
-    p.add_argument("csv", help="CSV with a time column (s) and named columns in SI units")
+    p.add_argument(
+        "csv",
+        nargs="?",
+        help="CSV with a time column (s) and named columns in SI units, or a run folder (its own error model)",
+    )
+    p.add_argument(
+        "--template", metavar="DIR", help="write a commented LAB.toml and an example lab.csv into DIR"
+    )
     p.add_argument(
         "--config",
         metavar="TOML",
@@ -383,6 +408,7 @@ def make_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)
+    inspect_cli.add_parser(sub)
     add_sweep_parser(sub)
     heldout_cli.add_parser(sub)
     return parser
@@ -396,6 +422,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args.func(args))
+    except BrokenPipeError:
+        # the reader went away (`twin inspect X | head`): nothing left to say, and no traceback
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         # Ctrl-C before a run's own handler is in place (imports, the FMU build) or after it
         # (the replay's Monte Carlo): nothing half-written is left behind by either

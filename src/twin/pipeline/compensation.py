@@ -26,7 +26,12 @@ __all__ = ["compensate", "compensation_config"]
 DEFAULT_WINDOW_S = 300.0
 
 
-def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[str, Any]:
+def compensate(
+    csv_path: Path,
+    config_path: Path | None,
+    out_dir: Path,
+    config: tuple[EvaluationConfig, str] | None = None,
+) -> dict[str, Any]:
     """The error model on a CSV of measurements (a lab's or a twin run's signals.csv).
 
     ``config_path`` is a TOML file with an ``[errormodel]`` table: which columns hold the eight
@@ -34,9 +39,10 @@ def compensate(csv_path: Path, config_path: Path | None, out_dir: Path) -> dict[
     and a true wear; ``coefficients`` the tester's identified coefficients (a file written by
     ``twin identify``, or an inline table; default the committed identification); ``factors``; and optionally
     ``drift_window`` (default 5 min). Writes errormodel.csv, summary.json, error_budget.png
-    into ``out_dir``; returns the summary.
+    into ``out_dir``; returns the summary. ``config`` (an error-model configuration and its
+    name) replaces the file: :func:`run_folder_config` gives a run's own.
     """
-    cfg, source = compensation_config(config_path)
+    cfg, source = config or compensation_config(config_path)
     # only the columns the error model reads: a run's wide signals.csv need not fit in memory
     table = read_signals_csv(csv_path, keep_whole_last_line=True, only=input_columns(cfg))
     table, flagged = _without_bad_rows(table, input_columns(cfg), str(csv_path))
@@ -116,3 +122,55 @@ def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
             f"expected a table [errormodel], got {type(table).__name__}", source=source, key="errormodel"
         )
     return dict(table)
+
+
+def run_folder_config(run_dir: Path) -> tuple[Path, tuple[EvaluationConfig, str]]:
+    """A run folder's ``signals.csv`` and the error model its run used (its scenario and
+    overrides, from ``run.json``): ``twin compensate RUN_FOLDER`` needs no hand-written config."""
+    from twin.config.load import load_scenario
+    from twin.errormodel.config import evaluation_config
+    from twin.outputs.run_folder import RUN_FILE, SIGNALS_CSV, _run_meta
+
+    meta = _run_meta(run_dir / RUN_FILE)
+    scenario = load_scenario(meta.scenario, list(meta.overrides))
+    return run_dir / SIGNALS_CSV, (evaluation_config(scenario), f"{run_dir / RUN_FILE} ({meta.scenario})")
+
+
+TEMPLATE_TOML = """# The error model on a lab's own record: `twin compensate lab.csv --config LAB.toml`.
+# Every column is named as in the CSV's header; values in SI units (K, m, N, N.m, rad).
+[errormodel]
+# the paper's eight temperature measuring points -> the CSV's columns (K)
+temperatures = { bearing_block = "T_bearing_block", heel_block = "T_heel_block", bearing = "T_bearing", t_plate = "T_t_plate", base = "T_base", long_pole = "T_long_pole", detecting_frame = "T_detecting_frame", room = "T_room" }
+reading = "probe"                 # the wear-depth probe's reading (m)
+# load = "load"                   # the load cell (N), where the tester has one
+# torque = "torque"               # the friction torque sensor (N.m)
+# angle = "angle"                 # the swing angle encoder (rad)
+# vibration = "vibration"         # the Z vibration pickup (m)
+# true_wear = "wear_offline"      # an off-line wear measurement (m), to judge the compensation
+factors = ["thermal", "interference"]   # of thermal, loading, fluctuating, positioning, interference
+drift_window = "5 min"            # drift ends: lines through this much of each end of the record
+# coefficients = "identified.toml"  # the tester's own (`twin identify`); default: the twin's committed
+"""
+
+
+def write_template(folder: Path) -> list[Path]:
+    """A commented ``LAB.toml`` and a small example ``lab.csv`` (1 h at 10 s, a warm-up) that
+    ``twin compensate lab.csv --config LAB.toml`` runs as they are."""
+    folder.mkdir(parents=True, exist_ok=True)
+    toml, csv = folder / "LAB.toml", folder / "lab.csv"
+    for p in (toml, csv):
+        if p.exists():
+            raise ConfigError("exists already: the template does not overwrite a file", source=str(p))
+    toml.write_text(TEMPLATE_TOML, encoding="utf-8")
+    t = np.arange(0.0, 3600.0 + 1.0, 10.0)
+    rise = 2.0 * (1.0 - np.exp(-t / 1200.0))  # the room warms by about 2 K in the hour
+    gains = {"bearing_block": 0.75, "heel_block": 0.65, "bearing": 0.4, "t_plate": 0.7, "base": 0.65,
+             "long_pole": 1.05, "detecting_frame": 1.0, "room": 1.0}  # fmt: skip
+    names = [f"T_{p}" for p in gains]
+    lines = ["time," + ",".join(names) + ",probe"]
+    for k, tk in enumerate(t):
+        temps = [293.15 + g * rise[k] for g in gains.values()]
+        probe = 4.805e-3 - 1.5e-6 * rise[k]
+        lines.append(",".join(repr(float(v)) for v in [tk, *temps, probe]))
+    csv.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return [toml, csv]

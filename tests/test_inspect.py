@@ -1,0 +1,45 @@
+"""`twin inspect`: an FMU's variables like `fmpy info` (issue 14)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.cli import main
+
+
+def test_inspect_a_built_fmu_lists_every_variable_with_unit_and_range(
+    fmu_paths: dict[str, Path], capsys
+) -> None:
+    from fmpy import read_model_description
+
+    path = fmu_paths["HydraulicLoader"]
+    assert main(["inspect", str(path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("HydraulicLoader: FMI 2.0 (co-simulation)")
+    md = read_model_description(str(path), validate=False)
+    rows = {ln.split()[0]: ln.split() for ln in out[2:] if ln.strip()}
+    assert set(rows) >= {v.name for v in md.modelVariables}
+    assert rows["load_mean"][1:6] == ["parameter", "fixed", "Real", "N", "0.0"]
+    assert "300000.0" in rows["load_mean"]
+
+
+def test_inspect_a_model_by_name(capsys) -> None:
+    assert main(["inspect", "FixtureMechanics", "--width", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "t_detecting_frame_lower" in out and "liner_creep_ratio" in out
+
+
+@pytest.mark.parametrize(
+    ("target", "word"),
+    [
+        ("FixtureMechanic", "did you mean 'FixtureMechanics'"),
+        ("/etc/hostname", "not a readable"),
+        ("nope.fmu", "not found"),
+    ],
+)
+def test_inspect_bad_targets_get_one_line(target: str, word: str, capsys) -> None:
+    assert main(["inspect", target]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and word in err[0], err
