@@ -217,6 +217,20 @@ def _room(g: Geometry, body: str) -> float:
     return g.dim(f"bodies.{body}.exposed_area") * g.h_room(body)
 
 
+#: the network's nodes that are whole bodies of the drawing (the spindle's node also carries the
+#: drive train it is coupled to); the frame, the pole and the oil are derived apart
+NODE_BODIES: dict[str, tuple[str, ...]] = {
+    "base": ("base",),
+    "heel_block": ("heel_block",),
+    "bearing_block": ("bearing_block",),
+    "spindle": ("spindle", "drive_train"),
+    "bearing": ("bearing",),
+    "t_plate": ("t_plate",),
+    "clamp": ("clamp",),
+    "sensor": ("sensor",),
+}
+
+
 def thermal_capacities(g: Geometry) -> dict[str, Derived]:
     """Heat capacities of the network's nodes from volume x density x c."""
     pos = positions(g)
@@ -225,18 +239,11 @@ def thermal_capacities(g: Geometry) -> dict[str, Derived]:
         "materials.hydraulic_oil.c"
     ) + g.dim("hydraulic_station.tank_mass") * g.dim("materials.steel_45.c")
     lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
-    return {
-        "c_base": Derived(capacity(g, "base"), "geometry: base box x rho x c"),
-        "c_heel_block": Derived(capacity(g, "heel_block"), "geometry: heel block box x rho x c"),
-        "c_bearing_block": Derived(
-            capacity(g, "bearing_block"), "geometry: bearing block box minus bore x rho x c"
-        ),
-        "c_spindle": Derived(
-            capacity(g, "spindle") + capacity(g, "drive_train"),
-            "geometry: spindle rod + drive train mass, x c",
-        ),
-        "c_bearing": Derived(capacity(g, "bearing"), "handbook: GE 30 ES mass x c"),
-        "c_t_plate": Derived(capacity(g, "t_plate"), "geometry: T-plate box minus bore x rho x c"),
+    out = {
+        f"c_{node}": Derived(sum(capacity(g, b) for b in bodies), f"geometry: {' + '.join(bodies)} mass x c")
+        for node, bodies in NODE_BODIES.items()
+    }
+    return out | {
         "c_detecting_frame": Derived(frame, "geometry: upper half of the 362 x 50 mm frame x rho x c"),
         "c_detecting_frame_lower": Derived(frame, "geometry: lower half of the 362 x 50 mm frame x rho x c"),
         "c_pole_heel": Derived(_pole_capacity(g, pos["pole_heel"].value), "geometry: pole segment x rho x c"),
@@ -244,8 +251,6 @@ def thermal_capacities(g: Geometry) -> dict[str, Derived]:
         "c_pole_lower": Derived(
             _pole_capacity(g, lower), "geometry: pole below the base (to its end) x rho x c"
         ),
-        "c_clamp": Derived(capacity(g, "clamp"), "geometry: clamp mass x c"),
-        "c_sensor": Derived(capacity(g, "sensor"), "geometry: probe housing mass x c"),
         "c_oil": Derived(oil, "geometry: oil volume x rho x c + tank mass x c"),
     }
 
@@ -256,18 +261,14 @@ def thermal_room(g: Geometry) -> dict[str, Derived]:
     frame = _room(g, "detecting_frame") / 2
     under_plate = pos["pole_heel"].value - g.dim("bodies.heel_block.z")
     lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
-    return {
-        "g_base_room": Derived(_room(g, "base"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_heel_block_room": Derived(_room(g, "heel_block"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_bearing_block_room": Derived(
-            _room(g, "bearing_block"), "geometry: exposed area x (h_conv + h_rad)"
-        ),
-        "g_spindle_room": Derived(
-            _room(g, "spindle") + _room(g, "drive_train"),
-            "geometry: spindle + drive train areas x (h_conv + h_rad)",
-        ),
-        "g_bearing_room": Derived(_room(g, "bearing"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_t_plate_room": Derived(_room(g, "t_plate"), "geometry: exposed area x (h_conv + h_rad)"),
+    out = {
+        f"g_{node}_room": Derived(
+            sum(_room(g, b) for b in bodies),
+            f"geometry: {' + '.join(bodies)} exposed area x (h_conv + h_rad)",
+        )
+        for node, bodies in NODE_BODIES.items()
+    }
+    return out | {
         "g_detecting_frame_room": Derived(
             frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"
         ),
@@ -281,8 +282,6 @@ def thermal_room(g: Geometry) -> dict[str, Derived]:
         "g_pole_lower_room": Derived(
             _pole_room(g, lower), "geometry: pole surface below the base x (h_conv + h_rad)"
         ),
-        "g_clamp_room": Derived(_room(g, "clamp"), "geometry: exposed area x (h_conv + h_rad)"),
-        "g_sensor_room": Derived(_room(g, "sensor"), "geometry: exposed area x (h_conv + h_rad)"),
         "g_oil_room": Derived(
             g.dim("hydraulic_station.tank_area") * g.dim("surfaces.h_tank"),
             "handbook: tank area x 12 W/(m2 K)",
