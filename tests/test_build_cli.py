@@ -74,3 +74,18 @@ def test_bad_arguments_give_one_line_and_exit_2(argv: list[str], words: str, cap
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("twin: ") and words in err[0], err
+
+
+def test_a_broken_c_compiler_gets_one_line_saying_what_to_install(tmp_path: Path) -> None:
+    # issue 14: not a multi-line cmake dump; the dump goes to a log file the line names
+    env = {**os.environ, "CC": "/bin/false", "TWIN_CACHE_DIR": str(tmp_path / "cache")}
+    r = subprocess.run(
+        [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())", "build"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "cannot compile a test program" in lines[0] and "apt-get install -y gcc" in lines[0]
+    log = tmp_path / "cache" / "last-build-error.log"
+    assert str(log) in lines[0] and "CMAKE" in log.read_text().upper()

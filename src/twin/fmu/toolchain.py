@@ -141,7 +141,7 @@ def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] |
     Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
     naming ``what`` with the tail of the compiler output when a step fails.
     """
-    _, cmake = find_tools()
+    cc, cmake = find_tools()
     flags = [f"-D{k}={v}" for k, v in (defines or {}).items()]
     steps = {
         "configure": [cmake, "-S", str(source), "-B", str(build), *flags],
@@ -150,8 +150,28 @@ def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] |
     for step, cmd in steps.items():
         proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
         if proc.returncode != 0:
-            tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-25:])
-            raise BuildError(f"building {what} failed ({step}):\n{tail}")
+            raise _build_failure(what, step, cc, proc.stdout + proc.stderr)
+
+
+def _build_failure(what: str, step: str, cc: str, output: str) -> BuildError:
+    """One line for a failed build, the whole compiler output in a log file it names: a
+    compiler that cannot compile a test program says what to install."""
+    log = private_cache_dir() / "last-build-error.log"
+    try:
+        log.write_text(f"building {what} failed ({step})\n{output}", encoding="utf-8")
+        where = f"; the full output is in {log}"
+    except OSError:
+        where = ""
+    if (
+        "not able to compile a simple test program" in output
+        or "No CMAKE_C_COMPILER could be found" in output
+    ):
+        return BuildError(
+            f"the C compiler {cc} cannot compile a test program: install a working one "
+            f"(Debian: apt-get install -y gcc) or set CC{where}"
+        )
+    first = next((ln.strip() for ln in output.splitlines() if "error" in ln.lower()), "see the log")
+    return BuildError(f"building {what} failed ({step}): {first}{where}")
 
 
 def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *, prune: bool = True) -> Path:
