@@ -62,3 +62,36 @@ def test_the_papers_drift_is_shown_only_beside_the_papers_replay(tmp_path: Path,
     other = next(ln for ln in out if ln.startswith("constant-load:"))
     paper = next(ln for ln in out if ln.startswith("li2017-thermal-experiment:"))
     assert "paper" not in other and "(paper -0.021 mm)" in paper
+
+
+def test_the_progress_bar_names_its_phases_on_a_terminal(tmp_path: Path) -> None:
+    # issue 14: not silent while the FMUs load (or build) and while the outputs are written
+    import os
+    import pty
+    import select
+    import subprocess
+    import sys
+
+    master, slave = pty.openpty()
+    cmd = [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())", "run", "constant-load",
+           "--out", str(tmp_path / "run"), "--set", 'scenario.duration="20 min"']  # fmt: skip
+    proc = subprocess.Popen(cmd, stdin=slave, stdout=slave, stderr=slave)
+    os.close(slave)
+    text = b""
+    while True:
+        if select.select([master], [], [], 1.0)[0]:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                break
+            if not chunk:
+                break
+            text += chunk
+        elif proc.poll() is not None:
+            break
+    proc.wait(timeout=120)
+    os.close(master)
+    shown = text.decode(errors="replace")
+    assert proc.returncode == 0, shown[-2000:]
+    for phase in ("loading FMUs", "simulating", "writing outputs"):
+        assert phase in shown, (phase, shown[-2000:])

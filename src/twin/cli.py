@@ -98,12 +98,25 @@ def _progress_bar(quiet: bool):
 
     from tqdm import tqdm
 
-    # a pseudo-terminal may report 0 columns, which makes tqdm draw nothing
-    width = shutil.get_terminal_size((80, 24)).columns or 80
-    bar = tqdm(total=100, unit="%", desc="simulating", leave=False, file=sys.stderr, ncols=width)
+    # a pseudo-terminal may report 0 columns and rows, with which tqdm draws nothing
+    size = shutil.get_terminal_size((80, 24))
+    # the phases around the co-simulation say what is going on: loading (and, after a change
+    # of their sources, building) the FMUs before the first step; the outputs after the last
+    bar = tqdm(
+        total=100,
+        unit="%",
+        desc="loading FMUs",
+        leave=False,
+        file=sys.stderr,
+        ncols=size.columns or 80,
+        nrows=size.lines or 24,
+    )
 
     def update(now_ns: int, total_ns: int) -> None:
         bar.n = round(100 * now_ns / total_ns)
+        desc = "writing outputs" if now_ns >= total_ns else "simulating"
+        if bar.desc != desc:
+            bar.set_description_str(desc, refresh=False)
         bar.refresh()
 
     return update, bar.close
