@@ -81,21 +81,22 @@ def _progress_bar(quiet: bool) -> tuple[Callable[[int, int, int], None] | None, 
     return update, bar.close
 
 
-class _Interrupted(BaseException):
-    """SIGINT or SIGTERM: stop, keeping the table of what finished."""
+def _stop_on_signals() -> Callable[[], str | None]:
+    """SIGINT/SIGTERM set a flag the sweep reads after each point: an exception raised from
+    the handler itself could land in a finalizer or a library's callback and be lost."""
+    caught: dict[str, str] = {}
 
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.code = _EXIT_ON_SIGNAL.get(signum, 130)
+    def handler(signum: int, frame: object) -> None:
+        caught.setdefault("name", signal.Signals(signum).name)
 
-
-def _raise_interrupted(signum: int, frame: object) -> None:
-    raise _Interrupted(signum)
+    for signum in _EXIT_ON_SIGNAL:
+        signal.signal(signum, handler)
+    return lambda: caught.get("name")
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """Run the sweep the arguments describe; returns the exit code."""
-    from twin.sweep.runner import run_sweep
+    from twin.sweep.runner import SweepInterrupted, run_sweep
     from twin.sweep.spec import load_spec
 
     if args.scheduler is not None and args.workers is not None:
@@ -106,8 +107,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     out = output_folder(args.out, Path("sweeps") / spec.name)
     echo = (lambda _: None) if args.quiet else (lambda line: print(line, flush=True))
     update, close = _progress_bar(args.quiet)
-    for signum in _EXIT_ON_SIGNAL:
-        signal.signal(signum, _raise_interrupted)
+    stop = _stop_on_signals()
     try:
         summary = run_sweep(
             spec,
@@ -117,11 +117,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             resume=args.resume,
             progress=update,
             echo=echo,
+            stop=stop,
         )
-    except _Interrupted as stop:
+    except SweepInterrupted as name:
         close()
-        print(f"twin: sweep interrupted by {stop}; the points that finished are in {out}", file=sys.stderr)
-        return stop.code
+        print(f"twin: sweep interrupted by {name}; the points that finished are in {out}", file=sys.stderr)
+        return {s.name: code for s, code in _EXIT_ON_SIGNAL.items()}.get(str(name), 130)
     close()
     echo(_summary_line(summary, out))
     return 0

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -101,6 +101,10 @@ class _Collector:
         }
 
 
+class SweepInterrupted(Exception):
+    """A sweep stopped by a signal (its name is the message); the finished points are kept."""
+
+
 def run_sweep(
     spec: Spec,
     out: Path,
@@ -112,11 +116,14 @@ def run_sweep(
     echo: Callable[[str], None] = lambda _: None,
     task: Callable[[Payload], Record] = run_task,
     on_record: Callable[[Record], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
 ) -> dict[str, Any]:
     """Run ``spec`` into ``out`` and return the summary (also written to summary.json).
 
     ``task`` is what workers run per point (tests and the benchmark swap it);
-    ``on_record`` sees every record as it arrives (the benchmark reads timings from it).
+    ``on_record`` sees every record as it arrives (the benchmark reads timings from it);
+    ``stop`` returning a signal's name ends the sweep after the points that finished (their
+    table is kept) with :class:`SweepInterrupted`.
     """
     from twin.outputs.summary import write_summary
     from twin.sweep import shipping
@@ -154,20 +161,37 @@ def run_sweep(
                 client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
                 store.start()
                 collector.started()
-                for record in execute(client, todo, payload, task):
-                    collector.take(record)
-                    if on_record is not None:
-                        on_record(record)
-                    if progress is not None:
-                        progress(collector.done, collector.failed, collector.total)
-                    store.flush()
+                records = execute(client, todo, payload, task)
+                _take(records, collector, store, on_record, progress, stop)
     finally:
         store.flush(force=True)
+    if stop is not None and stop():
+        raise SweepInterrupted(str(stop()))
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
     draw_all(out, spec.design, table, design.names, summary)
     return summary
+
+
+def _take(
+    records: Iterable[Record],
+    collector: _Collector,
+    store: ResultStore,
+    on_record: Callable[[Record], None] | None,
+    progress: Progress | None,
+    stop: Callable[[], str | None] | None,
+) -> None:
+    """Collect the records as they arrive, until the last or until ``stop`` says a signal came."""
+    for record in records:
+        collector.take(record)
+        if on_record is not None:
+            on_record(record)
+        if progress is not None:
+            progress(collector.done, collector.failed, collector.total)
+        store.flush()
+        if stop is not None and stop():
+            return  # the caller's client closes the cluster on the way out
 
 
 def _announce(client: Any, echo: Callable[[str], None], local: bool) -> int:
