@@ -282,6 +282,27 @@ def test_ctrl_c_in_the_first_moments_exits_130_in_one_line(delay: float, tmp_pat
         assert summary["status"] == "interrupted" and "SIGINT" in summary["error"]
 
 
+def test_ctrl_c_on_a_terminal_while_the_fmus_build_exits_130_and_writes_nothing(tmp_path: Path) -> None:
+    # an empty cache: the five FMUs build (about 12 s); a terminal's Ctrl-C reaches the whole
+    # process group, so cmake dies too: that broken build is an interruption, not a build error
+    out = tmp_path / "run"
+    p = subprocess.Popen(
+        [*UP, "run", str(PAPER), "--out", str(out), "--uncertainty", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "TWIN_CACHE_DIR": str(tmp_path / "cache")},
+    )
+    assert p.stdout is not None and p.stdout.readline() == "up\n"
+    time.sleep(1.5)
+    os.killpg(p.pid, signal.SIGINT)
+    err = p.communicate(timeout=120)[1]
+    assert p.returncode == 130, err
+    assert _one_line(err) == "twin: interrupted"
+    assert not out.exists()  # the folder is made after the build
+
+
 def test_ctrl_c_while_the_error_model_runs_exits_130_and_keeps_the_data(tmp_path: Path) -> None:
     # signals.csv's last row (t = 28800 s) is written when the co-simulation ends; then come
     # the error model (0.3 s), errormodel.csv and the plot (0.6 s), before the Monte Carlo

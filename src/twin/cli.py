@@ -18,6 +18,7 @@ from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only 
 from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
 
 if TYPE_CHECKING:
+    from twin.config.spec import Scenario
     from twin.pipeline import RunSummary
     from twin.validation.replay import RunUncertainty
 
@@ -205,8 +206,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
-    if stop() is not None:  # before anything is written: nothing to keep
-        raise KeyboardInterrupt
+    _build_fmus(scenario, stop)
     folder = RunFolder(out)
     folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
     try:
@@ -225,6 +225,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return _finish(summary, out, args.quiet, stop())
     finally:
         folder.unlock()
+
+
+def _build_fmus(scenario: Scenario, stop: Callable[[], str | None]) -> None:
+    """Build (or find in the cache) the scenario's FMUs before the run folder is touched, and
+    end the command as interrupted (nothing written) if a signal came meanwhile: a Ctrl-C on a
+    terminal reaches cmake too, and the build it broke is not a build error."""
+    from twin.fmu import catalog
+
+    try:
+        for model in sorted({f.model for f in scenario.fmus}):
+            catalog.fmu(model)
+    except TwinError:
+        if stop() is not None:
+            raise KeyboardInterrupt from None
+        raise
+    if stop() is not None:
+        raise KeyboardInterrupt
 
 
 def _uncertainty(
