@@ -255,13 +255,14 @@ def test_a_full_disk_while_the_fmus_are_unpacked_names_their_folder(tmp_path: Pa
     assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
 
 
-#: the twin, started by a wrapper that says when the interpreter is up: the interpreter's own
-#: start (site, about 0.05 s here) runs before any program code, so no program can turn a
-#: Ctrl-C there into its own exit code; from the first line of program code on, it is twin's
+#: the twin, started as the console script starts it, by a wrapper that says when
+#: twin.entry (20 lines, importing only sys) is imported: the interpreter's own start (site,
+#: about 0.05 s here) and that import come before any code that could catch a Ctrl-C, so no
+#: program can turn one there into its own exit code; from twin.entry's main on, it is twin's
 UP = [
     sys.executable,
     "-c",
-    "import sys; print('up', flush=True); from twin.entry import main; sys.exit(main())",
+    "import sys; from twin.entry import main; print('up', flush=True); sys.exit(main())",
 ]
 
 

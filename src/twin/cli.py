@@ -293,7 +293,7 @@ def _cmd_resume(args: argparse.Namespace) -> int:
     stop = _stop_on_signals()
     out = output_folder(args.run_dir, Path(), option="resume")  # a folder it can write in
     if not out.is_dir():
-        raise ConfigError(f"{out}: no such run folder", source="resume")
+        raise ConfigError("no such folder (no run.json): not a run folder", source=str(out))
     folder = RunFolder(out)
     folder.lock()  # before its checkpoint is read: no other process may write there meanwhile
     try:
