@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -37,50 +38,80 @@ def _one_line(err: str) -> str:
     return lines[0]
 
 
-@pytest.mark.parametrize(
-    ("out", "word"),
-    [
-        ("", "empty"),
-        ("   ", "empty"),
-        ("{file}", "is a file"),
-        ("{file}/sub", "is a file"),
-        ("/proc/twin-out", "special file system"),
-        ("/proc/self", "special file system"),
-        ("/sys/twin-out", "special file system"),
-        ("/dev/null", "special file system"),
-        ("/dev/shm/../null", "special file system"),
-    ],
-    ids=[
-        "empty",
-        "blank",
-        "existing-file",
-        "under-a-file",
-        "proc",
-        "proc-self",
-        "sys",
-        "dev-null",
-        "dev-dotdot",
-    ],
-)
-@pytest.mark.parametrize("command", ["run", "compensate", "sweep"])
-def test_a_bad_output_folder_is_refused_before_anything_runs(
-    command: str, out: str, word: str, tmp_path: Path
-) -> None:
-    afile = tmp_path / "afile"
+#: bad output folders: (name, what the one line says). {file} is an existing file, {ro} a
+#: folder on a read-only mount, {locked} a folder without write permission (mode 555)
+BAD_OUT = {
+    "empty": ("", "empty"),
+    "blank": ("   ", "empty"),
+    "existing-file": ("{file}", "is a file"),
+    "under-a-file": ("{file}/sub", "is a file"),
+    "proc": ("/proc/twin-out", "special file system"),
+    "proc-self": ("/proc/self", "special file system"),
+    "sys": ("/sys/twin-out", "special file system"),
+    "dev-null": ("/dev/null", "special file system"),
+    "dev-dotdot": ("/dev/shm/../null", "special file system"),
+    "read-only-mount": ("{ro}", "not writable"),
+    "under-a-read-only-mount": ("{ro}/run", "not writable"),
+    "no-write-permission": ("{locked}", "not writable"),
+    "under-no-write-permission": ("{locked}/run", "not writable"),
+}
+#: each command that writes into a folder it is given: its arguments before the folder, and
+#: the option the one line names
+WRITERS = {
+    "run": (["run", str(PAPER), "--uncertainty", "0", "--out"], "--out"),
+    "compensate": (["compensate", "lab.csv", "--out"], "--out"),
+    "sweep": (["sweep", str(scenarios_dir() / "sweeps" / "room-swing-x-load.toml"), "--out"], "--out"),
+    "heldout": (["heldout", "--out"], "--out"),
+    "resume": (["resume"], "resume"),
+}
+
+
+def _read_only_mount(folder: Path) -> list[str]:
+    """A command prefix that runs the rest with ``folder`` mounted read-only (a private mount
+    namespace of an unprivileged user namespace: no root needed, nothing seen outside)."""
+    prefix = ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c"]
+    script = 'mount --bind -o ro "$0" "$0" && exec "$@"'
+    probe = subprocess.run([*prefix, script, str(folder), "true"], capture_output=True, check=False)
+    if shutil.which("unshare") is None or probe.returncode != 0:
+        pytest.skip(f"no read-only mount here (unshare: {probe.stderr.decode(errors='replace').strip()})")
+    return [*prefix, script, str(folder)]
+
+
+@pytest.mark.parametrize("case", list(BAD_OUT))
+@pytest.mark.parametrize("command", list(WRITERS))
+def test_a_bad_output_folder_is_refused_before_anything_runs(command: str, case: str, tmp_path: Path) -> None:
+    out, word = BAD_OUT[case]
+    afile, ro, locked = tmp_path / "afile", tmp_path / "ro", tmp_path / "locked"
     afile.write_text("x")
-    out = out.format(file=afile)
-    args = {
-        "run": ["run", str(PAPER), "--uncertainty", "0"],
-        "compensate": ["compensate", str(tmp_path / "lab.csv")],
-        "sweep": ["sweep", str(scenarios_dir() / "sweeps" / "room-swing-x-load.toml")],
-    }[command]
+    ro.mkdir()
+    locked.mkdir(mode=0o555)
     (tmp_path / "lab.csv").write_text("time,x\n0,1\n")
-    r = _twin(*args, "--out", out, cwd=tmp_path)
+    prefix: list[str] = []
+    if "{ro}" in out:
+        prefix = _read_only_mount(ro)
+    if "{locked}" in out and os.geteuid() == 0:
+        pytest.skip("root writes into a mode-555 folder (the read-only mount cases cover root)")
+    args, option = WRITERS[command]
+    r = subprocess.run(
+        [*prefix, *TWIN, *args, out.format(file=afile, ro=ro, locked=locked)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     assert r.returncode == 2, r.stderr
     line = _one_line(r.stderr)
-    assert "--out" in line and word in line, line
+    assert f"twin: {option}: " in line and word in line, line
     assert afile.read_text() == "x"
-    assert not (tmp_path / "runs").exists() and not (tmp_path / "sweeps").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "lab.csv", "locked", "ro"]
+    assert not any(ro.iterdir()) and not any(locked.iterdir())
+
+
+def _wait_for(what: str, ready, proc: subprocess.Popen, timeout: float = 120) -> None:
+    deadline = time.monotonic() + timeout
+    while not ready():
+        assert time.monotonic() < deadline and proc.poll() is None, f"{what} never came"
+        time.sleep(0.01)
 
 
 def test_a_second_run_on_a_folder_in_use_is_refused(tmp_path: Path) -> None:
@@ -90,37 +121,76 @@ def test_a_second_run_on_a_folder_in_use_is_refused(tmp_path: Path) -> None:
     )
     try:
         lock = out / ".twin.lock"
-        deadline = time.monotonic() + 60
-        while not (lock.exists() and lock.read_text().strip() == str(first.pid)):
-            assert time.monotonic() < deadline and first.poll() is None, "the first run never took the lock"
-            time.sleep(0.05)
-        second = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out))
+        _wait_for(
+            "the first run's lock",
+            lambda: lock.exists() and lock.read_text().strip() == str(first.pid),
+            first,
+        )
+        second = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--force")
         assert second.returncode == 2
         line = _one_line(second.stderr)
-        assert f"in use by another twin process (pid {first.pid})" in line, line
+        assert line == f"twin: run folder {out} is in use by another twin process (pid {first.pid})", line
+        # twin resume takes the same lock, before it reads anything in the folder
+        resumed = _twin("resume", str(out))
+        assert resumed.returncode == 2
+        assert f"in use by another twin process (pid {first.pid})" in _one_line(resumed.stderr)
     finally:
         first.send_signal(signal.SIGINT)
         first.communicate(timeout=120)
     assert first.returncode == 130  # interrupted, its rows intact and its own
     rows = read_signals_csv(out / "signals.csv")
     assert len(rows) > 0 and "mechanics.wear_depth_true" in rows
+    assert json.loads((out / "summary.json").read_text())["scenario"] == "mil-endurance"
+
+
+def test_the_lock_is_held_through_the_monte_carlo_and_ctrl_c_there_marks_the_summary(tmp_path: Path) -> None:
+    # the paper's replay: after its run (summary.json written) comes the Monte Carlo of its
+    # uncertainty (about 20 s), which still writes into the folder (uncertainty.csv, summary)
+    out = tmp_path / "run"
+    p = subprocess.Popen(
+        [*TWIN, "run", str(PAPER), "--out", str(out), "--quiet"], stderr=subprocess.PIPE, text=True
+    )
+    try:
+        _wait_for("the run's summary", (out / "summary.json").exists, p)
+        second = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--force")
+        assert second.returncode == 2 and f"(pid {p.pid})" in _one_line(second.stderr)
+    finally:
+        p.send_signal(signal.SIGINT)
+        err = p.communicate(timeout=120)[1]
+    assert p.returncode == 130, err
+    line = _one_line(err)
+    assert "interrupted by SIGINT during the uncertainty's Monte Carlo" in line, line
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and "Monte Carlo" in summary["error"]
+    assert "interval_90" not in summary["drift_mm"] and "predicted" in summary["drift_mm"]
+    assert not (out / "uncertainty.csv").exists()
+    assert len(read_signals_csv(out / "signals.csv")) == 2881
+    assert len(read_signals_csv(out / "errormodel.csv")) == 2881
 
 
 def test_a_reused_folder_keeps_no_file_of_an_earlier_run(tmp_path: Path) -> None:
     out = tmp_path / "run"
     out.mkdir()
-    for stale in ("uncertainty.csv", "errormodel.csv", "checkpoint.npz", "recording.rrd"):
-        (out / stale).write_text("from an earlier run")
+    stale = ("uncertainty.csv", "errormodel.csv", "checkpoint.npz", "recording.rrd", "error_budget.png")
+    for name in stale:
+        (out / name).write_text("from an earlier run")
+    # what kills left of atomic writes: twin's own temporary files
+    leftovers = (".summary.json.4242.0123abcd.tmp", "checkpoint.npz.tmp")
+    for name in leftovers:
+        (out / name).write_text("half")
     (out / "notes.txt").write_text("the lab's own notes")
+    (out / ".notes.txt.1.tmp").write_text("the lab's editor's")
     refused = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet")
     assert refused.returncode == 2 and "--force" in _one_line(refused.stderr)
     assert (out / "uncertainty.csv").read_text() == "from an earlier run"  # nothing touched
     r = _twin("run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet", "--force")
     assert r.returncode == 0, r.stderr
-    assert not (out / "uncertainty.csv").exists() and not (out / "checkpoint.npz").exists()
-    assert (out / "errormodel.csv").read_text() != "from an earlier run"
-    assert (out / "recording.rrd").read_bytes() != b"from an earlier run"
+    for name in ("uncertainty.csv", "checkpoint.npz", *leftovers):
+        assert not (out / name).exists(), name
+    for name in ("errormodel.csv", "recording.rrd", "error_budget.png"):
+        assert (out / name).read_bytes() != b"from an earlier run", name
     assert (out / "notes.txt").read_text() == "the lab's own notes"  # not twin's: left alone
+    assert (out / ".notes.txt.1.tmp").read_text() == "the lab's editor's"
 
 
 def _file_size_limit(limit: int):
@@ -132,60 +202,140 @@ def _file_size_limit(limit: int):
     return apply
 
 
-def test_a_full_disk_mid_run_keeps_every_whole_row_and_says_so(tmp_path: Path) -> None:
-    out = tmp_path / "run"
+def _limited_run(out: Path, limit: int) -> tuple[subprocess.CompletedProcess[str], str]:
     r = subprocess.run(
         [*TWIN, "run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet"],
         capture_output=True,
         text=True,
         timeout=300,
-        preexec_fn=_file_size_limit(400_000),
+        preexec_fn=_file_size_limit(limit),
     )
-    assert r.returncode == 1
+    assert r.returncode == 1, r.stderr
     line = _one_line(r.stderr)
-    assert "disk full" in line and "signals.csv" in line, line
+    assert line.startswith("twin: disk full (File too large) while writing "), line
+    return r, line
+
+
+def test_a_full_disk_mid_run_keeps_every_whole_row_and_says_so(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    _, line = _limited_run(out, 400_000)
+    assert f"while writing {out / 'signals.csv'};" in line and "summary.json says so" in line, line
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "failed: disk full"
+    assert summary["status"] == "failed: disk full" and "signals.csv" in summary["error"]
     text = (out / "signals.csv").read_bytes()
     assert 100_000 < len(text) <= 400_000 and text.endswith(b"\n")  # cut back to whole rows
     table = read_signals_csv(out / "signals.csv")
     assert len(table) > 100 and table.time[-1] < 28800.0
+    assert not list(out.glob(".*.tmp"))
 
 
-@pytest.mark.parametrize("delay", [0.05, 0.15, 0.3])
+def test_a_full_disk_while_the_recording_is_written_says_so_in_one_line(tmp_path: Path) -> None:
+    # 3 MB: signals.csv (2.3 MB) fits, recording.rrd (5 MB) does not; rerun writes it from its
+    # own thread and logs its failure itself, which stays off stderr
+    out = tmp_path / "run"
+    _, line = _limited_run(out, 3_000_000)
+    assert f"while writing {out / 'recording.rrd'};" in line, line
+    assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
+    assert len(read_signals_csv(out / "signals.csv")) == 2881  # every row
+    assert 0 < (out / "recording.rrd").stat().st_size <= 3_000_000
+
+
+def test_a_disk_too_full_for_the_summary_says_that_too(tmp_path: Path) -> None:
+    # 100 bytes: not even run.json (143 bytes) fits, nor the disk-full summary
+    out = tmp_path / "run"
+    _, line = _limited_run(out, 100)
+    assert f"while writing {out / 'run.json'};" in line and "summary.json could not be written either" in line
+    assert not (out / "summary.json").exists() and not list(out.glob(".*.tmp"))
+
+
+def test_a_full_disk_while_the_fmus_are_unpacked_names_their_folder(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    _, line = _limited_run(out, 12_000)  # the FMUs' binaries are larger than 12 kB
+    assert "(the extracted " in line and ".fmu)" in line, line
+    assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
+
+
+#: the twin, started as the console script starts it, by a wrapper that says when
+#: twin.entry (20 lines, importing only sys) is imported: the interpreter's own start (site,
+#: about 0.05 s here) and that import come before any code that could catch a Ctrl-C, so no
+#: program can turn one there into its own exit code; from twin.entry's main on, it is twin's
+UP = [
+    sys.executable,
+    "-c",
+    "import sys; from twin.entry import main; print('up', flush=True); sys.exit(main())",
+]
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.1, 0.2, 0.3, 0.6])
 def test_ctrl_c_in_the_first_moments_exits_130_in_one_line(delay: float, tmp_path: Path) -> None:
+    out = tmp_path / "run"
     p = subprocess.Popen(
-        [*TWIN, "run", str(PAPER), "--out", str(tmp_path / "run")],
-        stderr=subprocess.PIPE,
-        text=True,
-        stdout=subprocess.DEVNULL,
+        [*UP, "run", str(PAPER), "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    time.sleep(delay)
+    assert p.stdout is not None and p.stdout.readline() == "up\n"
+    time.sleep(delay)  # in the imports (0.25 s), loading the scenario, the FMUs, the run
     p.send_signal(signal.SIGINT)
     err = p.communicate(timeout=120)[1]
     assert p.returncode == 130, err
-    assert _one_line(err).startswith("twin: ")
+    assert "interrupted" in _one_line(err)
+    if out.exists():  # the run had begun: it keeps what it recorded and says so
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "interrupted" and "SIGINT" in summary["error"]
 
 
-def test_ctrl_c_after_the_co_simulation_exits_130_and_keeps_the_runs_outputs(tmp_path: Path) -> None:
-    # the paper's replay: after its run, the Monte Carlo of its uncertainty (several seconds)
+def test_ctrl_c_on_a_terminal_while_the_fmus_build_exits_130_and_writes_nothing(tmp_path: Path) -> None:
+    # an empty cache: the five FMUs build (about 12 s); a terminal's Ctrl-C reaches the whole
+    # process group, so cmake dies too: that broken build is an interruption, not a build error
     out = tmp_path / "run"
+    p = subprocess.Popen(
+        [*UP, "run", str(PAPER), "--out", str(out), "--uncertainty", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "TWIN_CACHE_DIR": str(tmp_path / "cache")},
+    )
+    assert p.stdout is not None and p.stdout.readline() == "up\n"
+    time.sleep(1.5)
+    os.killpg(p.pid, signal.SIGINT)
+    err = p.communicate(timeout=120)[1]
+    assert p.returncode == 130, err
+    assert _one_line(err) == "twin: interrupted"
+    assert not out.exists()  # the folder is made after the build
+
+
+def test_ctrl_c_while_the_error_model_runs_exits_130_and_keeps_the_data(tmp_path: Path) -> None:
+    # signals.csv's last row (t = 28800 s) is written when the co-simulation ends; then come
+    # the error model (0.3 s), errormodel.csv and the plot (0.6 s), before the Monte Carlo
+    out = tmp_path / "run"
+    csv = out / "signals.csv"
     p = subprocess.Popen(
         [*TWIN, "run", str(PAPER), "--out", str(out), "--quiet"], stderr=subprocess.PIPE, text=True
     )
-    deadline = time.monotonic() + 120
-    while not (out / "summary.json").exists():
-        assert time.monotonic() < deadline and p.poll() is None, "the run did not finish"
-        time.sleep(0.05)
-    time.sleep(0.5)
-    p.send_signal(signal.SIGINT)
-    err = p.communicate(timeout=120)[1]
+
+    def last_row_written() -> bool:
+        if not csv.exists() or csv.stat().st_size < 1000:
+            return False
+        with open(csv, "rb") as f:
+            f.seek(-1000, os.SEEK_END)
+            return f.read().rstrip(b"\n").rsplit(b"\n", 1)[-1].startswith(b"28800,")
+
+    try:
+        _wait_for("the co-simulation's last row", last_row_written, p)
+    finally:
+        p.send_signal(signal.SIGINT)
+        err = p.communicate(timeout=120)[1]
     assert p.returncode == 130, err
-    assert "interrupted by SIGINT after the co-simulation" in _one_line(err)
+    line = _one_line(err)
+    assert "interrupted by SIGINT after the co-simulation" in line, line
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "completed" and "interval_90" not in summary["drift_mm"]
-    assert not (out / "uncertainty.csv").exists()
-    assert len(read_signals_csv(out / "signals.csv")) == 2881
+    assert summary["status"] == "interrupted" and "after the co-simulation" in summary["error"]
+    assert "interval_90" not in summary["drift_mm"] and not (out / "uncertainty.csv").exists()
+    assert len(read_signals_csv(csv)) == 2881  # every row, and the error model's on them
+    assert len(read_signals_csv(out / "errormodel.csv")) == 2881
+    assert "predicted" in summary["drift_mm"]
+    # the plot only draws errormodel.csv: left out once the signal came (then named in the summary)
+    assert (out / "error_budget.png").exists() != ("error_budget.png" in summary["error"])
 
 
 def test_the_lock_file_names_the_holder_and_a_finished_run_releases_it(tmp_path: Path) -> None:

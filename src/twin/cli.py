@@ -18,7 +18,9 @@ from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only 
 from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
 
 if TYPE_CHECKING:
+    from twin.config.spec import Scenario
     from twin.pipeline import RunSummary
+    from twin.validation.replay import RunUncertainty
 
 
 class _Parser(argparse.ArgumentParser):
@@ -140,33 +142,31 @@ def _stop_on_signals():
     return lambda: caught.get("name")
 
 
-def _supervised(quiet: bool, stage: Callable[..., RunSummary]) -> tuple[RunSummary, Callable[[], str | None]]:
-    """Call a run stage with a progress bar and SIGINT/SIGTERM asking it to stop; returns the
-    summary and the handler's question "which signal came?" (also one that comes after the
-    co-simulation, while the error model and the outputs are written, or later: the run then
-    completes its files and exits as interrupted)."""
-    stop = _stop_on_signals()
+def _supervised(quiet: bool, stage: Callable[..., RunSummary], stop: Callable[[], str | None]) -> RunSummary:
+    """Call a run stage with a progress bar and ``stop`` (:func:`_stop_on_signals`) asking it
+    to stop; a signal that comes after the co-simulation, while the error model and the
+    outputs are made, ends the run as "interrupted" too (its summary says so)."""
     update, done = _progress_bar(quiet)
     try:
-        return stage(progress=update, stop=stop), stop
+        return stage(progress=update, stop=stop)
     finally:
         done()
 
 
 def _finish(summary: RunSummary, out: Path, quiet: bool, caught: str | None = None) -> int:
+    import re
+
     if not quiet:
         print(summary.line())
         print(f"outputs: {out}")
-    if summary.status == "completed" and caught is not None:
-        print(
-            f"twin: interrupted by {caught} after the co-simulation; the run's outputs are complete in {out}",
-            file=sys.stderr,
-        )
-        return _EXIT_ON_SIGNAL.get(caught, 130)
     if summary.status == "interrupted":
-        why = summary.error or ""
+        why = summary.error or "interrupted"
         print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
-        return _EXIT_ON_SIGNAL.get(why.rsplit(" ", 1)[-1], 130)
+        name = re.search(r"\bby (SIG[A-Z]+)", why)
+        return _EXIT_ON_SIGNAL.get(name.group(1) if name else "", 130)
+    if caught is not None:  # after everything was written: the outputs are complete
+        print(f"twin: interrupted by {caught}; the run's outputs are complete in {out}", file=sys.stderr)
+        return _EXIT_ON_SIGNAL.get(caught, 130)
     return 0
 
 
@@ -190,11 +190,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import time
 
     from twin.errormodel.config import check_recorded_columns
-    from twin.outputs.run_folder import output_folder
+    from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import run
-    from twin.validation.replay import finish_run, for_run
+    from twin.validation.replay import for_run
 
     start = time.perf_counter()
+    # from here a Ctrl-C asks the command to stop; the run folder, once made, then holds
+    # everything recorded and a summary saying "interrupted"
+    stop = _stop_on_signals()
     scenario = _load(args)
     check_recorded_columns(scenario)
     if args.uncertainty is not None and args.uncertainty < 0:
@@ -202,34 +205,73 @@ def _cmd_run(args: argparse.Namespace) -> int:
     path = _scenario_path(args.scenario)
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
-    _refuse_an_earlier_run(out, args.force)
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
-    stage = functools.partial(
-        run,
-        scenario,
-        out,
-        process_start=args.process_start or start,
-        overrides=args.set or [],
-        checkpoint_every_ns=every,
-    )
-    summary, stop = _supervised(args.quiet, stage)
-    if uncertainty is not None and summary.status == "completed" and stop() is None:
-        # the handler stays: a Ctrl-C ends the Monte Carlo after its finished samples
-        finish_run(uncertainty, out, (lambda _: None) if args.quiet else print, stop)
-    return _finish(summary, out, args.quiet, stop())
+    _build_fmus(scenario, stop)
+    folder = RunFolder(out)
+    folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
+    try:
+        _refuse_an_earlier_run(out, args.force)
+        stage = functools.partial(
+            run,
+            scenario,
+            out,
+            process_start=args.process_start or start,
+            overrides=args.set or [],
+            checkpoint_every_ns=every,
+        )
+        summary = _supervised(args.quiet, stage, stop)
+        if uncertainty is not None and summary.status == "completed" and stop() is None:
+            summary = _uncertainty(uncertainty, out, summary, args.quiet, stop)
+        return _finish(summary, out, args.quiet, stop())
+    finally:
+        folder.unlock()
+
+
+def _build_fmus(scenario: Scenario, stop: Callable[[], str | None]) -> None:
+    """Build (or find in the cache) the scenario's FMUs before the run folder is touched, and
+    end the command as interrupted (nothing written) if a signal came meanwhile: a Ctrl-C on a
+    terminal reaches cmake too, and the build it broke is not a build error."""
+    from twin.fmu import catalog
+
+    try:
+        for model in sorted({f.model for f in scenario.fmus}):
+            catalog.fmu(model)
+    except TwinError:
+        if stop() is not None:
+            raise KeyboardInterrupt from None
+        raise
+    if stop() is not None:
+        raise KeyboardInterrupt
+
+
+def _uncertainty(
+    uncertainty: RunUncertainty, out: Path, summary: RunSummary, quiet: bool, stop: Callable[[], str | None]
+) -> RunSummary:
+    """The replay's Monte Carlo after its run; a Ctrl-C ends it after its finished samples,
+    and summary.json then says "interrupted" (the run's own outputs are complete)."""
+    import dataclasses
+    import json
+
+    from twin.outputs.run_folder import SUMMARY_JSON
+    from twin.outputs.summary import write_summary
+    from twin.validation.replay import finish_run
+
+    caught = finish_run(uncertainty, out, (lambda _: None) if quiet else print, stop)
+    if caught is None:
+        return summary
+    why = f"interrupted by {caught} during the uncertainty's Monte Carlo (the run's own outputs are complete)"
+    data = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
+    data.update(status="interrupted", error=why)
+    write_summary(out / SUMMARY_JSON, data)
+    return dataclasses.replace(summary, status="interrupted", error=why)
 
 
 def _refuse_an_earlier_run(out: Path, force: bool) -> None:
     """A run folder holding an earlier run's outputs is replaced only with ``--force`` (then
     the run removes them first, so none stays beside the new ones)."""
-    from twin.outputs.run_folder import RUN_OUTPUTS, RunFolder
+    from twin.outputs.run_folder import RUN_OUTPUTS
 
-    if not out.is_dir():
-        return
-    folder = RunFolder(out)
-    folder.lock()  # a folder another process writes in is "in use", whatever it holds
-    folder.unlock()
-    if force:
+    if force or not out.is_dir():
         return
     earlier = sorted(n for n in RUN_OUTPUTS if (out / n).exists())
     if earlier:
@@ -244,13 +286,22 @@ def _cmd_resume(args: argparse.Namespace) -> int:
     import functools
     import time
 
+    from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import resume_run
 
     start = time.perf_counter()
-    out = Path(args.run_dir)
-    stage = functools.partial(resume_run, out, process_start=start)
-    summary, stop = _supervised(args.quiet, stage)
-    return _finish(summary, out, args.quiet, stop())
+    stop = _stop_on_signals()
+    out = output_folder(args.run_dir, Path(), option="resume")  # a folder it can write in
+    if not out.is_dir():
+        raise ConfigError("no such folder (no run.json): not a run folder", source=str(out))
+    folder = RunFolder(out)
+    folder.lock()  # before its checkpoint is read: no other process may write there meanwhile
+    try:
+        stage = functools.partial(resume_run, out, process_start=start)
+        summary = _supervised(args.quiet, stage, stop)
+        return _finish(summary, out, args.quiet, stop())
+    finally:
+        folder.unlock()
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -450,6 +501,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in str(exc).splitlines():  # several problems: one line each
             print(f"twin: {line}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:
+        # a file the command had to write or read failed it (a full disk while the Monte
+        # Carlo writes uncertainty.csv, a folder removed under a run): one line, exit 1
+        print(f"twin: {_os_error(exc)}", file=sys.stderr)
+        return 1
+
+
+def _os_error(exc: OSError) -> str:
+    from twin.outputs.run_folder import DISK_FULL_ERRNOS
+
+    if exc.errno in DISK_FULL_ERRNOS:
+        return f"disk full ({exc.strerror}) while writing {exc.filename or 'an output file'}"
+    return f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc)
 
 
 if __name__ == "__main__":

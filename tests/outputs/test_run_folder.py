@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import pickle
+import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,7 +20,9 @@ from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
     CHECKPOINT_FILE,
     LEGACY_CHECKPOINT,
+    LOCK_FILE,
     RUN_FILE,
+    RUN_OUTPUTS,
     SIGNALS_CSV,
     Checkpoint,
     RunFolder,
@@ -208,3 +213,36 @@ def test_resumed_sinks_cut_the_csv_back_to_the_checkpoint(tmp_path: Path) -> Non
         "ErrorBudgetSink",
         "SummarySink",  # last: its presence means the run is over
     ]
+
+
+def _another_process_can_lock(folder: RunFolder) -> bool:
+    probe = (
+        "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDWR), fcntl.LOCK_EX | fcntl.LOCK_NB)"
+    )
+    return (
+        subprocess.run([sys.executable, "-c", probe, str(folder.file(LOCK_FILE))], check=False).returncode
+        == 0
+    )
+
+
+def test_the_lock_is_shared_within_a_process_and_held_until_its_last_holder_lets_go(tmp_path: Path) -> None:
+    command, run = RunFolder(tmp_path / "run"), RunFolder(tmp_path / "run")
+    command.lock()
+    run.lock()  # the run the command starts: the same process, so not "in use"
+    assert command.file(LOCK_FILE).read_text() == f"{os.getpid()}\n"
+    assert not _another_process_can_lock(command)
+    run.unlock()
+    run.unlock()  # idempotent: the command's share stays
+    assert not _another_process_can_lock(command)
+    command.unlock()
+    assert _another_process_can_lock(command)
+
+
+def test_start_removes_an_earlier_runs_files_and_leftovers_but_not_the_users(tmp_path: Path) -> None:
+    folder = RunFolder(tmp_path)
+    names = [*RUN_OUTPUTS, ".summary.json.77.deadbeef.tmp", ".run.json.1.00000000.tmp"]
+    for name in [*names, "notes.txt", ".notes.txt.1.tmp", "summary.json.bak"]:
+        folder.file(name).write_text("earlier")
+    folder.start(RunMeta("/abs/s.toml"))
+    left = {".notes.txt.1.tmp", RUN_FILE, "notes.txt", "summary.json.bak"}
+    assert {p.name for p in tmp_path.iterdir()} == left

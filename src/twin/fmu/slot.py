@@ -111,6 +111,17 @@ class NativeHandles(NamedTuple):
     do_step: int
 
 
+def _extract(fmu_path: Path, instance_name: str) -> str:
+    """Unpack the FMU into a new private folder; a write that fails there (a full disk)
+    names that folder, since zipfile's error names no file."""
+    folder = extraction_dir(f"{instance_name}-")
+    try:
+        return extract(str(fmu_path), unzipdir=folder)
+    except OSError as exc:
+        exc.filename = exc.filename or f"{folder} (the extracted {fmu_path.name})"
+        raise
+
+
 class FMUSlot:
     """An FMU instance with name-based setup and buffer-based stepping.
 
@@ -121,7 +132,7 @@ class FMUSlot:
         self.name = instance_name
         self.description = describe(fmu_path)
         self._own_unzipdir = unzipdir is None
-        self.unzipdir = unzipdir or extract(str(fmu_path), unzipdir=extraction_dir(f"{instance_name}-"))
+        self.unzipdir = unzipdir or _extract(fmu_path, instance_name)
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self.time = 0.0

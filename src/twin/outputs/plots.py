@@ -148,6 +148,10 @@ class ErrorBudgetSink(OutcomeSink):
     lacks are left out rather than failing the plot.
     """
 
+    #: a run interrupted after its co-simulation leaves the plot out (it only draws what
+    #: errormodel.csv holds, and importing matplotlib alone takes half a second)
+    skippable = True
+
     def __init__(self, path: Path, columns: BudgetColumns, title: str) -> None:
         self.path = path
         self.columns = columns

@@ -20,6 +20,8 @@ stream's only sink is the file.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import os
 import uuid
 from collections.abc import Mapping, Sequence
@@ -27,7 +29,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import rerun as rr
+
+# rerun's file writer logs its own failed writes (three lines on stderr, read from RUST_LOG when
+# rerun loads); the twin reports a failed recording in one line (RecordingWriter.close), so
+# those two loggers keep quiet, unless the user sets RUST_LOG
+os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd=off,re_sdk::recording_stream=off")
+
+import rerun as rr  # after RUST_LOG is set
 import rerun.blueprint as rrb
 
 from twin.outputs.sink import ClosesOnExit
@@ -183,12 +191,36 @@ class RecordingWriter(ClosesOnExit):
         self.rows += t.size
 
     def close(self) -> None:
-        """Flush and finalize the file (idempotent)."""
+        """Flush and finalize the file (idempotent). A write that failed (a full disk) raises
+        :class:`OSError` naming the file; what rerun wrote before it stays."""
         if self._rec is not None:
             rec, self._rec = self._rec, None
-            rec.flush()
+            try:
+                rec.flush()
+            except RuntimeError as exc:
+                # rerun writes from its own thread and reports a failed write only as
+                # "File-writer thread shut down prematurely"
+                with contextlib.suppress(RuntimeError):
+                    rec.disconnect()
+                raise _write_error(self.path, exc) from None
             # disconnect() closes the file sink, which writes the footer `rerun rrd verify` checks.
             rec.disconnect()
+
+
+def _write_error(path: Path, exc: RuntimeError) -> OSError:
+    """The OS error behind rerun's failed write: found by appending one byte to the file
+    ourselves (cut off again), since rerun's message does not carry it. A full disk or a
+    file-size limit fails that byte too; anything else is reported with rerun's words."""
+    try:
+        size = path.stat().st_size
+        with open(path, "ab") as f:
+            f.write(b"\0")
+            f.flush()
+        os.truncate(path, size)
+    except OSError as found:
+        found.filename = str(path)
+        return found
+    return OSError(errno.EIO, f"rerun could not write the recording ({exc})", str(path))
 
 
 class RecordingSink:

@@ -77,7 +77,10 @@ RUN_OUTPUTS = (
     "uncertainty.csv",
     "checkpoint.npz",
     "checkpoint.pkl",
+    "checkpoint.npz.tmp",  # a checkpoint a kill interrupted (checkpoint_file.save)
 )
+#: the run folders this process holds the lock of: resolved path -> [descriptor, holders]
+_HELD: dict[Path, list[int]] = {}
 #: file systems no run folder may be on
 _SPECIAL_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
 #: the errors of a full disk or a file-size limit
@@ -166,10 +169,22 @@ class RunFolder:
     def lock(self) -> None:
         """Hold the folder's lock until :meth:`unlock` (or the process ends): a second twin
         process on the same folder is refused with :class:`ConfigError` (exit 2) instead of
-        interleaving its rows with this one's."""
+        interleaving its rows with this one's.
+
+        Within one process the lock is shared: the command takes it for its whole life (the
+        run, then the Monte Carlo that adds to the summary) and the run it starts takes it
+        again; flock would refuse that second descriptor, so this process's holders are
+        counted and the descriptor closes with the last :meth:`unlock`."""
         import fcntl
 
+        if getattr(self, "_held", None) is not None:
+            return
         self.make()
+        key = self.path.resolve()
+        if key in _HELD:
+            _HELD[key][1] += 1
+            self._held = key
+            return
         fd = os.open(self.file(LOCK_FILE), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -177,18 +192,24 @@ class RunFolder:
             holder = os.read(fd, 32).decode("ascii", "replace").strip() or "?"
             os.close(fd)
             raise ConfigError(
-                f"is in use by another twin process (pid {holder})", source=str(self.path)
+                f"run folder {self.path} is in use by another twin process (pid {holder})"
             ) from None
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
-        self._lock_fd = fd
+        _HELD[key] = [fd, 1]
+        self._held = key
 
     def unlock(self) -> None:
-        """Release the folder's lock (idempotent)."""
-        fd = getattr(self, "_lock_fd", None)
-        if fd is not None:
-            os.close(fd)  # closing the descriptor releases the flock
-            self._lock_fd = None
+        """Release this holder's share of the folder's lock (idempotent)."""
+        key = getattr(self, "_held", None)
+        if key is None:
+            return
+        self._held = None
+        entry = _HELD[key]
+        entry[1] -= 1
+        if entry[1] == 0:
+            del _HELD[key]
+            os.close(entry[0])  # closing the descriptor releases the flock
 
     def start(self, meta: RunMeta) -> None:
         """Make the folder for a new run: remove every output of an earlier run (and its
@@ -196,6 +217,10 @@ class RunFolder:
         self.make()
         for name in RUN_OUTPUTS:
             self.file(name).unlink(missing_ok=True)
+        # what a kill left of an atomic write (write_json_atomic's hidden temporary files)
+        for name in (*RUN_OUTPUTS, RUN_FILE):
+            for tmp in self.path.glob(f".{name}.*.tmp"):
+                tmp.unlink(missing_ok=True)
         text = json.dumps(
             {
                 "scenario": meta.scenario,

@@ -129,8 +129,10 @@ def write_json_atomic(path: str | os.PathLike[str], text: str) -> Path:
             f.flush()
             os.fsync(f.fileno())  # data on disk before the rename makes it visible
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):  # name the file (a full disk's error names none)
+            exc.filename = exc.filename or str(path)
         raise
     return path
 

@@ -19,6 +19,7 @@ raises :class:`~twin.errors.RunError`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Callable, Collection, Mapping, Sequence
@@ -204,15 +205,27 @@ def summarize(simulation: Simulation, evaluated: Evaluated, *, process_start: fl
 
 
 def write_outputs(
-    sinks: Sequence[Sink], evaluated: Evaluated, summary: Callable[[], Mapping[str, Any]]
+    sinks: Sequence[Sink],
+    evaluated: Evaluated,
+    summary: Callable[[], Mapping[str, Any]],
+    *,
+    stop: Callable[[], str | None] | None = None,
+    skipped: list[str] | None = None,
 ) -> None:
     """Close every sink, in order, with the run's outcome.
 
     ``summary`` is called once, when the first sink asks for it (the summary sink, last),
-    so the summary's total time counts the writing of every other file.
+    so the summary's total time counts the writing of every other file. Once ``stop``
+    answers a signal's name, the sinks that only draw what the others hold (``skippable``:
+    the plot, 0.6 s of the paper's 1 s after its co-simulation) are left out and their
+    files' names added to ``skipped``: an interrupted run keeps its data, not its pictures.
     """
     outcome = Outcome(evaluated.table, evaluated.columns, summary)
     for sink in sinks:
+        if getattr(sink, "skippable", False) and stop is not None and stop() is not None:
+            if skipped is not None:
+                skipped.append(Path(getattr(sink, "path", type(sink).__name__)).name)
+            continue
         sink.close(outcome)
 
 
@@ -269,17 +282,20 @@ def _run_locked(
     resume: Checkpoint | None,
 ) -> RunSummary:
     out_dir = folder.path
-    if resume is None:
-        meta = RunMeta(str(Path(scenario.source_path).resolve()), tuple(overrides), loop, checkpoint_every_ns)
-        folder.start(meta)
-    sinks = folder.run_sinks(
-        name=scenario.name,
-        late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
-        budget_view=["errormodel.e_z", *[f.column for f in FACTORS], "errormodel.reading_change"],
-        plot=budget_columns(cfg),
-        resume=resume,
-    )
+    sinks: list[Sink] = []
     try:
+        if resume is None:
+            meta = RunMeta(
+                str(Path(scenario.source_path).resolve()), tuple(overrides), loop, checkpoint_every_ns
+            )
+            folder.start(meta)
+        sinks = folder.run_sinks(
+            name=scenario.name,
+            late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
+            budget_view=["errormodel.e_z", *[f.column for f in FACTORS], "errormodel.reading_change"],
+            plot=budget_columns(cfg),
+            resume=resume,
+        )
         simulation = simulate(
             scenario,
             sinks=sinks,
@@ -292,8 +308,11 @@ def _run_locked(
             resume=resume,
         )
         evaluated = evaluate_run(simulation, cfg)
-        summary = functools.cache(lambda: summarize(simulation, evaluated, process_start=process_start))
-        write_outputs(sinks, evaluated, lambda: summary().to_dict())
+        skipped: list[str] = []
+        summary = functools.cache(
+            lambda: _late_stop(summarize(simulation, evaluated, process_start=process_start), stop, skipped)
+        )
+        write_outputs(sinks, evaluated, lambda: summary().to_dict(), stop=stop, skipped=skipped)
     except OSError as exc:
         _fail(sinks, exc)
         if exc.errno in DISK_FULL_ERRNOS:
@@ -307,10 +326,32 @@ def _run_locked(
     return summary()
 
 
+def _late_stop(
+    summary: RunSummary, stop: Callable[[], str | None] | None, skipped: Sequence[str]
+) -> RunSummary:
+    """A run whose co-simulation completed but that a signal asked to stop afterwards (while
+    the error model or the outputs were made) is "interrupted" too: the signal is named. An
+    interrupted run's error also names the files left out for it."""
+    if summary.status == "interrupted":
+        why = summary.error or "interrupted"
+    elif summary.status == "completed" and stop is not None and (caught := stop()) is not None:
+        why = f"interrupted by {caught} after the co-simulation"
+    else:
+        return summary
+    if skipped:
+        why += f" (not written: {', '.join(skipped)})"
+    return dataclasses.replace(summary, status="interrupted", error=why)
+
+
 def _disk_full(folder: RunFolder, scenario: Scenario, exc: OSError) -> RunError:
     """The error of a run stopped by a full disk (or a file-size limit), after writing what
-    can be written: the sinks have cut their files back to whole rows; summary.json says so
-    (it is small, but on a full disk it may not fit: the error then says that too)."""
+    can be written: the sinks have cut their files back to whole rows; summary.json says so.
+
+    No space is reserved for that summary: it is about 150 bytes, and the sinks' cutting back
+    (:func:`_fail`, before this) has just freed the part of a 256 kB slice that reached the
+    disk, so it fits on a disk that filled up under a run; a file-size limit is per file and
+    a small file stays under it. When it still does not fit, the error says so, and the
+    summary of an earlier run is gone already (the run removed it when it started)."""
     from twin.outputs.summary import write_summary
 
     where = exc.filename or "an output file"
