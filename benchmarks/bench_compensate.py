@@ -12,6 +12,7 @@ Goals (issue 13): < 2 s and < 200 MB for 200,000 rows.
 
     python benchmarks/bench_compensate.py            # both files, 200,000 rows
     python benchmarks/bench_compensate.py --rows 20000   # a fast check
+    python benchmarks/bench_compensate.py --src OLD/src  # an older tree's code on the same files
 """
 
 from __future__ import annotations
@@ -60,12 +61,15 @@ def config(path: Path) -> None:
     )
 
 
-def measure(csv: Path, toml: Path, out: Path) -> tuple[float, float]:
-    """Wall time (s) and peak RSS (MB) of one ``twin compensate`` process."""
-    cmd = [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())"]
+def measure(csv: Path, toml: Path, out: Path, src: str | None = None) -> tuple[float, float]:
+    """Wall time (s) and peak RSS (MB) of one ``twin compensate`` process (the twin of ``src``,
+    a source folder, instead of the installed one when given)."""
+    # twin.cli.main: older trees have no twin.entry
+    cmd = [sys.executable, "-c", "import sys; from twin.cli import main; sys.exit(main())"]
+    env = {**os.environ, **({"PYTHONPATH": src} if src else {})}
     start = time.perf_counter()
     proc = subprocess.Popen([*cmd, "compensate", str(csv), "--config", str(toml), "--out", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)  # fmt: skip
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
     if os.waitstatus_to_exitcode(status) != 0:
@@ -76,17 +80,19 @@ def measure(csv: Path, toml: Path, out: Path) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rows", type=int, default=200_000)
+    parser.add_argument("--src", help="measure the twin in this source folder (e.g. an old commit's src)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
         config(d / "lab.toml")
-        print(f"twin compensate, {args.rows} rows; goals < {GOAL_S} s, < {GOAL_MB:.0f} MB")
+        code = f" (code of {args.src})" if args.src else ""
+        print(f"twin compensate{code}, {args.rows} rows; goals < {GOAL_S} s, < {GOAL_MB:.0f} MB")
         print(f"{'record':<34} {'file MB':>8} {'wall s':>8} {'peak MB':>8}  goal")
         for name, extra in (("(a) lab: 10 columns", 0), ("(b) wide, like signals.csv: 80 columns", 70)):
             csv = d / f"{extra}.csv"
             write_record(csv, args.rows, extra)
-            measure(csv, d / "lab.toml", d / "warm")  # the first run pays the cold file cache
-            wall, rss = measure(csv, d / "lab.toml", d / f"out{extra}")
+            measure(csv, d / "lab.toml", d / "warm", args.src)  # the first run pays the cold file cache
+            wall, rss = measure(csv, d / "lab.toml", d / f"out{extra}", args.src)
             met = "met" if wall < GOAL_S and rss < GOAL_MB else "NOT met"
             print(f"{name:<34} {csv.stat().st_size / 1e6:>8.1f} {wall:>8.2f} {rss:>8.0f}  {met}")
             csv.unlink()
