@@ -49,8 +49,8 @@ __all__ = ["PLOT_ROWS", "Block", "StreamingEvaluation"]
 
 #: the plot's rows are kept at a stride that doubles when more than this many are held
 PLOT_ROWS = 4000
-#: rows evaluated at a time (the input is collected to this many first): ~10 MB of arrays
-CHUNK_ROWS = 1 << 15
+#: rows evaluated at a time (the input is collected to this many first): ~5 MB of arrays
+CHUNK_ROWS = 1 << 14
 
 Columns = dict[str, np.ndarray]
 
