@@ -345,10 +345,10 @@ def _cmd_compensate(args: argparse.Namespace) -> int:
     summary = compensate(csv, Path(args.config) if args.config else None, out, config)
     flagged = summary["input_rows"]["flagged"]
     if flagged:
-        first = summary["input_rows"]["flagged_times_s"][0]
+        first = summary["input_rows"]["first_flagged"][0]
         print(
-            f"twin: {csv}: {flagged} row(s) with a missing or non-finite value in a column the error model reads "
-            f"were left out (the first at t = {first:g} s; summary.json input_rows)",
+            f"twin: {csv}: {flagged} row(s) flagged and left out, the rest computed (first: {first}); "
+            f"every one in {out / summary['input_rows']['flagged_rows']}",
             file=sys.stderr,
         )
     parts = summary["error_parts_mm"]

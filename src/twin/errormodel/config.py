@@ -84,9 +84,7 @@ def errormodel_config(
     elif values is None:
         values = model_defaults()
     columns = _pop_columns(em, source)
-    factors = em.pop("factors", list(PARTS))
-    if not isinstance(factors, list) or not set(factors) <= set(PARTS) or not factors:
-        raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
+    factors = _factors(em.pop("factors", list(PARTS)), source)
     if em:
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
     _check_columns(columns, source)
@@ -115,7 +113,11 @@ def _pop_columns(em: dict[str, Any], source: str) -> dict[str, Any]:
     temperatures = dict(DEFAULT_TEMPERATURES)
     if "temperatures" in em:
         if not isinstance(em["temperatures"], dict):
-            raise ConfigError("expected a table point = column", source=source, key="errormodel.temperatures")
+            raise ConfigError(
+                f"expected a table point = column, got {type(em['temperatures']).__name__}",
+                source=source,
+                key="errormodel.temperatures",
+            )
         temperatures.update(em.pop("temperatures"))
     return {
         "temperatures": temperatures,
@@ -125,16 +127,40 @@ def _pop_columns(em: dict[str, Any], source: str) -> dict[str, Any]:
     }
 
 
+def _factors(factors: Any, source: str) -> list[str]:
+    """The ``factors`` list: names of :data:`PARTS`, each once, at least one."""
+    ok = isinstance(factors, list) and factors and all(isinstance(f, str) and f in PARTS for f in factors)
+    if not ok:
+        raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
+    twice = sorted({f for f in factors if factors.count(f) > 1})
+    if twice:
+        raise ConfigError(f"{twice} given twice", source=source, key="errormodel.factors")
+    return list(factors)
+
+
 def _check_columns(columns: dict[str, Any], source: str) -> None:
-    sensors = _sensor_fields()
-    if not all(isinstance(v, str) for k, v in columns.items() if k in sensors):
-        raise ConfigError(f"{', '.join(sensors)} must be column names", source=source, key="errormodel")
-    reading, true_wear = columns["reading"], columns["true_wear"]
-    if not isinstance(reading, str) or not (true_wear is None or isinstance(true_wear, str)):
-        raise ConfigError("reading and true_wear must be column names", source=source, key="errormodel")
-    if not all(isinstance(k, str) and isinstance(v, str) for k, v in columns["temperatures"].items()):
+    """Every column name a string naming a data column (not empty, not ``time``): one line
+    naming the key otherwise."""
+    named = [
+        (k, v) for k, v in columns.items() if k != "temperatures" and not (k == "true_wear" and v is None)
+    ]
+    named += [(f"temperatures.{p}", v) for p, v in columns["temperatures"].items()]
+    for key, value in named:
+        if not isinstance(value, str):
+            raise ConfigError(
+                f"expected a column name (a string), got {type(value).__name__}",
+                source=source,
+                key=f"errormodel.{key}",
+            )
+        if not value.strip() or value == "time":
+            what = "an empty name" if not value.strip() else "'time', the time axis"
+            raise ConfigError(
+                f"expected a data column's name, got {what}", source=source, key=f"errormodel.{key}"
+            )
+    unknown = sorted(set(columns["temperatures"]) - set(DEFAULT_TEMPERATURES))
+    if unknown:
         raise ConfigError(
-            "temperatures must map point names to column names",
+            f"unknown measuring point(s) {unknown} (the paper's eight: {list(DEFAULT_TEMPERATURES)})",
             source=source,
             key="errormodel.temperatures",
         )

@@ -30,7 +30,17 @@ from twin.errormodel.sources import COLUMN_FIELDS, Columns, MechanicalCoefficien
 from twin.errormodel.tester import tester_model
 from twin.signals.table import Signal, SignalTable
 
-__all__ = ["PARTS", "Evaluation", "EvaluationConfig", "endpoints", "evaluate", "evaluation_signals"]
+__all__ = [
+    "PARTS",
+    "Evaluation",
+    "EvaluationConfig",
+    "compensation_summary",
+    "endpoints",
+    "evaluate",
+    "evaluate_rows",
+    "evaluation_signals",
+    "summarize",
+]
 
 #: the Frechet distance is computed on at most this many points per curve (evenly decimated)
 FRECHET_POINTS = 800
@@ -102,43 +112,70 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
     reading change minus e_z.
     """
     m = Measured.read(table, cfg, tester_model())
-    contributions = {f.name: f.contribution(m) for f in FACTORS}
+    contributions, columns = evaluate_rows(m)
+    e_z, raw_change, compensated = columns["e_z"], columns["reading_change"], columns["wear_compensated"]
     parts = {name: c.e_z for name, c in contributions.items()}
-    # one stacked sum, rows in the order of the list: the order of the floating-point additions
-    e_z = np.sum(np.array(list(parts.values())), axis=0)
-    raw_change = m.reading - m.cleaned[0]
-    compensated = raw_change - e_z
-    wear_column = cfg.true_wear if cfg.true_wear and cfg.true_wear in table else None
-
-    columns = {"e_z": e_z, **{f"e_{name}": v for name, v in parts.items()}}
-    for name, c in contributions.items():
-        columns.update({f"{name}.{body}": v for body, v in c.by_body.items()})
-    columns.update(reading_change=raw_change, wear_compensated=compensated, spike=m.spikes.astype(float))
-    summary = _summary(m, contributions, e_z)
-    if wear_column is not None:
-        wear = table[wear_column] - table[wear_column][0]
-        columns["residual"] = compensated - wear
-        summary.update(_compensation(m, raw_change, compensated, wear))
-    meta = {s.name: s for s in evaluation_signals(with_true_wear=wear_column is not None)}
+    summary = summarize(m, contributions, e_z, rms={k: _rms(v) for k, v in parts.items()}, spikes=m.spikes)
+    if "residual" in columns:
+        wear = table[cfg.true_wear] - table[cfg.true_wear][0]  # as evaluate_rows took it
+        summary.update(compensation_summary(table.time, cfg.ra_window_s, raw_change, compensated, wear))
+    meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in columns)}
     for name, values in columns.items():
         table.add(meta[f"errormodel.{name}"], values)
     by_body = {name: dict(c.by_body) for name, c in contributions.items() if c.by_body}
     return Evaluation(e_z, parts, by_body, raw_change, compensated, summary)
 
 
-def _summary(m: Measured, contributions: dict[str, Contribution], e_z: np.ndarray) -> dict[str, Any]:
-    """The end-minus-start numbers: drift, temperature rises, each part, each factor's report."""
+def evaluate_rows(m: Measured) -> tuple[dict[str, Contribution], dict[str, np.ndarray]]:
+    """Every factor's contribution and the per-sample columns (names without ``errormodel.``,
+    in the order of :func:`evaluation_signals`) of the measured streams ``m``.
+
+    Every number of a row depends on that row and the first row only (each series is taken
+    relative to its first sample), so rows evaluated in chunks, each with the record's first
+    row put in front, give the same numbers as the whole record (:mod:`~twin.errormodel.streaming`).
+    """
+    cfg, table = m.cfg, m.table
+    contributions = {f.name: f.contribution(m) for f in FACTORS}
+    parts = {name: c.e_z for name, c in contributions.items()}
+    # one stacked sum, rows in the order of the list: the order of the floating-point additions
+    e_z = np.sum(np.array(list(parts.values())), axis=0)
+    raw_change = m.reading - m.cleaned[0]
+    compensated = raw_change - e_z
+    columns = {"e_z": e_z, **{f"e_{name}": v for name, v in parts.items()}}
+    for name, c in contributions.items():
+        columns.update({f"{name}.{body}": v for body, v in c.by_body.items()})
+    columns.update(reading_change=raw_change, wear_compensated=compensated, spike=m.spikes.astype(float))
+    if cfg.true_wear and cfg.true_wear in table:
+        wear = table[cfg.true_wear] - table[cfg.true_wear][0]
+        columns["residual"] = compensated - wear
+    return contributions, columns
+
+
+def summarize(
+    m: Measured,
+    contributions: dict[str, Contribution],
+    e_z: np.ndarray,
+    *,
+    rms: dict[str, float],
+    spikes: np.ndarray | int,
+) -> dict[str, Any]:
+    """The end-minus-start numbers: drift, temperature rises, each part, each factor's report.
+
+    Only the rows within the drift window of either end of ``m`` enter (the drifts are lines
+    through them), so ``m`` may hold just those rows; the figures of the whole record, each
+    part's ``rms`` and the ``spikes`` (their count, or the flags of every row), come separately.
+    """
     parts = {name: c.e_z for name, c in contributions.items()}
     summary: dict[str, Any] = {
         "drift_mm": {"predicted": m.drift(e_z) * 1e3, "probe": m.drift(m.reading) * 1e3},
         "temperature_rise_C": {point: m.drift(y) for point, y in m.temperatures.items()},
         "error_parts_mm": {**{k: m.drift(v) * 1e3 for k, v in parts.items()}, "total": m.drift(e_z) * 1e3},
-        "error_parts_rms_um": {k: float(np.sqrt(np.mean(v**2))) * 1e6 for k, v in parts.items()},
+        "error_parts_rms_um": {k: rms[k] * 1e6 for k in parts},
     }
     for f in FACTORS:
         if f.report is not None:
             summary.update(f.report(contributions[f.name], m))
-    summary["interference_spikes"] = int(m.spikes.sum())
+    summary["interference_spikes"] = int(np.sum(spikes))
     summary["sensors_used"] = _sensors_used(m)
     return summary
 
@@ -151,12 +188,12 @@ def _sensors_used(m: Measured) -> dict[str, bool]:
     return {s: s in on and m.sensor(s) is not None for s in COLUMN_FIELDS if s in declared}
 
 
-def _compensation(
-    m: Measured, raw_change: np.ndarray, compensated: np.ndarray, wear: np.ndarray
+def compensation_summary(
+    t: np.ndarray, ra_window_s: float, raw_change: np.ndarray, compensated: np.ndarray, wear: np.ndarray
 ) -> dict[str, Any]:
     """The true and compensated wear, the residuals and the credibility indexes of the on-line
-    wear curve, before (raw reading change) and after compensation (minus e_z)."""
-    t, window = m.table.time, m.cfg.ra_window_s
+    wear curve, before (raw reading change) and after compensation (minus e_z), over the whole
+    record (time ``t``)."""
     before, after = raw_change - wear, compensated - wear
     return {
         "wear_mm": {"true": float(wear[-1]) * 1e3, "compensated": float(compensated[-1]) * 1e3},
@@ -170,8 +207,8 @@ def _compensation(
                 "after": _frechet_um(t, compensated, wear),
             },
             "ra_um": {
-                "before": ra_fluctuation(t, raw_change, window) * 1e6,
-                "after": ra_fluctuation(t, compensated, window) * 1e6,
+                "before": ra_fluctuation(t, raw_change, ra_window_s) * 1e6,
+                "after": ra_fluctuation(t, compensated, ra_window_s) * 1e6,
             },
         },
     }

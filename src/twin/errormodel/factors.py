@@ -124,13 +124,24 @@ class Measured:
     temperatures: dict[str, np.ndarray]
 
     @classmethod
-    def read(cls, table: SignalTable, cfg: EvaluationConfig, model: ErrorModel) -> Measured:
+    def read(
+        cls,
+        table: SignalTable,
+        cfg: EvaluationConfig,
+        model: ErrorModel,
+        filtered: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> Measured:
         """The streams of ``table``: the reading (filtered first: the positioning factor and the
-        reading change start from the cleaned reading) and the eight temperatures."""
+        reading change start from the cleaned reading) and the eight temperatures.
+
+        ``filtered`` is the robust filter's (cleaned, spikes) of these rows when the filter ran
+        on a longer stretch (a streamed record, whose windows reach over chunk ends)."""
         if len(table.time) < 2:
             raise ConfigError("the error model needs at least two samples", source="errormodel")
         reading = _column(table, cfg.reading, "probe reading")
-        cleaned, spikes = hampel(reading, cfg.spike_half_window, cfg.spike_sigmas, cfg.spike_min)
+        if filtered is None:
+            filtered = hampel(reading, cfg.spike_half_window, cfg.spike_sigmas, cfg.spike_min)
+        cleaned, spikes = filtered
         temperatures = {
             point: _column(table, col, f"temperature at '{point}'") for point, col in cfg.temperatures.items()
         }

@@ -244,13 +244,33 @@ def hampel(
     robust deviations (1.4826 MAD), and at least ``min_deviation``, are replaced by the median.
 
     The floor keeps a quantized, nearly noise-free stretch (MAD = 0) from being flagged sample
-    by sample. Returns (cleaned, is_spike).
+    by sample. The windows are ``2 half_window + 1`` samples, the ends padded with the end
+    values (scipy's ``mode="nearest"``). Returns (cleaned, is_spike).
     """
-    from scipy.ndimage import median_filter
-
-    size = 2 * half_window + 1
-    med = median_filter(x, size=size, mode="nearest")
-    mad = median_filter(np.abs(x - med), size=size, mode="nearest")
+    med = moving_median(x, half_window)
+    deviation = np.abs(x - med)
+    mad = moving_median(deviation, half_window)
     threshold = np.maximum(n_sigmas * 1.4826 * mad, min_deviation)
-    spikes = np.abs(x - med) > threshold
+    spikes = deviation > threshold
     return np.where(spikes, med, x), spikes
+
+
+#: rows of sliding windows partitioned at a time: bounds the (rows, window) copy to ~8 MB
+_MEDIAN_ROWS = 1 << 15
+
+
+def moving_median(x: np.ndarray, half_window: int) -> np.ndarray:
+    """The median of every window of ``2 half_window + 1`` samples centred on each sample, the
+    ends padded with the end values: the same numbers as scipy's ``median_filter(x, size,
+    mode="nearest")`` (a median of an odd count is one of the samples, no arithmetic), without
+    its import (a third of a second of ``twin compensate``)."""
+    x = np.asarray(x, dtype=np.float64)
+    if half_window <= 0 or x.size == 0:
+        return x.copy()
+    padded = np.pad(x, half_window, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half_window + 1)
+    out = np.empty_like(x)
+    for a in range(0, x.size, _MEDIAN_ROWS):
+        part = np.partition(windows[a : a + _MEDIAN_ROWS], half_window, axis=1)
+        out[a : a + _MEDIAN_ROWS] = part[:, half_window]
+    return out

@@ -6,24 +6,34 @@ run's signals.csv (whose errormodel.csv it then reproduces byte for byte).
 
 from __future__ import annotations
 
+import csv
+import threading
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from twin.config.spec import NS_PER_S
 from twin.errormodel.config import errormodel_config, input_columns, model_defaults
-from twin.errormodel.evaluate import EvaluationConfig, evaluate
+from twin.errormodel.evaluate import EvaluationConfig
+from twin.errormodel.streaming import CHUNK_ROWS, Block, StreamingEvaluation
 from twin.errors import ConfigError
-from twin.outputs.csv import read_signals_csv
-from twin.outputs.run_folder import RunFolder
+from twin.outputs.csv import SignalsCsvWriter, units_sidecar_path
+from twin.outputs.run_folder import ERROR_BUDGET_PNG, ERRORMODEL_CSV, SUMMARY_JSON, RunFolder
+from twin.pipeline.measurements import BLOCK_BYTES, Flag, MeasurementReader
 from twin.pipeline.stages import Evaluated, budget_columns, write_outputs
-from twin.signals.table import SignalTable
+from twin.signals.table import Signal
 
-__all__ = ["compensate", "compensation_config"]
+__all__ = ["FLAGGED_CSV", "compensate", "compensation_config"]
 
 #: the drift's start and end values come from lines through this much of each end
 DEFAULT_WINDOW_S = 300.0
+#: every row left out, its line in the input and why (written only when a row is flagged)
+FLAGGED_CSV = "flagged_rows.csv"
+#: flagged rows the summary lists (flagged_rows.csv has every one)
+SUMMARY_FLAGS = 5
 
 
 def compensate(
@@ -31,6 +41,9 @@ def compensate(
     config_path: Path | None,
     out_dir: Path,
     config: tuple[EvaluationConfig, str] | None = None,
+    *,
+    block_bytes: int = BLOCK_BYTES,
+    chunk_rows: int = CHUNK_ROWS,
 ) -> dict[str, Any]:
     """The error model on a CSV of measurements (a lab's or a twin run's signals.csv).
 
@@ -39,50 +52,166 @@ def compensate(
     and a true wear; ``coefficients`` the tester's identified coefficients (a file written by
     ``twin identify``, or an inline table; default the committed identification); ``factors``; and optionally
     ``drift_window`` (default 5 min). Writes errormodel.csv, summary.json, error_budget.png
-    into ``out_dir``; returns the summary. ``config`` (an error-model configuration and its
-    name) replaces the file: :func:`run_folder_config` gives a run's own.
+    (and flagged_rows.csv when rows were left out) into ``out_dir``; returns the summary.
+    ``config`` (an error-model configuration and its name) replaces the file:
+    :func:`run_folder_config` gives a run's own.
+
+    The file is streamed: read ``block_bytes`` at a time and evaluated ``chunk_rows`` rows at a
+    time (:class:`~twin.errormodel.streaming.StreamingEvaluation`, the same numbers as the
+    whole record at once), each chunk's results appended to errormodel.csv. A file refused
+    part way (a time out of order on line 150,000) leaves none of this command's files.
     """
     cfg, source = config or compensation_config(config_path)
-    # only the columns the error model reads: a run's wide signals.csv need not fit in memory
-    table = read_signals_csv(csv_path, keep_whole_last_line=True, only=input_columns(cfg))
-    table, flagged = _without_bad_rows(table, input_columns(cfg), str(csv_path))
-    evaluation = evaluate(table, cfg)
     folder = RunFolder(out_dir)
-    folder.make()
+    flags = _FlagFile(folder.file(FLAGGED_CSV))
+    reader = MeasurementReader(
+        csv_path,
+        (required_columns(cfg), source),
+        input_columns(cfg),
+        on_flag=flags.add,
+        block_bytes=block_bytes,
+    )
+    # matplotlib's import (a third of a second of pure Python) runs while Arrow parses the
+    # file without the GIL; the plot at the end finds it done
+    threading.Thread(target=_import_plotting, name="import matplotlib", daemon=True).start()
+    evaluation = StreamingEvaluation(
+        cfg, [Signal(n, "", "measured") for n in reader.names[1:]], chunk_rows=chunk_rows
+    )
+    try:
+        folder.make()
+        flags.path.unlink(missing_ok=True)  # an earlier compensate's: this one's outputs replace it
+        _stream(reader, evaluation, folder.file(ERRORMODEL_CSV), flags)
+    finally:
+        reader.close()
     summary = {
         "input": str(csv_path),
         "config": source,
         "status": "completed",
-        "input_rows": {"used": len(table), "flagged": len(flagged), "flagged_times_s": flagged[:20]},
-        **evaluation.summary,
+        "input_rows": {
+            "read": reader.read_rows,
+            "used": evaluation.rows,
+            "flagged": reader.flagged,
+            "flagged_rows": FLAGGED_CSV if reader.flagged else None,
+            "first_flagged": [f"line {f.line}: {f.reason}" for f in flags.first],
+        },
+        **evaluation.summary(),
     }
-    columns = tuple(n for n in table.names() if n.startswith("errormodel."))
-    sinks = folder.result_sinks(name=csv_path.name, plot=budget_columns(cfg))
-    write_outputs(sinks, Evaluated(table, columns, evaluation.summary), lambda: summary)
+    from twin.outputs.plots import ErrorBudgetSink
+    from twin.outputs.summary import SummarySink
+
+    title = f"{csv_path.name}: predicted error and its parts"
+    sinks = [
+        ErrorBudgetSink(folder.file(ERROR_BUDGET_PNG), budget_columns(cfg), title),
+        SummarySink(folder.file(SUMMARY_JSON)),
+    ]
+    write_outputs(sinks, Evaluated(evaluation.plot_table(), (), summary), lambda: summary)
     return summary
 
 
-def _without_bad_rows(table: SignalTable, columns: set[str], source: str) -> tuple[SignalTable, list[float]]:
-    """The table without the rows where a column the error model reads is not a finite number
-    (a sensor's dropout written as nan, an inf), and the times of those rows. One bad row
-    would otherwise make every result of the error model nan; the rest is computed, and the
-    summary says which rows were left out (``input_rows``)."""
-    used = [n for n in table.names() if n in columns]
-    good = np.ones(len(table), dtype=bool)
-    for name in used:
-        good &= np.isfinite(table[name])
-    if good.all():
-        return table, []
-    if good.sum() < 2:
-        raise ConfigError(
-            f"fewer than two rows with finite values in every column the error model reads ({', '.join(used)})",
-            source=source,
-        )
-    flagged = [float(t) for t in table.time[~good]]
-    out = SignalTable(time=np.ascontiguousarray(table.time[good]))
-    for name in table.names():
-        out.add(table.meta[name], np.ascontiguousarray(table[name][good]))
-    return out, flagged
+def _stream(reader: MeasurementReader, evaluation: StreamingEvaluation, path: Path, flags: _FlagFile) -> None:
+    """Read, evaluate and write errormodel.csv (and flagged_rows.csv) chunk by chunk; a file
+    refused part way removes what was written of them."""
+    writer = _LazyCsv(path, evaluation)
+    try:
+        with writer, flags:
+            for block in reader.blocks():
+                for done in evaluation.feed(block):
+                    writer.append(done)
+            for done in evaluation.finish():
+                writer.append(done)
+        if evaluation.rows < 2:
+            raise ConfigError(
+                f"fewer than two samples the error model can use ({reader.read_rows} data row(s), "
+                f"{reader.flagged} flagged)",
+                source=reader.source,
+            )
+    except ConfigError:
+        for made in (*writer.created, *flags.created):
+            made.unlink(missing_ok=True)
+        raise
+
+
+def _import_plotting() -> None:
+    """Import what the plot draws with (see :func:`compensate`); a failure shows at the plot."""
+    try:
+        import matplotlib.backends.backend_agg
+        import matplotlib.figure  # noqa: F401  (imported for the plot, later)
+    except Exception:
+        return  # the plot's own import reports it
+
+
+def required_columns(cfg: EvaluationConfig) -> dict[str, str]:
+    """The columns every record must have (the reading and the eight temperatures), each with
+    the ``[errormodel]`` key that names it."""
+    out = {cfg.reading: "reading"}
+    out.update({col: f"temperatures.{point}" for point, col in cfg.temperatures.items()})
+    return out
+
+
+class _LazyCsv:
+    """errormodel.csv, created with the first rows (a file refused at its header creates none).
+
+    The rows are formatted and written on a thread of their own: Arrow formats numbers and
+    parses the input without holding the GIL, so writing one chunk overlaps reading the next
+    (on two cores the writing then costs next to nothing). At most two chunks wait.
+    """
+
+    def __init__(self, path: Path, evaluation: StreamingEvaluation) -> None:
+        self.path = path
+        self.evaluation = evaluation
+        self.created: set[Path] = set()
+        self._writer: SignalsCsvWriter | None = None
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="errormodel.csv")
+        self._pending: deque[Future[None]] = deque()
+
+    def append(self, block: Block) -> None:
+        if self._writer is None:
+            self.created |= {self.path, units_sidecar_path(self.path)}
+            self._writer = SignalsCsvWriter.for_signals(self.path, self.evaluation.outputs)
+        self._pending.append(self._pool.submit(self._writer.append, block.time, block.columns))
+        while len(self._pending) > 2:
+            self._pending.popleft().result()  # a failed write (a full disk) is raised here
+
+    def __enter__(self) -> _LazyCsv:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            while self._pending:
+                self._pending.popleft().result()
+        finally:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            if self._writer is not None:
+                self._writer.close()
+
+
+class _FlagFile:
+    """flagged_rows.csv (``line,reason``), created with the first flagged row; the first
+    :data:`SUMMARY_FLAGS` are also kept for the summary."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.first: list[Flag] = []
+        self.created: set[Path] = set()
+        self._file: IO[str] | None = None
+        self._csv: Any = None
+
+    def add(self, flag: Flag) -> None:
+        if self._file is None:
+            self.created.add(self.path)
+            self._file = open(self.path, "w", encoding="utf-8", newline="")  # noqa: SIM115
+            self._csv = csv.writer(self._file, lineterminator="\n")
+            self._csv.writerow(["line", "reason"])
+        self._csv.writerow([flag.line, flag.reason])
+        if len(self.first) < SUMMARY_FLAGS:
+            self.first.append(flag)
+
+    def __enter__(self) -> _FlagFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._file is not None:
+            self._file.close()
 
 
 def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str]:

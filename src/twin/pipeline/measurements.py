@@ -1,0 +1,289 @@
+"""A CSV of measurements read in blocks, for ``twin compensate``: the columns the error model
+reads, the rows it can use, and the rows it cannot, flagged.
+
+What is refused (:class:`~twin.errors.ConfigError`: one line naming the file and the line,
+exit code 2) and what is flagged (the row is left out, the rest computed, the row listed):
+
+* the file: missing, not a regular file, empty, a header that is not ``time,<name>,...``
+  (incomplete, an empty name, a name twice), a column the error model reads missing, fewer than
+  two usable rows, bytes that are not UTF-8 text anywhere in the file: refused;
+* the time column: a value that is not a finite number, or a time not after the one before
+  (rows of the wrong length apart): refused, as the drift windows and the filter's order
+  depend on it;
+* a row: the wrong number of values (a torn line, a logger's restart), or a column the error
+  model reads holding anything but a finite number (``nan``, ``inf``, empty, ``NA``, a word):
+  flagged. Columns the error model does not read are not looked at (a wide file's other
+  columns may hold anything).
+
+Blocks of about ``block_bytes`` are parsed by Arrow's C++ reader (correctly rounded, as
+Python's ``float()``), only the columns kept; a block Arrow refuses, or one with a value to
+flag or a time out of order, is read again line by line, which says which line and why. A last
+line without its line break is a row like any other.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import stat
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from twin.errormodel.streaming import Block
+from twin.errors import ConfigError
+from twin.outputs.csv import TIME
+
+__all__ = ["BLOCK_BYTES", "Flag", "MeasurementReader"]
+
+#: bytes of the file parsed at a time
+BLOCK_BYTES = 1 << 22
+#: the header line may be this long (a file of one huge line is not a CSV of measurements)
+HEADER_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class Flag:
+    """A row left out: its line in the file (1 = the header) and why."""
+
+    line: int
+    reason: str
+
+
+class MeasurementReader:
+    """The rows of ``path`` in :class:`~twin.errormodel.streaming.Block` s of the ``keep``
+    columns present (time first), flagged rows left out and given to ``on_flag``.
+
+    ``required`` are the columns that must be present, each with the ``[errormodel]`` key that
+    names it, and the configuration's name (for the message). Opening reads and checks the header; :meth:`blocks` reads the rest.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        required: tuple[dict[str, str], str],
+        keep: set[str],
+        *,
+        on_flag: Callable[[Flag], None],
+        block_bytes: int = BLOCK_BYTES,
+    ) -> None:
+        self.path, self.source = path, str(path)
+        self.block_bytes = max(1, block_bytes)
+        self.on_flag = on_flag
+        self.read_rows = 0  # data rows seen (blank lines apart)
+        self.flagged = 0
+        self._last_time = -math.inf
+        self._file = _open_regular(path)
+        try:
+            self.header = self._read_header()
+            _check_required(self.header, *required, self.source)
+        except BaseException:
+            self._file.close()
+            raise
+        self.kept = [j for j, h in enumerate(self.header) if j == 0 or h in keep]
+        self.names = [self.header[j] for j in self.kept]
+
+    def close(self) -> None:
+        self._file.close()
+
+    def _read_header(self) -> list[str]:
+        raw = self._file.readline(HEADER_BYTES)
+        if not raw.strip():
+            raise ConfigError(f"empty file, expected a header '{TIME},<name>,...'", source=self.source)
+        if not raw.endswith(b"\n"):
+            raise ConfigError(
+                "line 1: the header has no line break after it (or is longer than 1 MB)", source=self.source
+            )
+        try:
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise ConfigError(
+                f"line 1: not UTF-8 text (byte {raw[exc.start]:#04x})", source=self.source
+            ) from None
+        header = [h.strip().strip('"').strip() for h in text.rstrip("\r\n").split(",")]
+        if header[0] != TIME:
+            raise ConfigError(f"line 1: first column must be '{TIME}', got {header[0]!r}", source=self.source)
+        if not all(header[1:]):
+            raise ConfigError("line 1: empty column name", source=self.source)
+        twice = sorted({h for h in header if header.count(h) > 1})
+        if twice:
+            raise ConfigError(f"line 1: column(s) {twice} appear twice", source=self.source)
+        return header
+
+    def blocks(self) -> Iterator[Block]:
+        """The usable rows, block by block (times finite and strictly increasing)."""
+        line = 2  # of the block's first byte
+        rest = b""
+        while True:
+            data = self._file.read(self.block_bytes)
+            if not data:
+                break
+            data = rest + data
+            cut = data.rfind(b"\n") + 1
+            block, rest = data[:cut], data[cut:]
+            if block:
+                yield from self._block(block, line)
+                line += block.count(b"\n")
+        if rest.strip():  # a last line without its line break: a row like any other
+            yield from self._block(rest + b"\n", line)
+
+    def _block(self, data: bytes, line: int) -> Iterator[Block]:
+        if not data.isascii():
+            try:
+                data.decode("utf-8")
+            except UnicodeDecodeError as exc:
+                at = line + data.count(b"\n", 0, exc.start)
+                raise ConfigError(
+                    f"line {at}: not UTF-8 text (byte {data[exc.start]:#04x})", source=self.source
+                ) from None
+        parsed = self._fast(data)
+        if parsed is None:
+            parsed = self._careful(data, line)
+        elif len(parsed):
+            self.read_rows += len(parsed)
+            self._last_time = float(parsed.time[-1])
+        if len(parsed):
+            yield parsed
+
+    def _fast(self, data: bytes) -> Block | None:
+        """The block by Arrow, when every row is well formed, usable and in order; else None."""
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+
+        ncol = len(self.header)
+        names = [f"c{j}" for j in range(ncol)]
+        try:
+            table = pacsv.read_csv(
+                io.BytesIO(data),
+                read_options=pacsv.ReadOptions(column_names=names),
+                convert_options=pacsv.ConvertOptions(
+                    include_columns=[names[j] for j in self.kept],
+                    column_types={names[j]: pa.float64() for j in self.kept},
+                ),
+            )
+        except (pa.ArrowInvalid, pa.ArrowException):
+            return None
+        cols = [_floats(table.column(names[j])) for j in self.kept]
+        if any(c is None for c in cols):
+            return None  # a null ("nan", "", "NA"): a row to flag
+        time = cols[0]
+        if time.size and (time[0] <= self._last_time or not np.all(np.diff(time) > 0)):
+            return None
+        if not all(np.isfinite(c).all() for c in cols):  # inf
+            return None
+        return Block(time, dict(zip(self.names[1:], cols[1:], strict=True)))
+
+    def _careful(self, data: bytes, first_line: int) -> Block:
+        """The block line by line: each flagged row and each refusal with its line number."""
+        ncol = len(self.header)
+        rows: list[list[float]] = []
+        for lineno, raw in enumerate(data.decode("utf-8").split("\n")[:-1], start=first_line):
+            if not raw.strip():
+                continue
+            self.read_rows += 1
+            fields = raw.split(",")
+            if len(fields) != ncol:
+                self._flag(lineno, f"{len(fields)} values, the header has {ncol} columns")
+                continue
+            t = self._time(fields[0], lineno)
+            row, bad = [t], None
+            for j in self.kept[1:]:
+                value = _number(fields[j])
+                if value is None or not math.isfinite(value):
+                    bad = f"column '{self.header[j]}': {fields[j].strip()!r} is not a finite number"
+                    break
+                row.append(value)
+            if bad is not None:
+                self._flag(lineno, bad)
+                continue
+            rows.append(row)
+        values = np.array(rows, dtype=np.float64).reshape(len(rows), len(self.kept))
+        return Block(
+            np.ascontiguousarray(values[:, 0]),
+            {n: np.ascontiguousarray(values[:, k]) for k, n in enumerate(self.names[1:], start=1)},
+        )
+
+    def _time(self, text: str, lineno: int) -> float:
+        t = _number(text)
+        if t is None or not math.isfinite(t):
+            raise ConfigError(
+                f"line {lineno}: time {text.strip()!r} is not a finite number (a row's place in "
+                "the record cannot be flagged away)",
+                source=self.source,
+            )
+        if t <= self._last_time:
+            raise ConfigError(
+                f"line {lineno}: time {t!r} s is not after {self._last_time!r} s (time must increase)",
+                source=self.source,
+            )
+        self._last_time = t
+        return t
+
+    def _flag(self, line: int, reason: str) -> None:
+        self.flagged += 1
+        self.on_flag(Flag(line, reason))
+
+
+def _floats(column: Any) -> np.ndarray | None:
+    """An Arrow float64 column as one numpy array, None if it holds a null. From the buffers:
+    Arrow's own to_numpy() would import pandas (half a second, 40 MB)."""
+    parts = []
+    for chunk in column.chunks:
+        if chunk.null_count:
+            return None
+        data = np.frombuffer(chunk.buffers()[1], dtype=np.float64)
+        parts.append(data[chunk.offset : chunk.offset + len(chunk)])
+    if not parts:
+        return np.empty(0)
+    return np.concatenate(parts) if len(parts) > 1 else parts[0].copy()
+
+
+def _number(text: str) -> float | None:
+    """The number in a field as Arrow reads it (blanks and double quotes around it allowed),
+    or None. Python's float() alone would also take ``1_000``, which Arrow does not."""
+    text = text.strip().strip('"')
+    if "_" in text:
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _open_regular(path: Path) -> io.BufferedReader:
+    """``path`` opened for reading, refused in one line unless it is a regular file (a folder,
+    a device or a FIFO could block or never end)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc.strerror or exc}", source=str(path)) from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        what = "a folder" if stat.S_ISDIR(mode) else "not a regular file (a device, FIFO or socket)"
+        raise ConfigError(f"cannot read: is {what}, expected a CSV file", source=str(path))
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "rb")
+
+
+def _check_required(header: Sequence[str], required: dict[str, str], config: str, source: str) -> None:
+    """Every column the error model needs is in the header; else one line naming each missing
+    column, the key of ``config`` that names it, and a close match."""
+    import difflib
+
+    missing = [c for c in required if c not in header]
+    if not missing:
+        return
+    hints = []
+    for c in missing:
+        close = difflib.get_close_matches(c, header[1:], n=1)
+        hints.append(f"'{c}' ({required[c]}" + (f"; did you mean '{close[0]}'?)" if close else ")"))
+    raise ConfigError(
+        f"no column {', '.join(hints)}, as [errormodel] in {config} names them; the error model reads "
+        f"{TIME}, {', '.join(required)}",
+        source=source,
+    )
