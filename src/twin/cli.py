@@ -254,11 +254,14 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from twin.errormodel.config import check_recorded_columns, evaluation_config
+    from twin.errormodel.config import evaluation_config
+    from twin.validation.replay import for_run
 
+    # the checks twin run makes before it runs: the scenario, its error model (with the
+    # columns it reads), its [uncertainty] table
     scenario = _load(args)
     evaluation_config(scenario)
-    check_recorded_columns(scenario)
+    for_run(_scenario_path(args.scenario), args.set or [], None)
     print(
         f"{scenario.source_path}: ok ({scenario.name}: {len(scenario.fmus)} FMUs, "
         f"{len(scenario.connections)} connections, {len(scenario.profiles)} profiles, {len(scenario.events)} events)"

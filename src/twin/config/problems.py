@@ -32,9 +32,10 @@ class Problems:
 
     def add(self, key: str, message: str) -> None:
         """One problem at ``key`` (a repeated one is kept once)."""
-        if any(e.key == key and e.message == message for e in self.items):
+        problem = ConfigError(message, source=self.source, key=key)
+        if any(e.key == problem.key and e.message == problem.message for e in self.items):
             return  # one line per problem: a list connection repeats its source for each input
-        self.items.append(ConfigError(message, source=self.source, key=key))
+        self.items.append(problem)
 
     def unknown_keys(self, table: Mapping[str, Any], allowed: set[str], prefix: str) -> None:
         """A problem for every key of ``table`` not in ``allowed``."""
