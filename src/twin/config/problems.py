@@ -139,9 +139,10 @@ def _read_regular_file(path: Path, source: str) -> bytes:
     return data
 
 
-def _check_values(data: Any, source: str) -> None:
-    """Depth and integer range of parsed TOML, walked without recursion."""
-    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+def check_values(data: Any, source: str, key: str = "") -> None:
+    """Depth and integer range of parsed TOML (a file's, a ``--set`` value's at ``key``, a
+    sweep point's), walked without recursion: :class:`ConfigError` at the first problem."""
+    stack: list[tuple[Any, str, int]] = [(data, key, 0)]
     while stack:
         node, key, depth = stack.pop()
         if depth > MAX_TOML_DEPTH:
@@ -191,7 +192,7 @@ def parse_toml(text: str, source: str) -> dict[str, Any]:
         raise ConfigError(
             "a number with thousands of digits (TOML integers are 64-bit)", source=source
         ) from None
-    _check_values(data, source)
+    check_values(data, source)
     return data
 
 
