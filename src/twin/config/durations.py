@@ -27,7 +27,7 @@ _DURATION_RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?)\s*([a-
 
 
 def _number_of_seconds(value: int | float) -> Fraction:
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):
         raise ValueError(f"expected a finite duration, got {value!r}")
     return Fraction(repr(float(value)) if isinstance(value, float) else value) * NS_PER_S
 

@@ -21,7 +21,7 @@ from twin.config.events import FAULTS, load_events
 from twin.config.fmus import load_fmus
 from twin.config.inputs import load_profiles
 from twin.config.overrides import apply_overrides
-from twin.config.problems import Problems, check_values, read_toml, table
+from twin.config.problems import Problems, read_toml, table
 from twin.config.scenario_table import load_scenario_table
 from twin.config.spec import FMUSpec, Parameter, Scenario
 from twin.errors import ConfigError, ConfigErrors
@@ -52,8 +52,6 @@ def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None) -
 
 def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Scenario:
     """Check an already-parsed scenario; raises :class:`ConfigErrors` listing every problem."""
-    # data from --set, a sweep's point or a caller did not pass the file reader's checks
-    check_values(data, source)
     p = Problems(source)
     p.unknown_keys(data, _TOP_KEYS, "")
     sc = load_scenario_table(p, data, source)
