@@ -1007,6 +1007,40 @@ def test_every_bad_set_is_reported_at_once(tmp_path: Path, capsys) -> None:
     assert "not a table" in out[1]
 
 
+# ----------------------------------------------------------------------------- validate and run agree
+
+#: one case of each class: twin run must refuse them before anything runs, with validate's line
+SHARED_CASES = [
+    "num-param-int-beyond-float",
+    "num-profile-inf",
+    "time-step-longer-than-duration",
+    "time-duration-5000-digits",
+    "range-delay-initial-celsius",
+    "range-bias-wider-than-fed-input",
+    "range-integer-param-above-max",
+    "em-reading-misspelt",
+    "em-temperature-point-misspelt",
+    "em-factor-misspelt",
+    "set-int-beyond-float-in-a-table",
+    "parameter-file-missing",
+]
+
+
+@pytest.mark.parametrize("case_id", SHARED_CASES)
+def test_run_refuses_what_validate_refuses_with_the_same_line(case_id: str, tmp_path: Path, capsys) -> None:
+    case = next(c for c in CASES if c.id == case_id)
+    path = build(case, tmp_path)
+    sets = [a for s in case.sets for a in ("--set", s)]
+    assert main(["validate", str(path), *sets]) == 2
+    validate_err = capsys.readouterr().err
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--quiet", "--out", str(out), *sets]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == validate_err
+    check_report(captured.err, path, case.key, case.word, case.lines)
+    assert not out.exists()  # refused before the run folder was made
+
+
 # ----------------------------------------------------------------------------- the real entry point
 
 SUBPROCESS_CASES = ["syntax-unquoted-duration", "connection-unit-mismatch", "parameter-negative-capacity"]
