@@ -25,15 +25,42 @@ def rerun(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_rerun_reproduces_what_the_rises_determine(rerun: Path) -> None:
-    # the fit is regularised, so its optimum is unique; still, no assertion may rest on the
-    # floating-point noise of a flat direction: rises to 0.02 K, parameters to a tenth of their
-    # own posterior standard error
+    """Seven rises cannot identify sixteen values (the Jacobian's rank is 7, and the rises inform
+    only a few directions more than the priors do): along the other directions the optimum is
+    flat but for the priors, and a fresh install's last-digit differences in the FMU's numbers
+    move it there. A single fitted value compared tightly to the committed file once failed for
+    exactly that reason. So only what the data determine is compared:
+
+    * the fitted rises, the fit's image of the data: to 0.02 K, a fifteenth of the 0.3 K
+      measurement sigma;
+    * the minimum of the objective (data misfit plus prior penalty): a flat optimum's value is
+      stable where its position is not: to 0.1 %;
+    * the rank and the number of informed directions, integers;
+    * each value to within one of its own posterior standard errors, what "determined" means:
+      tight where the rises inform it, as wide as the prior where only the prior does.
+    """
     new, old = _report(rerun), _report(COMMITTED.with_suffix(".json"))
     for body in BODIES:
         assert new["rises_K"][body]["twin"] == pytest.approx(old["rises_K"][body]["twin"], abs=0.02), body
+    assert _objective(new) == pytest.approx(_objective(old), rel=1e-3)
+    assert (new["jacobian_rank"], new["informed_directions"]) == (
+        old["jacobian_rank"],
+        old["informed_directions"],
+    )
     for k, p in new["parameters"].items():
         se = p["posterior_rel_sigma"]
-        assert math.log(p["value"] / old["parameters"][k]["value"]) == pytest.approx(0.0, abs=0.1 * se), k
+        assert abs(math.log(p["value"] / old["parameters"][k]["value"])) <= se, k
+
+
+def _objective(rep: dict) -> float:
+    """The fit's weighted least-squares objective, from its report: the rises' misfit in
+    measurement sigmas plus each log-factor in its prior sigmas (src/twin/calibrate.py)."""
+    sigma = rep["sigma_meas_K"]
+    misfit = sum(((r["twin"] - r["paper"]) / sigma) ** 2 for r in rep["rises_K"].values())
+    prior = sum(
+        (math.log(p["value"] / p["drawing"]) / p["prior_rel_sigma"]) ** 2 for p in rep["parameters"].values()
+    )
+    return misfit + prior
 
 
 def test_the_report_gives_rank_intervals_and_room_shapes(rerun: Path) -> None:

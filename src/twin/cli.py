@@ -189,7 +189,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import functools
     import time
 
-    from twin.errormodel.config import check_recorded_columns
+    from twin.errormodel.config import evaluation_config
     from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import run
     from twin.validation.replay import for_run
@@ -199,7 +199,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # everything recorded and a summary saying "interrupted"
     stop = _stop_on_signals()
     scenario = _load(args)
-    check_recorded_columns(scenario)
+    evaluation_config(scenario)  # the error model's checks, as twin validate makes them
     if args.uncertainty is not None and args.uncertainty < 0:
         raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
     path = _scenario_path(args.scenario)
@@ -305,11 +305,14 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from twin.errormodel.config import check_recorded_columns, evaluation_config
+    from twin.errormodel.config import evaluation_config
+    from twin.validation.replay import for_run
 
+    # the checks twin run makes before it runs: the scenario, its error model (with the
+    # columns it reads), its [uncertainty] table
     scenario = _load(args)
     evaluation_config(scenario)
-    check_recorded_columns(scenario)
+    for_run(_scenario_path(args.scenario), args.set or [], None)
     print(
         f"{scenario.source_path}: ok ({scenario.name}: {len(scenario.fmus)} FMUs, "
         f"{len(scenario.connections)} connections, {len(scenario.profiles)} profiles, {len(scenario.events)} events)"

@@ -16,10 +16,18 @@ class TwinError(Exception):
     exit_code = 1
 
 
+#: the longest file name, key or message a problem line shows of each (a 5000-digit number or
+#: a key of a megabyte would otherwise make the "one line" unreadable)
+MAX_SHOWN = 500
+
+
 def _one_line(text: str | None) -> str | None:
     if text is None:
         return None
-    return text.replace("\r", "\\r").replace("\n", "\\n")
+    text = text.replace("\r", "\\r").replace("\n", "\\n")
+    if len(text) > MAX_SHOWN:
+        text = f"{text[: MAX_SHOWN - 80]}... ({len(text)} characters)"
+    return text
 
 
 class ConfigError(TwinError, ValueError):

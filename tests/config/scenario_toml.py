@@ -18,11 +18,13 @@ _PAPER_DATA = tomllib.loads(PAPER.read_text(encoding="utf-8"))
 
 
 def paper_data() -> dict[str, Any]:
-    """A fresh copy of the paper's scenario, parameter files made absolute (so it loads from anywhere)."""
+    """A fresh copy of the paper's scenario, the files it names made absolute (so it loads from anywhere)."""
     data = copy.deepcopy(_PAPER_DATA)
     for fmu in data["fmu"].values():
         if "parameter_files" in fmu:
             fmu["parameter_files"] = [str((PAPER.parent / f).resolve()) for f in fmu["parameter_files"]]
+    if "spreads" in data.get("uncertainty", {}):
+        data["uncertainty"]["spreads"] = str((PAPER.parent / data["uncertainty"]["spreads"]).resolve())
     return data
 
 
@@ -89,8 +91,8 @@ def write(path: Path, data: dict[str, Any] | str | bytes) -> Path:
 
 
 def paper_text() -> str:
-    """The paper's scenario as text, parameter files made absolute."""
+    """The paper's scenario as text, the files it names made absolute."""
     text = PAPER.read_text(encoding="utf-8")
-    for folder in ("calibration", "base"):
+    for folder in ("calibration", "base", "validation"):
         text = text.replace(f'"{folder}/', f'"{PAPER.parent / folder}/')
     return text

@@ -495,6 +495,407 @@ CASES = [
 ]
 
 
+# ----------------------------------------------------------------------------- issue 13: the classes
+# Each class of bad input, not only one example of it: numbers a float cannot hold or no run can
+# use, times that are zero, negative, absurd or inconsistent, values outside a variable's declared
+# range (modelDescription min/max: the FMU would refuse them mid-run), misspelt error-model
+# columns. Each: exit 2, one line naming the file and the key.
+
+
+def _range(inst: str, var: str) -> tuple[float, float]:
+    """The declared [min, max] of an instance's variable in the paper's scenario."""
+    from twin.fmu.catalog import variables
+
+    model = paper_data()["fmu"][inst]["model"]
+    v = variables(model)[var]
+    return v.min, v.max
+
+
+def above(inst: str, var: str) -> float:
+    _, hi = _range(inst, var)
+    return hi + max(1.0, abs(hi))
+
+
+def below(inst: str, var: str) -> float:
+    lo, _ = _range(inst, var)
+    return lo - max(1.0, abs(lo))
+
+
+def profile(target: str, **fields: Any) -> Mutation:
+    inst, var = target.split(".")
+    return setv(("input", inst, var), fields)
+
+
+def bias(*values: float, target: str = "thermal.t_bearing") -> Mutation:
+    evs = [
+        {"at": f"{10 * (i + 1)} min", "action": "bias", "target": target, "value": v}
+        for i, v in enumerate(values)
+    ]
+    return setv("event", evs)
+
+
+def room_delay(initial: float) -> Mutation:
+    return both(
+        ROOM_FROM_SENSOR[0],
+        setv("delay", [{"from": "sensors.t_room_meas", "to": "thermal.t_room", "initial": initial}]),
+    )
+
+
+def seed_text(literal: str) -> Callable[[], str]:
+    return text("seed = 2017", f"seed = {literal}")
+
+
+def param_text(literal: str) -> Callable[[], str]:
+    return lambda: paper_text() + f"\n[fmu.thermal.parameters]\nc_base = {literal}\n"
+
+
+C_BASE = "fmu.thermal.parameters.c_base"
+NAN, INF = float("nan"), float("inf")
+
+CLASS_CASES = [
+    # --- numbers no float holds, or no finite number
+    Case("num-param-nan", C_BASE, "finite", setv(C_BASE, NAN)),
+    Case("num-param-inf", C_BASE, "finite", setv(C_BASE, INF)),
+    Case("num-param-minus-inf", C_BASE, "finite", setv(C_BASE, -INF)),
+    Case("num-param-1e999", C_BASE, "finite", content=param_text("1e999")),
+    Case("num-param-int-beyond-float", C_BASE, "64-bit", content=param_text("9" * 400)),
+    Case("num-param-int-beyond-64-bit", C_BASE, "64-bit", setv(C_BASE, 2**64)),
+    Case("num-param-int-5000-digits", None, "digits", content=param_text("1" * 5000)),
+    Case("num-param-negative-int-5000-digits", None, "digits", content=param_text("-" + "7" * 5000)),
+    Case("num-seed-int-beyond-float", "scenario.seed", "64-bit", content=seed_text("1" * 330)),
+    Case(
+        "num-std-error-inf",
+        C_BASE + ".std_error",
+        "finite",
+        setv(C_BASE, {"value": 1000.0, "std_error": INF}),
+    ),
+    Case(
+        "num-std-error-nan",
+        C_BASE + ".std_error",
+        "finite",
+        setv(C_BASE, {"value": 1000.0, "std_error": NAN}),
+    ),
+    Case("num-std-error-zero", C_BASE + ".std_error", "> 0", setv(C_BASE, {"value": 1000.0, "std_error": 0})),
+    Case(
+        "num-profile-inf",
+        "input.thermal.q_hydraulic.value",
+        "finite",
+        setv("input.thermal.q_hydraulic.value", INF),
+    ),
+    Case(
+        "num-profile-int-beyond-64-bit",
+        "input.thermal.q_hydraulic.value",
+        "64-bit",
+        setv("input.thermal.q_hydraulic.value", -(2**70)),
+    ),
+    Case("num-event-value-nan", "event[0].value", "finite", event(value=NAN)),
+    Case("num-event-value-minus-inf", "event[0].value", "finite", event(value=-INF)),
+    Case("num-delay-initial-inf", "delay[0].initial", "finite", room_delay(INF)),
+    Case(
+        "num-table-point-inf",
+        "input.thermal.q_friction.points",
+        "finite",
+        profile("thermal.q_friction", profile="table", points=[[0, 0.0], ["1 h", INF]]),
+    ),
+    # --- durations, steps, periods: zero, negative, not finite, absurd, inconsistent
+    Case("time-duration-1e30-seconds", "scenario.duration", "absurdly", setv("scenario.duration", 1e30)),
+    Case("time-duration-1e30-text", "scenario.duration", "absurdly", setv("scenario.duration", "1e30 s")),
+    Case("time-duration-nan", "scenario.duration", "finite", setv("scenario.duration", NAN)),
+    Case("time-duration-inf", "scenario.duration", "finite", setv("scenario.duration", INF)),
+    Case("time-duration-negative", "scenario.duration", "positive", setv("scenario.duration", -28800)),
+    Case("time-duration-int64-max", "scenario.duration", "absurdly", setv("scenario.duration", 2**63 - 1)),
+    Case(
+        "time-duration-5000-digits",
+        "scenario.duration",
+        "characters",
+        setv("scenario.duration", "1" * 5000 + " s"),
+    ),
+    Case(
+        "time-duration-5000-decimals",
+        "scenario.duration",
+        "characters",
+        setv("scenario.duration", "0." + "0" * 5000 + "1 s"),
+    ),
+    Case(
+        "time-step-longer-than-duration",
+        "scenario.duration",
+        "shorter than scenario.step",
+        setv("scenario.step", "10 h"),
+    ),
+    Case(
+        "time-step-equal-to-duration",
+        "scenario.duration",
+        "too short",
+        setv("scenario.step", "480 min"),
+        lines=None,
+    ),
+    Case("time-step-nan", "scenario.step", "finite", setv("scenario.step", NAN)),
+    Case("time-step-inf", "scenario.step", "finite", setv("scenario.step", INF)),
+    Case("time-step-1e-300", "scenario.step", "nanoseconds", setv("scenario.step", 1e-300)),
+    Case("time-step-absurd", "scenario.step", "absurdly", setv("scenario.step", "1e20 h")),
+    Case(
+        "time-output-interval-longer-than-duration",
+        "scenario.output_interval",
+        "longer than scenario.duration",
+        setv("scenario.output_interval", "9 h"),
+    ),
+    Case(
+        "time-output-interval-negative",
+        "scenario.output_interval",
+        "positive",
+        setv("scenario.output_interval", -10),
+    ),
+    Case(
+        "time-output-interval-nan",
+        "scenario.output_interval",
+        "finite",
+        setv("scenario.output_interval", NAN),
+    ),
+    Case("time-period-inf", "fmu.thermal.period", "finite", setv("fmu.thermal.period", INF)),
+    Case("time-period-absurd", "fmu.thermal.period", "absurdly", setv("fmu.thermal.period", "1e30 s")),
+    Case(
+        "time-period-longer-than-duration", "fmu.thermal.period", "divide", setv("fmu.thermal.period", "9 h")
+    ),
+    Case("time-drift-window-nan", "scenario.drift_window", "finite", setv("scenario.drift_window", NAN)),
+    Case(
+        "time-drift-window-absurd",
+        "scenario.drift_window",
+        "absurdly",
+        setv("scenario.drift_window", "1e30 s"),
+    ),
+    Case(
+        "time-profile-time-constant-nan",
+        "input.thermal.t_room.time_constant",
+        "finite",
+        setv("input.thermal.t_room.time_constant", NAN),
+    ),
+    Case(
+        "time-profile-sine-period-zero",
+        "input.thermal.q_friction.period",
+        "positive",
+        profile("thermal.q_friction", profile="sine", mean=10.0, amplitude=1.0, period=0),
+    ),
+    Case(
+        "time-profile-ramp-duration-absurd",
+        "input.mechanics.angle.duration",
+        "absurdly",
+        profile("mechanics.angle", profile="ramp", start=0.0, end=1.0, duration="1e300 s"),
+    ),
+    Case(
+        "time-table-time-nan",
+        "input.thermal.q_friction.points",
+        "finite",
+        profile("thermal.q_friction", profile="table", points=[[0, 0.0], [NAN, 1.0]]),
+    ),
+    Case("time-event-at-inf", "event[0].at", "finite", event(at=INF)),
+    Case("time-event-at-absurd", "event[0].at", "absurdly", event(at="1e30 s")),
+    Case("time-event-at-negative", "event[0].at", "within", event(at=-60)),
+    Case(
+        "time-event-ramp-negative-duration",
+        "event[0].duration",
+        "positive",
+        event(action="ramp", duration=-60),
+    ),
+    # --- values outside the declared [min, max] of their variable (modelDescription.xml)
+    Case("range-param-above-max", C_BASE, "physical range", setv(C_BASE, above("thermal", "c_base"))),
+    Case(
+        "range-conductance-below-min",
+        "fmu.thermal.parameters.g_base_room",
+        "physical range",
+        setv("fmu.thermal.parameters.g_base_room", below("thermal", "g_base_room")),
+    ),
+    Case(
+        "range-mechanics-param-above-max",
+        "fmu.mechanics.parameters.liner_creep_time",
+        "physical range",
+        setv("fmu.mechanics.parameters.liner_creep_time", above("mechanics", "liner_creep_time")),
+    ),
+    Case(
+        "range-mechanics-param-below-min",
+        "fmu.mechanics.parameters.solver_step",
+        "physical range",
+        setv("fmu.mechanics.parameters.solver_step", {"value": 0.0, "source": "typo"}),
+    ),
+    Case(
+        "range-sensors-param-above-max",
+        "fmu.sensors.parameters.probe_nonlinearity",
+        "physical range",
+        setv("fmu.sensors.parameters.probe_nonlinearity", above("sensors", "probe_nonlinearity")),
+    ),
+    Case(
+        "range-integer-param-above-max",
+        "fmu.sensors.parameters.seed",
+        "physical range",
+        setv("fmu.sensors.parameters.seed", 2**40),
+    ),
+    Case(
+        "range-integer-param-negative",
+        "fmu.sensors.parameters.seed",
+        "physical range",
+        setv("fmu.sensors.parameters.seed", -1),
+    ),
+    Case(
+        "range-constant-above",
+        "input.thermal.q_hydraulic",
+        "outside the range",
+        setv("input.thermal.q_hydraulic.value", 2e6),
+    ),
+    Case(
+        "range-constant-below",
+        "input.thermal.q_hydraulic",
+        "outside the range",
+        setv("input.thermal.q_hydraulic.value", -1.0),
+    ),
+    Case(
+        "range-room-in-celsius",
+        "input.thermal.t_room",
+        "outside the range",
+        setv("input.thermal.t_room.start", 20.0),
+    ),
+    Case(
+        "range-ramp-end",
+        "input.mechanics.angle",
+        "outside the range",
+        profile("mechanics.angle", profile="ramp", start=0.0, end=10.0, duration="1 h"),
+    ),
+    Case(
+        "range-sine-swing",
+        "input.thermal.q_friction",
+        "outside the range",
+        profile("thermal.q_friction", profile="sine", mean=10.0, amplitude=20.0, period="1 h"),
+    ),
+    Case(
+        "range-table-value",
+        "input.thermal.q_friction",
+        "outside the range",
+        profile("thermal.q_friction", profile="table", points=[[0, 0.0], ["1 h", -5.0]]),
+    ),
+    Case(
+        "range-exponential-rise",
+        "input.thermal.t_room",
+        "outside the range",
+        setv("input.thermal.t_room.rise", 500.0),
+    ),
+    Case("range-event-set", "event[0].value", "outside the range", event(value=-1.0)),
+    Case(
+        "range-event-ramp",
+        "event[0].value",
+        "outside the range",
+        event(action="ramp", duration="5 min", value=2e6),
+    ),
+    Case("range-delay-initial-celsius", "delay[0].initial", "outside the range", room_delay(20.0)),
+    Case(
+        "range-delay-initial-above",
+        "delay[0].initial",
+        "outside the range",
+        room_delay(above("thermal", "t_room")),
+    ),
+    Case("range-bias-wider-than-fed-input", "event[0].value", "wider", bias(500.0)),
+    Case(
+        "range-bias-wider-than-own-range",
+        "event[0].value",
+        "wider",
+        bias(-400.0, target="sensors.t_base_meas"),
+    ),
+    Case("range-biases-add-up", "event[1].value", "wider", bias(200.0, 200.0)),
+    # --- the error model's columns, checked against what the scenario records
+    Case(
+        "em-reading-misspelt",
+        "errormodel.reading",
+        "did you mean",
+        setv("errormodel.reading", "sensors.probe_mea"),
+    ),
+    Case(
+        "em-reading-unknown-instance",
+        "errormodel.reading",
+        "not recorded",
+        setv("errormodel.reading", "daq.probe_meas"),
+    ),
+    Case(
+        "em-reading-no-close-match",
+        "errormodel.reading",
+        "sensors records",
+        setv("errormodel.reading", "sensors.zzz"),
+    ),
+    Case("em-reading-empty", "errormodel.reading", "empty name", setv("errormodel.reading", "")),
+    Case("em-reading-number", "errormodel.reading", "a column name", setv("errormodel.reading", 5)),
+    Case(
+        "em-true-wear-misspelt",
+        "errormodel.true_wear",
+        "not recorded",
+        setv("errormodel.true_wear", "mechanics.wear"),
+    ),
+    Case("em-load-misspelt", "errormodel.load", "did you mean", setv("errormodel.load", "sensors.load_mes")),
+    Case(
+        "em-angle-misspelt",
+        "errormodel.angle",
+        "did you mean",
+        setv("errormodel.angle", "sensors.angel_meas"),
+    ),
+    Case(
+        "em-temperature-column-misspelt",
+        "errormodel.temperatures.base",
+        "did you mean",
+        setv("errormodel.temperatures", {"base": "sensors.t_bas_meas"}),
+    ),
+    Case(
+        "em-temperature-column-of-truth",
+        "errormodel.temperatures.room",
+        "not recorded",
+        setv("errormodel.temperatures", {"room": "thermal.t_room_true"}),
+    ),
+    Case(
+        "em-temperature-point-misspelt",
+        "errormodel.temperatures.bsae",
+        "did you mean 'base'",
+        setv("errormodel.temperatures", {"bsae": "sensors.t_base_meas"}),
+    ),
+    Case("em-temperatures-list", "errormodel.temperatures", "table", setv("errormodel.temperatures", ["a"])),
+    Case(
+        "em-factor-misspelt",
+        "errormodel.factors",
+        "expected a list",
+        setv("errormodel.factors", ["thermall"]),
+    ),
+    Case("em-factors-empty", "errormodel.factors", "expected a list", setv("errormodel.factors", [])),
+    Case("em-factors-string", "errormodel.factors", "expected a list", setv("errormodel.factors", "thermal")),
+    Case("em-unknown-key", "errormodel", "unknown key", setv("errormodel.readings", "sensors.probe_meas")),
+    Case(
+        "em-coefficients-number", "errormodel.coefficients", "file name", setv("errormodel.coefficients", 5)
+    ),
+    # --- the same classes through --set
+    Case(
+        "set-int-beyond-float-in-a-table",
+        "--set: input.thermal.q_friction.points[1][1]",
+        "64-bit",
+        sets=('input.thermal.q_friction={profile="table", points=[[0, 1.0], [1, ' + "9" * 400 + "]]}",),
+    ),
+    Case("set-5000-digits", "--set: scenario.seed", "digits", sets=("scenario.seed=" + "9" * 5000,)),
+    Case(
+        "set-nested-5000-deep",
+        "--set: scenario.seed",
+        "nested",
+        sets=("scenario.seed=" + "[" * 5000 + "]" * 5000,),
+    ),
+    Case(
+        "set-nested-40-deep",
+        "--set: scenario.seed" + "[0]" * 33,
+        "nested",
+        sets=("scenario.seed=" + "[" * 40 + "]" * 40,),
+    ),
+    Case("set-parameter-nan", C_BASE, "finite", sets=(f"{C_BASE}=nan",)),
+    Case("set-parameter-out-of-range", C_BASE, "physical range", sets=(f"{C_BASE}=-5.0",)),
+    Case("set-step-longer-than-duration", "scenario.duration", "shorter", sets=('scenario.step="9 h"',)),
+    Case(
+        "set-errormodel-column-misspelt",
+        "errormodel.reading",
+        "did you mean",
+        sets=('errormodel.reading="sensors.probe"',),
+    ),
+]
+CASES += CLASS_CASES
+
+
 def build(case: Case, tmp_path: Path) -> Path:
     path = tmp_path / f"{case.id}.toml"
     if case.id == "file-missing":
@@ -542,6 +943,36 @@ def test_bad_scenario_is_rejected_with_one_line_per_problem(case: Case, tmp_path
     check_report(captured.err, path, case.key, case.word, case.lines)
 
 
+@pytest.mark.parametrize("inst", ["thermal", "mechanics", "sensors"])
+def test_every_parameter_outside_its_declared_range_is_one_line(inst: str) -> None:
+    """The class, not examples: every numeric parameter of each paper instance, just beyond its
+    modelDescription min and max, is refused before the run naming the key and the range."""
+    import math
+
+    from twin.config.load import load_scenario_data
+    from twin.errors import ConfigErrors
+    from twin.fmu.catalog import variables
+
+    model = paper_data()["fmu"][inst]["model"]
+    checked = 0
+    for v in variables(model).values():
+        if v.causality != "parameter" or v.type == "Boolean":
+            continue
+        for bound, step in ((v.min, -1), (v.max, +1)):
+            if not math.isfinite(bound):
+                continue
+            value = bound + step * max(1.0, abs(bound)) if v.type == "Real" else int(bound) + step
+            data = paper_data()
+            data["fmu"][inst].setdefault("parameters", {})[v.name] = value
+            with pytest.raises(ConfigErrors) as exc:
+                load_scenario_data(data, "s.toml", Path("."))
+            key = f"fmu.{inst}.parameters.{v.name}"
+            assert str(exc.value).split("\n") == [str(exc.value.problems[0])], str(exc.value)
+            assert exc.value.problems[0].key == key and repr(bound) in exc.value.problems[0].message
+            checked += 1
+    assert checked >= 30
+
+
 def test_the_unmutated_paper_scenario_passes(tmp_path: Path, capsys) -> None:
     """The corpus's base is valid: each case fails for its mutation only."""
     path = write(tmp_path / "paper.toml", paper_data())
@@ -574,6 +1005,40 @@ def test_every_bad_set_is_reported_at_once(tmp_path: Path, capsys) -> None:
     assert main(["validate", str(path), "--set", "nothing", "--set", "scenario.step.x=1"]) == 2
     out = check_report(capsys.readouterr().err, path, "--set", "KEY=VALUE", 2)
     assert "not a table" in out[1]
+
+
+# ----------------------------------------------------------------------------- validate and run agree
+
+#: one case of each class: twin run must refuse them before anything runs, with validate's line
+SHARED_CASES = [
+    "num-param-int-beyond-float",
+    "num-profile-inf",
+    "time-step-longer-than-duration",
+    "time-duration-5000-digits",
+    "range-delay-initial-celsius",
+    "range-bias-wider-than-fed-input",
+    "range-integer-param-above-max",
+    "em-reading-misspelt",
+    "em-temperature-point-misspelt",
+    "em-factor-misspelt",
+    "set-int-beyond-float-in-a-table",
+    "parameter-file-missing",
+]
+
+
+@pytest.mark.parametrize("case_id", SHARED_CASES)
+def test_run_refuses_what_validate_refuses_with_the_same_line(case_id: str, tmp_path: Path, capsys) -> None:
+    case = next(c for c in CASES if c.id == case_id)
+    path = build(case, tmp_path)
+    sets = [a for s in case.sets for a in ("--set", s)]
+    assert main(["validate", str(path), *sets]) == 2
+    validate_err = capsys.readouterr().err
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--quiet", "--out", str(out), *sets]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == validate_err
+    check_report(captured.err, path, case.key, case.word, case.lines)
+    assert not out.exists()  # refused before the run folder was made
 
 
 # ----------------------------------------------------------------------------- the real entry point

@@ -80,6 +80,10 @@ def _errormodel(extra: str) -> Callable[[Path], Path]:
     return lambda d: _scenario(d, paper_text().replace("[errormodel]\n", "[errormodel]\n" + extra + "\n", 1))
 
 
+def _with_uncertainty(line: str) -> Callable[[Path], Path]:
+    return lambda d: _scenario(d, paper_text().replace("samples = 64", line, 1))
+
+
 HOSTILE = [
     # special files: refused before anything is read from them
     Hostile("extends-dev-zero", "regular file", _extends("/dev/zero"), "extends"),
@@ -154,6 +158,192 @@ HOSTILE = [
 ]
 
 
+# ----------------------------------------------------------------------------- issue 13: more of each class
+
+
+def _symlink_to(target: str | Callable[[Path], Path]) -> Callable[[Path], Path]:
+    """A scenario extending a symlink to ``target`` (a path, or a maker of one in the folder)."""
+
+    def make(d: Path) -> Path:
+        dest = target(d) if callable(target) else Path(target)
+        (d / "link.toml").symlink_to(dest)
+        return _scenario(d, 'extends = "link.toml"\n')
+
+    return make
+
+
+def _fifo_path(d: Path) -> Path:
+    os.mkfifo(d / "pipe")
+    return d / "pipe"
+
+
+def _big_path(d: Path) -> Path:
+    p = d / "big.toml"
+    with open(p, "wb") as f:
+        f.truncate(MAX_TOML_BYTES + 1)  # sparse: refused by its size before anything is read
+    return p
+
+
+def _cycle_of_two(d: Path) -> Path:
+    _scenario(d, 'extends = "b.toml"\n', "a.toml")
+    _scenario(d, 'extends = "a.toml"\n', "b.toml")
+    return d / "a.toml"
+
+
+def _cycle_through_symlink(d: Path) -> Path:
+    (d / "sub").mkdir()
+    (d / "sub" / "back.toml").symlink_to(d / "a.toml")
+    _scenario(d, 'extends = "sub/back.toml"\n', "a.toml")
+    return d / "a.toml"
+
+
+def _file_with(name: str, content: str | bytes) -> Callable[[Path], Path]:
+    def make(d: Path) -> Path:
+        p = d / name
+        p.write_bytes(content if isinstance(content, bytes) else content.encode())
+        return p
+
+    return make
+
+
+def _without_thermal_files(text: str) -> str:
+    import re
+
+    return re.sub(r'parameter_files = \["[^\]]*li2017-thermal-network.toml"\]\n', "", text, count=1)
+
+
+def _parameter_file(target: str | Callable[[Path], Path]) -> Callable[[Path], Path]:
+    """The paper's scenario whose thermal instance reads one parameter file, ``target``."""
+
+    def make(d: Path) -> Path:
+        dest = target(d) if callable(target) else Path(target)
+        text = _without_thermal_files(paper_text())
+        text = text.replace(
+            'model = "ThermalNetwork"', f'model = "ThermalNetwork"\nparameter_files = ["{dest}"]', 1
+        )
+        return _scenario(d, text)
+
+    return make
+
+
+def _coefficients(target: str | Callable[[Path], Path]) -> Callable[[Path], Path]:
+    def make(d: Path) -> Path:
+        dest = target(d) if callable(target) else Path(target)
+        return _scenario(
+            d, paper_text().replace("[errormodel]\n", f'[errormodel]\ncoefficients = "{dest}"\n', 1)
+        )
+
+    return make
+
+
+MORE_HOSTILE = [
+    # special files behind a symlink: the reader opens what the link points at, then refuses it
+    Hostile("extends-symlink-to-dev-zero", "regular file", _symlink_to("/dev/zero"), "extends"),
+    Hostile("extends-symlink-to-fifo", "regular file", _symlink_to(_fifo_path), "extends"),
+    Hostile("extends-symlink-to-directory", "directory", _symlink_to("/tmp"), "extends"),
+    Hostile("extends-symlink-to-huge-file", "bytes", _symlink_to(_big_path), "extends"),
+    Hostile("extends-dangling-symlink", "not found", _symlink_to("/nonexistent/x.toml"), "extends"),
+    Hostile(
+        "extends-sparse-huge-file", "bytes", lambda d: (_big_path(d), _extends("big.toml")(d))[1], "extends"
+    ),
+    Hostile("scenario-is-fifo", "regular file", lambda d: _fifo_path(d)),
+    Hostile("scenario-is-dev-zero", "regular file", lambda d: Path("/dev/zero"), file="/dev/zero"),
+    Hostile("scenario-is-sparse-huge", "bytes", _big_path),
+    # extends cycles and chains
+    Hostile("extends-cycle-of-two", "circular", _cycle_of_two, "extends"),
+    Hostile("extends-cycle-through-symlink", "circular", _cycle_through_symlink, "extends"),
+    Hostile("extends-chain-of-17", "chain", _chain(17), "extends", file="c16.toml"),
+    Hostile("extends-empty-name", "directory", _extends(""), "extends"),
+    Hostile("extends-table", "file name", lambda d: _scenario(d, "[extends]\na = 1\n"), "extends"),
+    # nesting beyond any scenario's needs
+    Hostile("deep-array-100000", "nested", _nested("array", 100_000)),
+    Hostile("deep-inline-tables-10000", "nested", _nested("table", 10_000)),
+    Hostile(
+        "deep-mixed-arrays-and-tables",
+        "nested",
+        lambda d: _scenario(d, paper_text() + "\nx = " + "[{ a = " * 3000 + "1" + " }]" * 3000 + "\n"),
+    ),
+    Hostile(
+        "deep-table-header",
+        "nested",
+        lambda d: _scenario(d, paper_text() + "\n[" + ".".join(["t"] * 5000) + "]\nx = 1\n"),
+    ),
+    Hostile(
+        "deep-dotted-key",
+        "nested",
+        lambda d: _scenario(d, "x" + ".y" * 5000 + " = 1\n" + paper_text()),
+    ),
+    Hostile(
+        "key-of-900-kB",
+        "unknown key",
+        lambda d: _scenario(d, "a" * 900_000 + " = 1\n" + paper_text()),
+    ),
+    # parameter files: the same reader, the same limits
+    Hostile(
+        "parameter-file-dev-zero", "regular file", _parameter_file("/dev/zero"), "fmu.thermal.parameter_files"
+    ),
+    Hostile(
+        "parameter-file-fifo", "regular file", _parameter_file(_fifo_path), "fmu.thermal.parameter_files"
+    ),
+    Hostile("parameter-file-directory", "directory", _parameter_file("/tmp"), "fmu.thermal.parameter_files"),
+    Hostile("parameter-file-huge", "bytes", _parameter_file(_big_path), "fmu.thermal.parameter_files"),
+    Hostile(
+        "parameter-file-deep",
+        "nested",
+        _parameter_file(_file_with("deep.toml", "[parameters]\nc_base = " + "[" * 3000 + "]" * 3000 + "\n")),
+        "fmu.thermal.parameter_files",
+    ),
+    Hostile(
+        "parameter-file-int-beyond-64-bit",
+        "64-bit",
+        _parameter_file(_file_with("int.toml", "[parameters]\nc_base = " + "9" * 30 + "\n")),
+        "fmu.thermal.parameter_files",
+    ),
+    Hostile(
+        "parameter-file-not-utf8",
+        "UTF-8",
+        _parameter_file(_file_with("latin1.toml", b"[parameters]\n# caf\xe9\n")),
+        "fmu.thermal.parameter_files",
+    ),
+    Hostile(
+        "parameter-file-syntax",
+        "syntax",
+        _parameter_file(_file_with("syntax.toml", "[parameters\nc_base = 1\n")),
+        "fmu.thermal.parameter_files",
+    ),
+    Hostile(
+        "parameter-file-value-out-of-range",
+        "physical range",
+        _parameter_file(_file_with("range.toml", "[parameters]\nc_base = -1.0\n")),
+        "range.toml: parameters.c_base",
+    ),
+    Hostile(
+        "parameter-file-value-nan",
+        "finite",
+        _parameter_file(_file_with("nan.toml", "[parameters]\ng_base_room = nan\n")),
+        "nan.toml: parameters.g_base_room",
+    ),
+    # coefficients files of the error model
+    Hostile("coefficients-dev-zero", "regular file", _coefficients("/dev/zero"), file="/dev/zero"),
+    Hostile("coefficients-fifo", "regular file", _coefficients(_fifo_path), file="pipe"),
+    Hostile("coefficients-directory", "directory", _coefficients("/tmp"), file="/tmp"),
+    Hostile("coefficients-huge", "bytes", _coefficients(_big_path), file="big.toml"),
+    Hostile("coefficients-missing", "not found", _coefficients("nope.toml"), file="nope.toml"),
+    Hostile(
+        "coefficients-deep",
+        "nested",
+        _coefficients(_file_with("deep.toml", "x = " + "[" * 5000 + "]" * 5000 + "\n")),
+        file="deep.toml",
+    ),
+    # [uncertainty]: twin run checks it before the run, so twin validate does too
+    Hostile(
+        "uncertainty-negative-samples", "integer", _with_uncertainty("samples = -64"), "uncertainty.samples"
+    ),
+    Hostile("uncertainty-unknown-key", "unknown", _with_uncertainty("samplez = 64"), "uncertainty.samplez"),
+]
+HOSTILE += MORE_HOSTILE
+
+
 def test_the_hostile_corpus_has_unique_ids() -> None:
     assert len({h.id for h in HOSTILE}) == len(HOSTILE) >= 30
 
@@ -216,3 +406,60 @@ def test_any_bytes_give_data_or_one_config_error(
         assert "\n" not in str(exc) and str(path) in str(exc)
         return
     assert isinstance(out, dict)
+
+
+# ----------------------------------------------------------------------------- sweep files
+
+_SWEEP_HEAD = '[sweep]\nbase = "{base}"\ndesign = "lhs"\nsamples = 8\nseed = 1\n'
+_TILT = "fmu.mechanics.parameters.sensor_tilt"  # declared range [-0.2, 0.2] rad
+
+
+def _problem(bounds: str, name: str = _TILT) -> str:
+    return f'[problem]\nnames = ["{name}"]\nbounds = [{bounds}]\n'
+
+
+SWEEPS = [
+    # (id, base: None for the shipped sine-load scenario or a maker of another, body, key, word)
+    ("base-dev-zero", "/dev/zero", _problem("[0.0, 0.01]"), "sweep.base", "regular file"),
+    ("base-fifo", _fifo_path, _problem("[0.0, 0.01]"), "sweep.base", "regular file"),
+    ("base-directory", "/tmp", _problem("[0.0, 0.01]"), "sweep.base", "directory"),
+    ("base-huge", _big_path, _problem("[0.0, 0.01]"), "sweep.base", "bytes"),
+    ("deep-nesting", None, "x = " + "[" * 5000 + "]" * 5000 + "\n", None, "nested"),
+    ("bounds-int-beyond-64-bit", None, _problem("[0, " + "9" * 400 + "]"), "problem.bounds[0][1]", "64-bit"),
+    ("bounds-nan", None, _problem("[0.0, nan]"), "problem.bounds[0]", "finite"),
+    ("bounds-end-out-of-range", None, _problem("[-10.0, 10.0]"), _TILT, "physical range"),
+    ("bounds-upper-out-of-range", None, _problem("[0.0, 0.3]"), _TILT, "physical range"),
+    ("bounds-near-float-max", None, _problem("[1e308, 1.7e308]"), _TILT, "physical range"),
+    (
+        "spread-out-of-range",
+        None,
+        f'[spread]\n"{_TILT}" = {{ dist = "uniform", half_width = 1.0 }}\n',
+        _TILT,
+        "physical range",
+    ),
+    ("samples-int-beyond-64-bit", None, _problem("[0.0, 0.01]"), "sweep.samples", "64-bit"),
+]
+
+
+@pytest.mark.parametrize(("sid", "base", "body", "key", "word"), SWEEPS, ids=[s[0] for s in SWEEPS])
+def test_a_hostile_sweep_file_gets_one_line(
+    sid: str, base: str | Callable[[Path], Path] | None, body: str, key: str | None, word: str, tmp_path: Path
+) -> None:
+    """A sweep file is read by the same reader and its design checked at its ends before any point runs."""
+    from tests.config.scenario_toml import PAPER
+    from twin.sweep.spec import load_spec
+
+    target = PAPER.parent / "sine-load.toml" if base is None else base(tmp_path) if callable(base) else base
+    head = _SWEEP_HEAD.format(base=target)
+    if sid == "samples-int-beyond-64-bit":
+        head = head.replace("samples = 8", "samples = " + "9" * 30)
+    path = tmp_path / "sweep.toml"
+    path.write_text(head + body, encoding="utf-8")
+    with pytest.raises(ConfigError) as exc:
+        load_spec(path)
+    lines = str(exc.value).split("\n")
+    assert len(lines) == 1, str(exc.value)
+    assert lines[0].startswith(f"{path}: "), lines[0]
+    if key:
+        assert f": {key}: " in lines[0] or f": {key} " in lines[0], lines[0]
+    assert word.lower() in lines[0].lower(), lines[0]

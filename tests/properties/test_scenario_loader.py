@@ -373,7 +373,9 @@ def valid_scenarios(d: st.DrawFn) -> tuple[dict[str, Any], Expect]:
             )
         else:
             v = d(st.sampled_from(OUTPUTS if action == "bias" else FREE_INPUTS))
-            value = d(st.floats(-1e6, 1e6) if action == "bias" else st.floats(v.lo, v.hi))
+            # up to three biases on one output add up: each a third of the narrowest range
+            w = _bias_width(v) / 3
+            value = d(st.floats(-w, w) if action == "bias" else st.floats(v.lo, v.hi))
             ev.update(target=v.ref, value=value)
             dur = 0
             if action == "ramp":
@@ -383,6 +385,14 @@ def valid_scenarios(d: st.DrawFn) -> tuple[dict[str, Any], Expect]:
     if events:
         data["event"] = events
     return data, exp
+
+
+def _bias_width(v: Var) -> float:
+    """The narrowest range a bias on output ``v`` must fit: its own, those of the inputs it feeds."""
+    dsts = _PAPER.get("connections", {}).get(v.ref, [])
+    refs = [v.ref, *([dsts] if isinstance(dsts, str) else dsts)]
+    spans = [x.hi - x.lo for x in [*OUTPUTS, *_vars("input")] if x.ref in refs]
+    return min([1e6, *(s for s in spans if math.isfinite(s))])
 
 
 # ----------------------------------------------------------------------------- (a) inside the ranges

@@ -10,9 +10,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from twin.config.endpoints import endpoint
+from twin.config.endpoints import check_range, endpoint
 from twin.config.problems import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
+from twin.fmu.catalog import variables as model_variables
 
 
 def _plain(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
@@ -34,18 +35,31 @@ def _plain(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
     return out
 
 
-def _delays(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
-    """``[[delay]]`` entries: from, to, initial."""
+def _delays(p: Problems, data: Mapping[str, Any]) -> list[tuple[str, Connection]]:
+    """``[[delay]]`` entries (from, to, initial), each with its key (``delay[i]``)."""
     out = []
     for _i, key, raw in array_of_tables(p, data, "delay", " with from, to, initial"):
         p.unknown_keys(raw, {"from", "to", "initial"}, key + ".")
         initial = p.number(raw, "initial", key + ".")
         ends = isinstance(raw.get("from"), str) and isinstance(raw.get("to"), str)
         if ends and initial is not None:
-            out.append(Connection(raw["from"], raw["to"], delay=True, initial=initial))
+            out.append((key, Connection(raw["from"], raw["to"], delay=True, initial=initial)))
         elif not ends:
             p.add(key, "needs 'from' and 'to' as 'instance.variable'")
     return out
+
+
+def _check_initial_values(
+    p: Problems, fmus: Mapping[str, FMUSpec], delays: Sequence[tuple[str, Connection]]
+) -> None:
+    """A delayed connection's initial value is the input's first value: in the input's declared
+    range, or the FMU refuses it at the first exchange (mid-run)."""
+    for key, c in delays:
+        inst, _, var = c.dst.partition(".")
+        spec = fmus.get(inst)
+        v = model_variables(spec.model).get(var) if spec is not None else None
+        if v is not None and v.causality == "input" and v.type == "Real" and c.initial is not None:
+            check_range(p, fmus, c.dst, [c.initial], key + ".initial")
 
 
 def _check_endpoints(p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]) -> None:
@@ -94,7 +108,9 @@ def check_loops(p: Problems, connections: Sequence[Connection]) -> None:
 
 def load_connections(p: Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
     """Every connection, plain then delayed, checked."""
-    out = _plain(p, data) + _delays(p, data)
+    delays = _delays(p, data)
+    out = _plain(p, data) + [c for _, c in delays]
     _check_endpoints(p, fmus, out)
+    _check_initial_values(p, fmus, delays)
     check_loops(p, out)
     return out

@@ -27,12 +27,20 @@ _DURATION_RE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?)\s*([a-
 
 
 def _number_of_seconds(value: int | float) -> Fraction:
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):
         raise ValueError(f"expected a finite duration, got {value!r}")
     return Fraction(repr(float(value)) if isinstance(value, float) else value) * NS_PER_S
 
 
+#: a duration's number has at most this many characters ("28800.000000001" has 15): longer
+#: ones are typos or attacks, and an exact Fraction of thousands of digits hits Python's
+#: int-str limit (ValueError deep inside) or takes seconds
+_MAX_DIGITS = 40
+
+
 def _text(value: str) -> Fraction:
+    if len(value.strip()) > _MAX_DIGITS + 4:
+        raise ValueError(f"a duration of {len(value)} characters: at most {_MAX_DIGITS} digits and a unit")
     m = _DURATION_RE.match(value)
     if not m or m.group(2) not in UNITS_NS:
         raise ValueError(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -93,7 +94,8 @@ def load_events(
 ) -> list[Event]:
     """Every event, checked, in time order."""
     scope = _Scope(p, fmus, {c.dst for c in connections}, duration_ns)
-    out = []
+    out: list[Event] = []
+    keys: list[str] = []
     for _i, key, raw in array_of_tables(p, data, "event", ""):
         p.unknown_keys(raw, _EVENT_KEYS, key + ".")
         at = p.duration(raw, "at", key + ".")
@@ -107,4 +109,43 @@ def load_events(
         event = _fault(scope, raw, key, at) if action == "fault" else _change(scope, raw, key, at, action)
         if event is not None:
             out.append(event)
+            keys.append(key)
+    _check_biases(p, fmus, connections, sorted(zip(out, keys, strict=True), key=lambda ek: ek[0].at_ns))
     return sorted(out, key=lambda e: e.at_ns)
+
+
+def _spans(
+    fmus: Mapping[str, FMUSpec], connections: Sequence[Connection], target: str
+) -> list[tuple[float, str]]:
+    """(width of the declared range, whose) of an output and of every input it feeds: a bias
+    wider than one of them moves every value out of that range."""
+    out = []
+    for ref in [target, *(c.dst for c in connections if c.src == target)]:
+        inst, _, var = ref.partition(".")
+        v = model_variables(fmus[inst].model).get(var) if inst in fmus else None
+        if v is not None and math.isfinite(v.max - v.min):
+            out.append((v.max - v.min, ref))
+    return out
+
+
+def _check_biases(
+    p: Problems,
+    fmus: Mapping[str, FMUSpec],
+    connections: Sequence[Connection],
+    events: Sequence[tuple[Event, str]],
+) -> None:
+    """Biases add up on their output; the sum must stay narrower than the output's declared
+    range and that of every input the output feeds (the FMU fed would refuse it mid-run)."""
+    total: dict[str, float] = {}
+    for e, key in events:
+        if e.action != "bias":
+            continue
+        total[e.target] = total.get(e.target, 0.0) + e.value
+        for width, ref in _spans(fmus, connections, e.target):
+            if abs(total[e.target]) > width:
+                p.add(
+                    key + ".value",
+                    f"a bias of {total[e.target]!r} on {e.target} is wider than the range of {ref} "
+                    f"({width!r}): every value would fall outside it",
+                )
+                return

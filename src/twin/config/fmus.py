@@ -7,7 +7,6 @@ each is checked against the model's declared type and physical range.
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -15,7 +14,7 @@ from types import MappingProxyType
 from typing import Any
 
 from twin.config.durations import format_duration
-from twin.config.problems import Problems, did_you_mean, read_toml, table
+from twin.config.problems import Problems, did_you_mean, finite_number, read_toml, table
 from twin.config.spec import FMUSpec, Parameter
 from twin.errors import ConfigError
 from twin.fmu.catalog import Variable, model_names
@@ -37,7 +36,7 @@ def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
         )
         return None
     se = raw.get("std_error", 1.0)
-    if isinstance(se, bool) or not isinstance(se, int | float) or not se > 0 or se == float("inf"):
+    if not finite_number(se) or not se > 0:
         p.add(key + ".std_error", f"must be a finite number > 0, got {se!r}")
         return None
     if "value" not in raw:
@@ -59,7 +58,7 @@ def _typed(p: Problems, var: Variable, raw: Any, key: str) -> float | int | bool
         return None
     if var.type in _EXPECTED:
         return raw
-    if not math.isfinite(raw):
+    if not finite_number(raw):
         p.add(key, f"expected a finite number, got {raw!r}")
         return None
     return float(raw)

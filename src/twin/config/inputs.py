@@ -10,7 +10,7 @@ from typing import Any
 
 from twin.config.durations import parse_duration
 from twin.config.endpoints import check_range, endpoint
-from twin.config.problems import Problems, table
+from twin.config.problems import Problems, finite_number, table
 from twin.config.spec import NS_PER_S, Connection, FMUSpec, Profile
 
 PROFILE_PARAMS: dict[str, tuple[set[str], set[str]]] = {
@@ -22,10 +22,6 @@ PROFILE_PARAMS: dict[str, tuple[set[str], set[str]]] = {
     "table": ({"points"}, set()),
 }
 _PROFILE_DURATIONS = {"duration", "delay", "time_constant", "rise_at", "period"}
-
-
-def _finite_number(v: Any) -> bool:
-    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
 
 
 def _points(p: Problems, pts: Any, key: str) -> tuple[tuple[float, float], ...]:
@@ -40,7 +36,7 @@ def _points(p: Problems, pts: Any, key: str) -> tuple[tuple[float, float], ...]:
         p.add(key, str(exc))
         return ()
     values = [q[1] for q in pts]
-    if not all(_finite_number(v) for v in values):
+    if not all(finite_number(v) for v in values):
         p.add(key, "values must be finite numbers")
         return ()
     # compared as exact nanoseconds: two times 1 ns apart may be one float second

@@ -6,6 +6,7 @@ import tomllib
 from collections.abc import Sequence
 from typing import Any
 
+from twin.config.problems import check_values
 from twin.errors import ConfigError, ConfigErrors
 
 
@@ -55,8 +56,7 @@ def _apply_override(data: dict[str, Any], item: str, source: str) -> None:
         raise ConfigError(
             "the value is nested too deeply or has too many digits", source=source, key=key
         ) from None
-    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**63 - 1:
-        raise ConfigError("integer out of range (TOML integers are 64-bit)", source=source, key=key)
+    check_values(value, source, key)  # the depth and integer range a file's values have
     node = data
     for p in parts[:-1]:
         child = node.get(p)

@@ -18,6 +18,17 @@ from typing import Any
 from twin.config.durations import parse_duration
 from twin.errors import ConfigError
 
+#: TOML integers are 64-bit signed (TOML 1.0); Python's reader accepts any size
+INT_LIMIT = 2**63 - 1
+
+
+def finite_number(v: Any) -> bool:
+    """``v`` is an int or float a float can hold: not a bool, NaN, inf, or an integer beyond 64
+    bits (``math.isfinite`` raises OverflowError on an integer beyond the float range)."""
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return False
+    return abs(v) <= INT_LIMIT if isinstance(v, int) else math.isfinite(v)
+
 
 class Problems:
     """Collects problems with the file name, so all of them are reported at once."""
@@ -32,9 +43,10 @@ class Problems:
 
     def add(self, key: str, message: str) -> None:
         """One problem at ``key`` (a repeated one is kept once)."""
-        if any(e.key == key and e.message == message for e in self.items):
+        problem = ConfigError(message, source=self.source, key=key)
+        if any(e.key == problem.key and e.message == problem.message for e in self.items):
             return  # one line per problem: a list connection repeats its source for each input
-        self.items.append(ConfigError(message, source=self.source, key=key))
+        self.items.append(problem)
 
     def unknown_keys(self, table: Mapping[str, Any], allowed: set[str], prefix: str) -> None:
         """A problem for every key of ``table`` not in ``allowed``."""
@@ -65,7 +77,7 @@ class Problems:
         if isinstance(v, bool) or not isinstance(v, int | float):
             self.add(prefix + key, f"expected a number, got {v!r}" if key in table else "missing (a number)")
             return None
-        if not math.isfinite(v):
+        if not finite_number(v):
             self.add(prefix + key, f"expected a finite number, got {v!r}")
             return None
         return float(v)
@@ -101,8 +113,6 @@ def table(p: Problems, data: Mapping[str, Any], key: str, prefix: str = "") -> d
 MAX_TOML_BYTES = 1_000_000
 #: the deepest nesting of tables and arrays a TOML file may have (a scenario needs 5)
 MAX_TOML_DEPTH = 32
-#: TOML integers are 64-bit signed (TOML 1.0); Python's reader accepts any size
-_INT_LIMIT = 2**63 - 1
 
 
 def _read_regular_file(path: Path, source: str) -> bytes:
@@ -138,9 +148,10 @@ def _read_regular_file(path: Path, source: str) -> bytes:
     return data
 
 
-def _check_values(data: Any, source: str) -> None:
-    """Depth and integer range of parsed TOML, walked without recursion."""
-    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+def check_values(data: Any, source: str, key: str = "") -> None:
+    """Depth and integer range of parsed TOML (a file's, a ``--set`` value's at ``key``, a
+    sweep point's), walked without recursion: :class:`ConfigError` at the first problem."""
+    stack: list[tuple[Any, str, int]] = [(data, key, 0)]
     while stack:
         node, key, depth = stack.pop()
         if depth > MAX_TOML_DEPTH:
@@ -151,7 +162,7 @@ def _check_values(data: Any, source: str) -> None:
             stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in node.items())
         elif isinstance(node, list):
             stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(node))
-        elif isinstance(node, int) and not isinstance(node, bool) and abs(node) > _INT_LIMIT:
+        elif isinstance(node, int) and not isinstance(node, bool) and abs(node) > INT_LIMIT:
             raise ConfigError(
                 "integer out of range (TOML integers are 64-bit)", source=source, key=key or None
             )
@@ -190,7 +201,7 @@ def parse_toml(text: str, source: str) -> dict[str, Any]:
         raise ConfigError(
             "a number with thousands of digits (TOML integers are 64-bit)", source=source
         ) from None
-    _check_values(data, source)
+    check_values(data, source)
     return data
 
 

@@ -53,6 +53,16 @@ def _timing(p: Problems, sc: Mapping[str, Any]) -> tuple[int | None, int | None,
     if step is not None and step <= 0:
         p.add("scenario.step", "must be positive")
         step = None
+    elif step is not None and duration is not None and 0 < duration < step:
+        # one line naming both: the other times would otherwise all be "not a multiple" of the
+        # step or "do not divide" the duration too
+        p.add(
+            "scenario.duration",
+            f"{format_duration(duration)} is shorter than scenario.step ({format_duration(step)})",
+        )
+        if interval is not None and interval <= 0:
+            p.add("scenario.output_interval", "must be positive")
+        return None, None, interval
     n_problems = len(p.items)
     if duration is not None:
         _check_duration(p, duration, step)
@@ -65,6 +75,8 @@ def _timing(p: Problems, sc: Mapping[str, Any]) -> tuple[int | None, int | None,
 
 
 def _drift_window(p: Problems, sc: Mapping[str, Any]) -> int:
+    # longer than the run is allowed: the short calibration runs inherit the base's 5 min, and
+    # the drift is then taken over the whole run
     drift_window = p.duration(sc, "drift_window", "scenario.", required=False)
     if drift_window is not None and drift_window <= 0:
         p.add("scenario.drift_window", "must be positive")

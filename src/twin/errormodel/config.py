@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from twin.config.problems import did_you_mean
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errormodel.coefficients import (
     Coefficients,
@@ -68,7 +69,11 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     column and the factors.
     """
     em = {k: p.value for k, p in scenario.errormodel.items()}
-    return errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
+    cfg = errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
+    # here, so every command that runs a scenario (validate, run, sweep, heldout) refuses a
+    # misspelt column before the run, not after it as a run without errormodel.csv
+    check_recorded_columns(scenario)
+    return cfg
 
 
 def errormodel_config(
@@ -118,6 +123,14 @@ def _pop_columns(em: dict[str, Any], source: str) -> dict[str, Any]:
                 source=source,
                 key="errormodel.temperatures",
             )
+        for point in em["temperatures"]:
+            if point not in DEFAULT_TEMPERATURES:  # a misspelt point would be read as nothing
+                raise ConfigError(
+                    f"unknown measuring point{did_you_mean(str(point), DEFAULT_TEMPERATURES)} "
+                    f"(the points: {', '.join(DEFAULT_TEMPERATURES)})",
+                    source=source,
+                    key=f"errormodel.temperatures.{point}",
+                )
         temperatures.update(em.pop("temperatures"))
     return {
         "temperatures": temperatures,
@@ -157,13 +170,6 @@ def _check_columns(columns: dict[str, Any], source: str) -> None:
             raise ConfigError(
                 f"expected a data column's name, got {what}", source=source, key=f"errormodel.{key}"
             )
-    unknown = sorted(set(columns["temperatures"]) - set(DEFAULT_TEMPERATURES))
-    if unknown:
-        raise ConfigError(
-            f"unknown measuring point(s) {unknown} (the paper's eight: {list(DEFAULT_TEMPERATURES)})",
-            source=source,
-            key="errormodel.temperatures",
-        )
 
 
 def input_columns(cfg: EvaluationConfig) -> set[str]:
@@ -185,12 +191,25 @@ def _named_columns(em: Mapping[str, Any]) -> list[tuple[str, str]]:
     return [(k, c) for k, c in named if isinstance(c, str)]
 
 
+def _column_hint(column: str, recorded: set[str]) -> str:
+    """A close match, else the recorded columns of the instance named, else the instances."""
+    close = did_you_mean(column, recorded)
+    if close:
+        return close
+    inst = column.split(".", 1)[0]
+    same = sorted(c for c in recorded if c.startswith(inst + "."))
+    if same:
+        more = f", ... ({len(same)} in all)" if len(same) > 8 else ""
+        return f" ({inst} records: {', '.join(same[:8])}{more})"
+    return (
+        f" (columns are 'instance.variable' of: {', '.join(sorted({c.split('.', 1)[0] for c in recorded}))})"
+    )
+
+
 def check_recorded_columns(scenario: Scenario) -> None:
     """Every column the scenario's ``[errormodel]`` names is one the run records (an output or a
     driven input of one of its FMU instances): a misspelt column would otherwise let the run
     complete without an error model. Checked before the run (``twin validate`` and ``twin run``)."""
-    import difflib
-
     from twin.cosim.plan import make_plan
 
     em = {k: p.value for k, p in scenario.errormodel.items()}
@@ -201,11 +220,9 @@ def check_recorded_columns(scenario: Scenario) -> None:
     problems = []
     for key, column in named:
         if column not in recorded:
-            close = difflib.get_close_matches(column, sorted(recorded), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
             problems.append(
                 ConfigError(
-                    f"column {column!r} is not recorded by this scenario{hint}",
+                    f"column {column!r} is not recorded by this scenario{_column_hint(column, recorded)}",
                     source=scenario.source_path,
                     key=key,
                 )

@@ -16,7 +16,6 @@ top: that is ``p_dz < 0`` of long_pole (pole top relative to clamp), which partl
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache
@@ -265,8 +264,10 @@ def _parse(data: dict[str, Any], source: str) -> TesterSpec:
 
 @cache
 def _packaged_spec() -> TesterSpec:
+    from twin.config.problems import parse_toml
+
     text = resources.files("twin.errormodel").joinpath(DATA_FILE).read_text(encoding="utf-8")
-    return _parse(tomllib.loads(text), DATA_FILE)
+    return _parse(parse_toml(text, DATA_FILE), DATA_FILE)
 
 
 def load_tester_spec(path: str | Path | None = None) -> TesterSpec:
@@ -276,14 +277,10 @@ def load_tester_spec(path: str | Path | None = None) -> TesterSpec:
     """
     if path is None:
         return _packaged_spec()
+    from twin.config.problems import read_toml  # the one reader of a user's TOML files
+
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", source=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"invalid TOML: {exc}", source=str(path)) from None
-    return _parse(data, str(path))
+    return _parse(read_toml(path, str(path)), str(path))
 
 
 def tester_model(path: str | Path | None = None) -> ErrorModel:

@@ -282,8 +282,11 @@ def _check_required(header: Sequence[str], required: dict[str, str], config: str
     for c in missing:
         close = difflib.get_close_matches(c, header[1:], n=1)
         hints.append(f"'{c}' ({required[c]}" + (f"; did you mean '{close[0]}'?)" if close else ")"))
+    # the key facts first, and at most three columns named: a one-line message is shortened past
+    # 500 characters, and a file with none of the columns would otherwise lose the config's name
+    more = f" and {len(hints) - 3} more" if len(hints) > 3 else ""
     raise ConfigError(
-        f"no column {', '.join(hints)}, as [errormodel] in {config} names them; the error model reads "
-        f"{TIME}, {', '.join(required)}",
+        f"no column {', '.join(hints[:3])}{more}, as [errormodel] in {config} names them; "
+        f"the error model reads {TIME}, {', '.join(required)}",
         source=source,
     )

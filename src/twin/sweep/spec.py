@@ -192,13 +192,19 @@ def centre(dist: str, bounds: list[float]) -> float:
     """A value every distribution of this kind can take: its median (the peak of a triangle)."""
     b = bounds
     return {
-        "unif": lambda: (b[0] + b[1]) / 2,
+        "unif": lambda: b[0] / 2 + b[1] / 2,  # not (b0 + b1) / 2: that overflows near 1.8e308
         "logunif": lambda: math.sqrt(b[0] * b[1]),
         "triang": lambda: b[0] + b[2] * (b[1] - b[0]),
         "norm": lambda: b[0],
         "lognorm": lambda: math.exp(b[0]),
         "truncnorm": lambda: min(max(b[2], b[0]), b[1]),
     }[dist]()
+
+
+def ends(dist: str, bounds: list[float]) -> list[float]:
+    """The lowest and highest value a bounded distribution takes (none for an unbounded one):
+    a point there must load too, or the sweep would fail at its points, not before."""
+    return [bounds[0], bounds[1]] if dist in ("unif", "logunif", "triang", "truncnorm") else []
 
 
 def _problem_rows(p: _Problems, raw: Mapping[str, Any]) -> list[tuple[str, str, list[float]]]:
@@ -472,7 +478,15 @@ def spec_from_data(raw: Mapping[str, Any], path: Path, base: Path | None = None)
     sw = _sweep_table(p, raw, path)
     p.check()
     base = base or (path.resolve().parent / raw["sweep"]["base"]).resolve()
-    data, scenario = load_base(path, base, sw["fixed"])
+    try:
+        data, scenario = load_base(path, base, sw["fixed"])
+    except ConfigError as exc:
+        if exc.source != str(base) or exc.key is not None:
+            raise
+        # the base itself cannot be read (missing, a directory, a device): say so where it is named
+        raise ConfigError(
+            f"{raw['sweep']['base']}: {exc.message}", source=str(path), key="sweep.base"
+        ) from None
     if sw["design"] == "grid":
         p.unknown(raw, {"sweep", "grid"}, "")
         names, levels = _grid(p, _table(p, raw, "grid"))
@@ -492,7 +506,7 @@ def spec_from_data(raw: Mapping[str, Any], path: Path, base: Path | None = None)
         groups = _groups(p, raw, len(rows))
         if groups is not None:
             problem["groups"] = groups
-        centres = [[centre(r[1], r[2])] for r in rows]
+        centres = [[centre(r[1], r[2]), *ends(r[1], r[2])] for r in rows]
     p.check()
     spec = Spec(path=path, base=base, problem=problem, levels=levels, base_data=data, **sw)
     _check_keys(p, spec, centres)
