@@ -30,9 +30,10 @@ from twin.sweep.execute import run_task
 from twin.sweep.runner import run_sweep
 from twin.sweep.spec import load_spec
 
-# 40 points of the paper's replay shortened to an hour; a conductance drawn partly below zero
-# makes some points fail on the client (outside the physical range), which must be recorded
-# identically too
+# 40 points of the paper's replay shortened to an hour; a conductance drawn from a normal
+# distribution partly below zero makes some points fail on the client (outside the physical
+# range), which must be recorded identically too. (A bounded distribution reaching below zero
+# is refused before any point runs: the sweep checks its ends. A normal one has none.)
 BODY = """design = "lhs"
 samples = 40
 seed = 11
@@ -42,7 +43,8 @@ outputs = ["drift_mm.probe", "drift_mm.predicted", "compensation.residual_rms_um
 [problem]
 names = ["input.thermal.t_room.rise", "fmu.sensors.parameters.probe_zero_drift",
          "fmu.thermal.parameters.g_detecting_frame_room"]
-bounds = [[0.0, 9.0], [-0.3e-6, 0.3e-6], [-2.0, 10.0]]
+bounds = [[0.0, 9.0], [-0.3e-6, 0.3e-6], [4.0, 3.0]]
+dists = ["unif", "unif", "norm"]
 """
 N_POINTS = 40
 
@@ -172,7 +174,8 @@ def test_a_crashing_point_in_a_batch_costs_its_neighbours_only_a_rerun(tmp_path:
     body = BODY.replace("samples = 40", "samples = 24").replace(
         "outputs = [", "# outputs = ["
     )  # the points return no figures
-    spec = load_spec(write_spec(tmp_path / "b.toml", body.replace("[-2.0, 10.0]", "[2.0, 10.0]")))
+    # no point may fail on the client here: the conductance drawn far from zero
+    spec = load_spec(write_spec(tmp_path / "b.toml", body.replace("[4.0, 3.0]", "[8.0, 1.0]")))
     log = tmp_path / "tries.log"
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     task = functools.partial(_quick_or_crashing, log=str(log), crash=20)

@@ -188,6 +188,11 @@ def test_unreachable_scheduler_exits_2_with_one_line(tmp_path: Path, capsys: pyt
     path = write_spec(
         tmp_path / "s.toml", LHS + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n'
     )
+    # distributed adds its defaults to dask's config when first imported; imported inside the
+    # set() below, they would leave with it (set() removes keys it did not find), and later
+    # tests in this process would miss every distributed.* key (KeyError 'distributed')
+    import distributed  # noqa: F401
+
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
         code = main([str(path), "--out", str(tmp_path / "out"), "--scheduler", "tcp://127.0.0.1:9"])
     err = capsys.readouterr().err.splitlines()
