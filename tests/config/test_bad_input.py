@@ -254,6 +254,22 @@ CASES = [
     ),
     Case("duration-zero", "scenario.duration", "positive", setv("scenario.duration", "0 s")),
     Case(
+        "wear-limit-negative",
+        "scenario.wear_limit_mm",
+        "wear depth in mm",
+        setv("scenario.wear_limit_mm", -0.152),
+    ),
+    Case(
+        "wear-limit-string",
+        "scenario.wear_limit_mm",
+        "wear depth in mm",
+        setv("scenario.wear_limit_mm", "0.152 mm"),
+    ),
+    Case(
+        "wear-limit-bool", "scenario.wear_limit_mm", "wear depth in mm", setv("scenario.wear_limit_mm", True)
+    ),
+    Case("wear-limit-absurd", "scenario.wear_limit_mm", "<= 10", setv("scenario.wear_limit_mm", 1e300)),
+    Case(
         "duration-not-multiple-of-step",
         "scenario.duration",
         "multiple",

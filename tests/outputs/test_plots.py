@@ -1,16 +1,23 @@
-"""The error-budget PNG: a real PNG of the fixed size, identical bytes for identical input."""
+"""The plots: real PNGs of the fixed size, identical bytes for identical input, and figures a person
+can read (checked on matplotlib's objects: labels with units, legends outside, the stacked budget,
+the wear plot's MIL limit line)."""
 
 from __future__ import annotations
 
+import itertools
+import re
 import struct
 from pathlib import Path
 
 import matplotlib.image
 import numpy as np
 import pytest
+from matplotlib.axes import Axes
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
 
-from twin.outputs.plots import DPI, FIGSIZE_IN, error_budget_png
-from twin.signals.table import SignalTable
+from twin.outputs.plots import DPI, FIGSIZE_IN, BudgetColumns, budget_figure, error_budget_png, wear_figure
+from twin.signals.table import Signal, SignalTable
 
 from .sample import PARTS, make_table
 
@@ -71,3 +78,114 @@ def test_missing_column_is_named(table: SignalTable, tmp_path: Path) -> None:
             title="x",
         )
     assert not (tmp_path / "x.png").exists()
+
+
+# ----------------------------------------------------------------------------- what a person reads
+
+
+def _columns(**extra: object) -> BudgetColumns:
+    return BudgetColumns(
+        "probe.reading",
+        "errormodel.e_total",
+        PARTS,
+        {"base": "thermal.t_base", "t_plate": "thermal.t_spindle"},
+        **extra,  # type: ignore[arg-type]
+    )
+
+
+def _has_unit(label: str) -> bool:
+    return bool(re.search(r"\((µm|K|h|min)\)$", label))
+
+
+def _legend_outside(fig: Figure, ax: Axes) -> bool:
+    """The legend's box lies right of the panel's (drawn, so the boxes are real pixels)."""
+    fig.canvas.draw()
+    legend = ax.get_legend()
+    return legend is not None and legend.get_window_extent().x0 >= ax.get_window_extent().x1
+
+
+def test_every_panel_names_its_quantity_and_unit_and_the_legends_sit_outside(table: SignalTable) -> None:
+    fig = budget_figure(table, _columns(), "sample")
+    drift, budget, temps = fig.axes
+    for ax in (drift, budget, temps):
+        assert _has_unit(ax.get_ylabel()), ax.get_ylabel()
+        assert _legend_outside(fig, ax)
+    assert _has_unit(temps.get_xlabel()) and temps.get_xlabel().startswith("time")
+    assert "µm" in drift.get_ylabel() and "µm" in budget.get_ylabel() and "K" in temps.get_ylabel()
+    # human names, not column names
+    labels = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
+    assert not any("." in label for label in labels), labels
+    assert {"base", "T-plate"} <= set(temps.get_legend_handles_labels()[1])
+
+
+def test_the_panels_do_not_overlap(table: SignalTable) -> None:
+    fig = budget_figure(table, _columns(), "sample")
+    fig.canvas.draw()
+    boxes = [ax.get_tightbbox() for ax in fig.axes]  # each panel with its labels
+    for upper, lower in itertools.pairwise(boxes):
+        assert upper.y0 >= lower.y1 - 1, (upper, lower)  # a pixel of rounding
+
+
+def test_the_budget_stacks_the_five_parts_and_their_sum_is_the_prediction(table: SignalTable) -> None:
+    fig = budget_figure(table, _columns(), "sample")
+    budget = fig.axes[1]
+    areas = [
+        c for c in budget.collections if isinstance(c, PolyCollection) and not c.get_label().startswith("_")
+    ]
+    assert [a.get_label() for a in areas] == list(PARTS)
+    # the top of the stack (all parts positive in the sample) is the sum of the parts in µm
+    top = areas[-1].get_paths()[0].vertices[:, 1].max()
+    expected = sum(table[c] for c in PARTS.values()).max() * 1e6
+    assert top == pytest.approx(expected, rel=1e-9)
+
+
+def _wear_table() -> SignalTable:
+    table = make_table()
+    n = len(table)
+    wear = np.linspace(0.0, 120e-6, n)
+    table.add(Signal("mechanics.wear_depth_true", "m", "mechanics"), wear)
+    table.add(Signal("errormodel.wear_compensated", "m", "errormodel"), wear + 1e-6)
+    table.add(Signal("oscillation.cycles", "1", "oscillation"), np.floor(np.arange(n) * 10.0 / 6.0))
+    return table
+
+
+def test_the_wear_plot_draws_true_measured_compensated_and_the_mil_limit() -> None:
+    columns = _columns(
+        compensated="errormodel.wear_compensated",
+        true_wear="mechanics.wear_depth_true",
+        cycles="oscillation.cycles",
+        wear_limit_m=0.152e-3,
+    )
+    fig = wear_figure(_wear_table(), columns, "endurance")
+    assert fig is not None
+    (ax,) = fig.axes
+    assert ax.get_ylabel() == "wear depth (µm)" and "cycles" in ax.get_xlabel()
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    assert {"true wear", "measured (probe reading change)", "compensated"} <= set(lines)
+    (limit,) = [line for label, line in lines.items() if label.startswith("wear limit")]
+    assert list(limit.get_ydata()) == [pytest.approx(152.0)] * 2  # a horizontal line at 0.152 mm
+    assert lines["true wear"].get_ydata()[-1] == pytest.approx(120.0)
+    assert _legend_outside(fig, ax)
+
+
+def test_no_wear_plot_without_true_wear_or_cycles() -> None:
+    assert wear_figure(_wear_table(), _columns(), "x") is None
+    no_cycles = _columns(compensated="errormodel.wear_compensated", true_wear="mechanics.wear_depth_true")
+    assert wear_figure(_wear_table(), no_cycles, "x") is None
+
+
+def test_the_endurance_scenario_declares_the_mil_limit_and_its_run_gets_the_wear_plot() -> None:
+    from twin.config.load import load_scenario, scenarios_dir
+    from twin.errormodel.config import evaluation_config
+    from twin.pipeline.stages import budget_columns
+
+    endurance = load_scenario(scenarios_dir() / "mil-endurance.toml")
+    columns = budget_columns(evaluation_config(endurance), endurance)
+    assert columns.wear_limit_m == pytest.approx(0.152e-3)  # facts 4
+    assert columns.wear_columns() == (
+        "mechanics.wear_depth_true",
+        "errormodel.wear_compensated",
+        "oscillation.cycles",
+    )
+    sine = load_scenario(scenarios_dir() / "sine-load.toml")
+    assert budget_columns(evaluation_config(sine), sine).wear_limit_m is None

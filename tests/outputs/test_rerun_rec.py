@@ -52,20 +52,22 @@ def test_rrd_verifies_and_values_round_trip(table: SignalTable, tmp_path: Path) 
     t, values = series["/thermal/t_base"]
     np.testing.assert_array_equal(t, table.time)
     np.testing.assert_array_equal(values, table["thermal.t_base"])
-    np.testing.assert_array_equal(series["/errormodel/e_total"][1], table["errormodel.e_total"])
+    # lengths are recorded in µm: the metres times 1e6, the same multiplication, so exactly
+    np.testing.assert_array_equal(series["/errormodel/e_total"][1], table["errormodel.e_total"] * 1e6)
 
 
-def test_blueprint_has_error_budget_first_and_one_view_per_subsystem(
+def test_blueprint_has_error_budget_first_and_one_view_per_subsystem_and_unit(
     table: SignalTable, tmp_path: Path
 ) -> None:
     path = write_recording(table, tmp_path / "recording.rrd", budget_columns=BUDGET)
     rows = _blueprint_rows(path)
     views = {r["ViewBlueprint:display_name"][0][0]: r for r in rows if "ViewBlueprint:display_name" in r}
-    assert set(views) == {BUDGET_VIEW_NAME, "thermal", "errormodel", "probe"}
+    # no view mixes units: the sample's thermal signals are K, its probe and errormodel ones m (µm)
+    assert set(views) == {BUDGET_VIEW_NAME, "thermal [K]", "errormodel [µm]", "probe [µm]"}
     assert all(v["ViewBlueprint:class_identifier"][0] == ["TimeSeries"] for v in views.values())
-    assert views["thermal"]["ViewBlueprint:space_origin"][0] == ["/thermal"]
     queries = [r["ViewContents:query"][0] for r in rows if "ViewContents:query" in r]
     assert ["+ /errormodel/e_total", *(f"+ /errormodel/{n.split('.')[1]}" for n in BUDGET[1:])] in queries
+    assert ["+ /thermal/t_base", "+ /thermal/t_spindle"] in queries
     # The root container is vertical with the budget view first and the larger share.
     (root,) = [r for r in rows if r.get("ContainerBlueprint:row_shares")]
     assert root["ContainerBlueprint:row_shares"][0] == [3.0, 2.0]
@@ -85,6 +87,10 @@ def test_static_series_names_and_units(table: SignalTable, tmp_path: Path) -> No
     assert meta["SeriesLines:names"] == ["t_base [K]"]
     # AnyValues components keep their plain names.
     assert (meta["signal"], meta["unit"], meta["description"]) == (["thermal.t_base"], ["K"], ["base plate"])
+    assert (meta["si_unit"], meta["to_si"]) == (["K"], [1.0])
+    length = static["/probe/reading"]
+    assert length["SeriesLines:names"] == ["reading [µm]"]
+    assert (length["unit"], length["si_unit"], length["to_si"]) == (["µm"], ["m"], [1e-6])
     assert not any(k.startswith("Scalars") for k in meta)  # the samples themselves are not static
 
 
@@ -98,7 +104,7 @@ def test_streaming_writer_matches_the_table(table: SignalTable, tmp_path: Path) 
     assert _verify(path).returncode == 0
     t, values = read_recording(path)["/probe/reading"]
     np.testing.assert_array_equal(t, table.time)
-    np.testing.assert_array_equal(values, table["probe.reading"])
+    np.testing.assert_array_equal(values, table["probe.reading"] * 1e6)
 
 
 def test_sim_time_is_rounded_to_whole_nanoseconds(tmp_path: Path) -> None:

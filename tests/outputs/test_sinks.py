@@ -160,7 +160,7 @@ def test_a_runs_sinks_write_the_streamed_rows_and_the_outcome(tmp_path: Path) ->
     for name in ("probe.reading", "errormodel.e_total"):  # streamed, and derived after the run
         t, v = series[entity_path(full.meta[name])]
         np.testing.assert_array_equal(t, full.time)
-        np.testing.assert_array_equal(v, full[name])
+        np.testing.assert_array_equal(v, full[name] * 1e6)  # lengths recorded in µm
     assert (tmp_path / "error_budget.png").read_bytes()[:4] == b"\x89PNG"
     assert json.loads((tmp_path / "summary.json").read_text()) == {
         "scenario": "sample",

@@ -79,6 +79,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         profiles=tuple(profiles),
         events=tuple(events),
         drift_window_ns=sc.drift_window_ns,
+        wear_limit_mm=sc.wear_limit_mm,
         errormodel=MappingProxyType({k: Parameter(v) for k, v in errormodel.items()}),
     )
 

@@ -8,10 +8,19 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.durations import MAX_DURATION_NS, format_duration
-from twin.config.problems import Problems, table, unsafe_name
+from twin.config.problems import Problems, finite_number, table, unsafe_name
 from twin.config.spec import NS_PER_S
 
-_SCENARIO_KEYS = {"name", "description", "duration", "step", "output_interval", "seed", "drift_window"}
+_SCENARIO_KEYS = {
+    "name",
+    "description",
+    "duration",
+    "step",
+    "output_interval",
+    "seed",
+    "drift_window",
+    "wear_limit_mm",
+}
 
 
 @dataclass(frozen=True)
@@ -25,6 +34,7 @@ class ScenarioTable:
     output_interval_ns: int | None
     seed: int
     drift_window_ns: int
+    wear_limit_mm: float | None = None
 
 
 def _check_duration(p: Problems, duration: int, step: int | None) -> None:
@@ -91,6 +101,17 @@ def _seed(p: Problems, sc: Mapping[str, Any]) -> int:
     return int(seed)
 
 
+def _wear_limit(p: Problems, sc: Mapping[str, Any]) -> float | None:
+    """An endurance test's wear limit (mm): drawn in wear.png; None when not given."""
+    if "wear_limit_mm" not in sc:
+        return None
+    value = sc["wear_limit_mm"]
+    if isinstance(value, bool) or not finite_number(value) or not 0 < value <= 10:
+        p.add("scenario.wear_limit_mm", f"expected a wear depth in mm, > 0 and <= 10, got {value!r}")
+        return None
+    return float(value)
+
+
 def load_scenario_table(p: Problems, data: Mapping[str, Any], source: str) -> ScenarioTable:
     """The ``[scenario]`` table of ``data`` (problems go to ``p``)."""
     sc = table(p, data, "scenario")
@@ -109,4 +130,5 @@ def load_scenario_table(p: Problems, data: Mapping[str, Any], source: str) -> Sc
     if not isinstance(description, str):
         p.add("scenario.description", "expected a string")
         description = ""
-    return ScenarioTable(name, description, step, duration, interval, seed, drift_window)
+    wear_limit = _wear_limit(p, sc)
+    return ScenarioTable(name, description, step, duration, interval, seed, drift_window, wear_limit)

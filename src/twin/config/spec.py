@@ -97,6 +97,8 @@ class Scenario:
     events: tuple[Event, ...] = ()
     drift_window_ns: int = 300 * NS_PER_S
     errormodel: Mapping[str, Parameter] = field(default_factory=_frozen)
+    #: an endurance test's wear limit (mm), drawn in wear.png; None for other tests
+    wear_limit_mm: float | None = None
 
     def fmu(self, name: str) -> FMUSpec:
         for f in self.fmus:

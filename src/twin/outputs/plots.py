@@ -1,10 +1,19 @@
-"""The error-budget plot of a run (PNG).
+"""The plots of a run (PNG): the error budget, and wear against cycles for an endurance test.
 
-Two stacked panels sharing the time axis: on top the drift of the probe reading, the
-predicted error and its parts (µm); below the temperature rises (K). Drawn on a bare
-:class:`~matplotlib.figure.Figure` with the Agg canvas, not through ``pyplot``: no display is
-needed, no global backend is switched under the caller, and no figure is left open.
-Fixed size, dpi and fonts and no ``Software`` metadata make the bytes reproducible.
+``error_budget.png`` has three panels sharing the time axis: the probe reading's drift with the
+predicted error (and the compensated wear), the five parts of the prediction as stacked areas
+(positive parts stacked up from zero, negative ones down), and the temperature rises. Every
+axis names its quantity and unit, every curve has a human name, and the legends sit to the right
+of the panels, outside the curves. All lengths are in µm.
+
+``wear.png`` (a run whose error model reads the true wear and whose tester counts its swing
+cycles) draws the true, the measured and the compensated wear against the cycles, with the
+scenario's wear limit (the MIL-spec 0.152 mm of facts 4 for the endurance test) as a line.
+
+Drawn on a bare :class:`~matplotlib.figure.Figure` with the Agg canvas, not through ``pyplot``:
+no display is needed, no global backend is switched under the caller, and no figure is left
+open. The figures are built by :func:`budget_figure` and :func:`wear_figure` (tests read their
+artists); fixed size, dpi and fonts and no ``Software`` metadata make the bytes reproducible.
 """
 
 from __future__ import annotations
@@ -15,7 +24,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,15 +32,50 @@ from twin.outputs.sink import OutcomeSink
 from twin.signals.table import SignalTable
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
     from twin.outputs.sink import Outcome
 
-__all__ = ["DPI", "FIGSIZE_IN", "BudgetColumns", "ErrorBudgetSink", "error_budget_png"]
+__all__ = [
+    "DPI",
+    "FIGSIZE_IN",
+    "WEAR_FIGSIZE_IN",
+    "BudgetColumns",
+    "ErrorBudgetSink",
+    "WearPlotSink",
+    "budget_figure",
+    "error_budget_png",
+    "human_name",
+    "wear_figure",
+]
 
-FIGSIZE_IN = (10.0, 7.0)
-DPI = 100  # 1000 x 700 pixels
+FIGSIZE_IN = (11.0, 8.5)
+WEAR_FIGSIZE_IN = (10.0, 5.0)
+DPI = 100  # 1100 x 850 pixels
 _UM_PER_M = 1e6
-# The parts' colours leave out black and red, which mark the measured drift and the prediction.
-_PART_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:cyan", "tab:olive")
+# The parts' colours leave out black, red and green, which mark the measured drift, the
+# prediction and the compensated wear.
+_PART_COLORS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:cyan", "tab:olive", "tab:pink")
+#: most points drawn per curve: the figure is about 1000 px wide, and drawing every sample of a
+#: long run costs seconds without changing a pixel of the trends
+_MAX_POINTS = 2000
+
+
+#: measuring points whose name is not just their key with spaces
+_POINT_NAMES = {"t_plate": "T-plate"}
+
+
+def human_name(column: str) -> str:
+    """A column's name as a person reads it: ``sensors.t_bearing_block_meas`` -> ``bearing
+    block``, ``thermal.t_base`` -> ``base`` (instance prefix, ``t_`` and ``_meas``/``_true``
+    dropped, underscores as spaces)."""
+    name = column.rsplit(".", 1)[-1]
+    for prefix in ("t_",):
+        name = name.removeprefix(prefix)
+    for suffix in ("_meas", "_true", "_measured"):
+        name = name.removesuffix(suffix)
+    return name.replace("_", " ").strip() or column
 
 
 def _time_axis(time_s: np.ndarray) -> tuple[np.ndarray, str]:
@@ -50,22 +94,43 @@ def _rise(values: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class BudgetColumns:
-    """Which columns the error-budget plot draws.
+    """Which columns the plots draw.
 
     ``reading`` is the probe reading (m), plotted as its drift from the first value;
     ``predicted`` the predicted error (m); ``parts`` maps a legend label (thermal, loading,
     fluctuating, positioning, interference) to the column of that part (m); ``temperatures``
-    (K or °C) are shown as rises from their first value.
+    maps a measuring point's name to its column (K or °C; a plain list of columns is named by
+    :func:`human_name`), shown as rises from their first value. ``compensated`` (m) is drawn
+    beside the drift when given; with ``true_wear`` (m) and ``cycles`` too, :func:`wear_figure`
+    draws wear against cycles, with ``wear_limit_m`` as the limit line when given.
     """
 
     reading: str
     predicted: str
     parts: Mapping[str, str]
-    temperatures: Sequence[str]
+    temperatures: Mapping[str, str] | Sequence[str]
+    compensated: str | None = None
+    true_wear: str | None = None
+    cycles: str | None = None
+    wear_limit_m: float | None = None
+
+    def temperature_columns(self) -> dict[str, str]:
+        """Point name -> column of every temperature drawn."""
+        if isinstance(self.temperatures, Mapping):
+            return {_POINT_NAMES.get(k, str(k).replace("_", " ")): v for k, v in self.temperatures.items()}
+        return {human_name(c): c for c in self.temperatures}
+
+    def wear_columns(self) -> tuple[str, str, str] | None:
+        """(true wear, compensated wear, cycles), when a wear plot can be drawn."""
+        if self.true_wear and self.compensated and self.cycles:
+            return self.true_wear, self.compensated, self.cycles
+        return None
 
     def missing(self, table: SignalTable) -> list[str]:
-        """The columns ``table`` lacks."""
-        wanted = [self.reading, self.predicted, *self.parts.values(), *self.temperatures]
+        """The columns ``table`` lacks (of the error-budget plot)."""
+        wanted = [self.reading, self.predicted, *self.parts.values(), *self.temperature_columns().values()]
+        if self.compensated:
+            wanted.append(self.compensated)
         return [name for name in wanted if name not in table]
 
 
@@ -76,7 +141,7 @@ def error_budget_png(
     reading: str,
     predicted: str,
     parts: Mapping[str, str],
-    temperatures: Sequence[str],
+    temperatures: Mapping[str, str] | Sequence[str],
     title: str,
 ) -> Path:
     """Draw the error budget of ``table`` to the PNG ``path``; returns ``path``.
@@ -84,58 +149,140 @@ def error_budget_png(
     The columns are those of :class:`BudgetColumns`; all lengths are shown in µm.
     Raises ``KeyError`` naming a column the table lacks.
     """
-    return _plot(table, Path(path), BudgetColumns(reading, predicted, parts, temperatures), title)
+    columns = BudgetColumns(reading, predicted, parts, temperatures)
+    return _save(budget_figure(table, columns, title), Path(path))
 
 
-def _plot(table: SignalTable, path: Path, columns: BudgetColumns, title: str) -> Path:
+def _checked(table: SignalTable, columns: BudgetColumns) -> None:
     missing = columns.missing(table)
     if missing:
         raise KeyError(f"columns not in the signal table: {missing}")
+
+
+def _new_figure(size: tuple[float, float]) -> Figure:
     # matplotlib is imported when a plot is drawn: a process that never draws (a sweep's
     # worker) does not pay its second of import
-    import matplotlib.style
-
-    # The default style, not the user's matplotlibrc: the same input gives the same bytes anywhere.
-    with matplotlib.style.context("default"):
-        return _draw(table, path, columns, title)
-
-
-def _draw(table: SignalTable, path: Path, columns: BudgetColumns, title: str) -> Path:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    # at most ~2000 points per line: the figure is 1000 px wide, and drawing every sample of a
-    # long run costs seconds without changing a pixel of the trends
-    every = max(1, len(table.time) // 2000)
+    # constrained layout keeps the panels, their labels and the outside legends apart
+    fig = Figure(figsize=size, dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _style() -> Any:
+    import matplotlib.style
+
+    # The default style, not the user's matplotlibrc: the same input gives the same bytes anywhere.
+    return matplotlib.style.context("default")
+
+
+def _legend_outside(ax: Axes) -> None:
+    """The legend to the right of the panel, outside its curves."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
+
+
+def _stacked(ax: Axes, t: np.ndarray, parts: Mapping[str, np.ndarray]) -> None:
+    """The parts as stacked areas: positive values stacked up from zero, negative ones down
+    (a plain stack of mixed signs would hide a part under its neighbour)."""
+    up = np.zeros_like(t)
+    down = np.zeros_like(t)
+    for (label, values), color in zip(parts.items(), itertools.cycle(_PART_COLORS)):
+        v = np.nan_to_num(values)
+        pos, neg = np.clip(v, 0.0, None), np.clip(v, None, 0.0)
+        ax.fill_between(t, up, up + pos, color=color, alpha=0.75, linewidth=0, label=label)
+        ax.fill_between(t, down, down + neg, color=color, alpha=0.75, linewidth=0)
+        up, down = up + pos, down + neg
+
+
+def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
+    """The error-budget figure of ``table`` (three panels, see the module). Raises
+    ``KeyError`` naming a column the table lacks."""
+    _checked(table, columns)
+    with _style():
+        return _draw_budget(table, columns, title)
+
+
+def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
+    every = max(1, len(table.time) // _MAX_POINTS)
     t, t_label = _time_axis(table.time[::every])
 
-    def col(name: str) -> np.ndarray:
-        return table[name][::every]
+    def um(name: str) -> np.ndarray:
+        return table[name][::every] * _UM_PER_M
 
-    fig = Figure(figsize=FIGSIZE_IN, dpi=DPI)
-    FigureCanvasAgg(fig)
-    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig = _new_figure(FIGSIZE_IN)
+    drift, budget, temps = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [3, 3, 2]})
+    fig.suptitle(title)
 
-    top.plot(t, _rise(col(columns.reading)) * _UM_PER_M, color="black", linewidth=1.6, label="measured drift")
-    top.plot(t, col(columns.predicted) * _UM_PER_M, color="tab:red", linewidth=1.6, label="predicted error")
-    for (label, column), color in zip(columns.parts.items(), itertools.cycle(_PART_COLORS)):
-        top.plot(t, col(column) * _UM_PER_M, color=color, linewidth=1.0, linestyle="--", label=label)
-    top.axhline(0.0, color="0.6", linewidth=0.6)
-    top.set_ylabel("error (µm)")
-    top.set_title(title)
-    top.legend(loc="upper left", fontsize="small", ncols=2, frameon=False)
-    top.grid(True, linewidth=0.3)
+    drift.plot(t, _rise(um(columns.reading)), color="black", linewidth=1.6, label="measured drift (probe)")
+    drift.plot(t, um(columns.predicted), color="tab:red", linewidth=1.6, label="predicted error e_z")
+    if columns.compensated:
+        drift.plot(t, um(columns.compensated), color="tab:green", linewidth=1.2, label="compensated wear")
+    drift.axhline(0.0, color="0.6", linewidth=0.6)
+    drift.set_ylabel("displacement (µm)")
+    drift.set_title("probe reading and the error model's prediction", fontsize="medium")
 
-    for column in columns.temperatures:
-        bottom.plot(t, _rise(col(column)), linewidth=1.0, label=column)
-    bottom.set_ylabel("temperature rise (K)")
-    bottom.set_xlabel(t_label)
-    if columns.temperatures:
-        bottom.legend(loc="upper left", fontsize="small", ncols=2, frameon=False)
-    bottom.grid(True, linewidth=0.3)
+    _stacked(budget, t, {label: um(column) for label, column in columns.parts.items()})
+    budget.plot(t, um(columns.predicted), color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
+    budget.axhline(0.0, color="0.3", linewidth=0.6)
+    budget.set_ylabel("error part (µm)")
+    budget.set_title("error budget: the parts of e_z, stacked", fontsize="medium")
 
-    fig.align_ylabels([top, bottom])
-    fig.tight_layout()
+    for name, column in columns.temperature_columns().items():
+        temps.plot(t, _rise(table[column][::every]), linewidth=1.0, label=name)
+    temps.set_ylabel("temperature rise (K)")
+    temps.set_title("temperature rises at the measuring points", fontsize="medium")
+    temps.set_xlabel(t_label)
+
+    for ax in (drift, budget, temps):
+        _legend_outside(ax)
+        ax.grid(True, linewidth=0.3)
+    fig.align_ylabels([drift, budget, temps])
+    return fig
+
+
+def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure | None:
+    """Wear against cycles: true, measured (the probe reading's change) and compensated, in
+    µm, with the wear limit as a line; None when ``columns`` name no true wear, compensated
+    wear and cycles (see :meth:`BudgetColumns.wear_columns`) or the table lacks one."""
+    wear = columns.wear_columns()
+    if wear is None or any(c not in table for c in (*wear, columns.reading)):
+        return None
+    true_wear, compensated, cycles = wear
+    every = max(1, len(table.time) // _MAX_POINTS)
+    with _style():
+        fig = _new_figure(WEAR_FIGSIZE_IN)
+        ax = fig.subplots()
+        n = table[cycles][::every]
+        ax.plot(
+            n, _rise(table[true_wear][::every]) * _UM_PER_M, color="black", linewidth=1.8, label="true wear"
+        )
+        ax.plot(
+            n,
+            _rise(table[columns.reading][::every]) * _UM_PER_M,
+            color="0.55",
+            linewidth=1.0,
+            label="measured (probe reading change)",
+        )
+        ax.plot(
+            n, table[compensated][::every] * _UM_PER_M, color="tab:green", linewidth=1.4, label="compensated"
+        )
+        if columns.wear_limit_m is not None:
+            limit = columns.wear_limit_m * _UM_PER_M
+            ax.axhline(
+                limit, color="tab:red", linestyle="--", linewidth=1.2, label=f"wear limit ({limit:g} µm)"
+            )
+        ax.set_xlabel("swing cycles completed")
+        ax.set_ylabel("wear depth (µm)")
+        ax.set_title(title)
+        ax.grid(True, linewidth=0.3)
+        _legend_outside(ax)
+    return fig
+
+
+def _save(fig: Figure, path: Path) -> Path:
     # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
     fig.savefig(path, format="png", dpi=DPI, metadata={"Software": None})
     return path
@@ -161,5 +308,27 @@ class ErrorBudgetSink(OutcomeSink):
         table = outcome.table
         if table is None:
             return
-        present = [name for name in self.columns.temperatures if name in table]
-        _plot(table, self.path, dataclasses.replace(self.columns, temperatures=present), self.title)
+        present = {k: v for k, v in self.columns.temperature_columns().items() if v in table}
+        columns = dataclasses.replace(self.columns, temperatures=present)
+        if columns.compensated and columns.compensated not in table:
+            columns = dataclasses.replace(columns, compensated=None)
+        _save(budget_figure(table, columns, self.title), self.path)
+
+
+class WearPlotSink(OutcomeSink):
+    """``wear.png``: wear against swing cycles with the wear limit, drawn when the run is over
+    (only for a run whose table has the true wear, the compensated wear and the cycles)."""
+
+    skippable = True
+
+    def __init__(self, path: Path, columns: BudgetColumns, title: str) -> None:
+        self.path = path
+        self.columns = columns
+        self.title = title
+
+    def write_outcome(self, outcome: Outcome) -> None:
+        if outcome.table is None:
+            return
+        fig = wear_figure(outcome.table, self.columns, self.title)
+        if fig is not None:
+            _save(fig, self.path)

@@ -7,11 +7,16 @@ Layout of the recording:
 * one entity per signal, ``/<subsystem>/<variable>`` (``thermal.t_base`` of subsystem
   ``thermal`` -> ``/thermal/t_base``), holding ``Scalars`` sent column-wise with
   ``send_columns`` (one call per column and chunk, never one ``log`` per sample);
+* lengths in µm: a signal in metres is recorded times 1e6 (the twin's lengths are microns of
+  drift and wear; a view in metres shows 0.00001); every other signal in its own unit;
 * static per entity: ``SeriesLines`` with the legend name ``"<variable> [<unit>]"`` (rerun
-  has no unit field for scalars) and ``AnyValues`` with ``signal``, ``unit``, ``description``;
-* a default blueprint saved in the file: an "Error budget" time-series view with the
-  ``budget_columns`` on top, taking most of the height, and below it a grid with one
-  time-series view per subsystem.
+  has no unit field for scalars) and ``AnyValues`` with ``signal``, ``unit`` (as recorded),
+  ``si_unit`` and ``to_si`` (the factor back to SI), ``description``;
+* a default blueprint saved in the file: on top an "Error budget" time-series view (µm) with
+  the ``budget_columns`` and, for a run of the tester, a 3D view of it
+  (:mod:`twin.outputs.scene3d`, entities under ``/tester``); below, a grid with one
+  time-series view per subsystem and unit (``thermal [K]``, ``thermal [J]``, ...), so no view
+  mixes units.
 
 Written against rerun-sdk 0.41 (``rr.Scalars``, ``rr.SeriesLines``, ``rr.TimeColumn``,
 ``rerun.chunk.RrdReader``). No viewer is spawned and nothing goes over the network: the
@@ -42,20 +47,26 @@ from twin.outputs.sink import ClosesOnExit
 from twin.signals.table import Block, Signal, SignalTable
 
 if TYPE_CHECKING:
+    from twin.outputs.scene3d import TesterScene
     from twin.outputs.sink import Outcome
 
 __all__ = [
     "BUDGET_VIEW_NAME",
+    "SCENE_VIEW_NAME",
     "TIMELINE",
     "RecordingSink",
     "RecordingWriter",
     "entity_path",
     "read_recording",
+    "recorded_unit",
     "write_recording",
 ]
 
 TIMELINE = "sim_time"
 BUDGET_VIEW_NAME = "Error budget"
+SCENE_VIEW_NAME = "Tester (3D)"
+#: units recorded in another unit: SI unit -> (recorded unit, factor from SI)
+_DISPLAY_UNITS = {"m": ("µm", 1e6)}
 # write_recording sends a long table in slices of this many rows, so the arrow copies rerun
 # makes stay bounded whatever the run length.
 CHUNK_ROWS = 65536
@@ -76,23 +87,46 @@ def entity_path(signal: Signal) -> str:
     return str(rr.new_entity_path([signal.subsystem, _variable(signal)]))
 
 
+def recorded_unit(signal: Signal) -> tuple[str, float]:
+    """The unit a signal is recorded in and the factor from its own unit (µm and 1e6 for m)."""
+    return _DISPLAY_UNITS.get(signal.unit, (signal.unit, 1.0))
+
+
 def _series_label(signal: Signal) -> str:
     # Rerun scalars have no unit field: the legend carries it.
-    return f"{_variable(signal)} [{signal.unit}]" if signal.unit else _variable(signal)
+    unit = recorded_unit(signal)[0]
+    return f"{_variable(signal)} [{unit}]" if unit else _variable(signal)
 
 
-def _blueprint(signals: Sequence[Signal], paths: Mapping[str, str], budget: Sequence[str]) -> rrb.Blueprint:
-    subsystems = list(dict.fromkeys(s.subsystem for s in signals))
-    per_subsystem = [
-        rrb.TimeSeriesView(origin=str(rr.new_entity_path([sub])), name=sub) for sub in subsystems
-    ]
-    grid = rrb.Grid(*per_subsystem)
-    if budget:
-        budget_view = rrb.TimeSeriesView(
-            origin="/", contents=[f"+ {paths[name]}" for name in budget], name=BUDGET_VIEW_NAME
+def _blueprint(
+    signals: Sequence[Signal], paths: Mapping[str, str], budget: Sequence[str], scene: bool
+) -> rrb.Blueprint:
+    groups: dict[tuple[str, str], list[str]] = {}
+    for s in signals:
+        groups.setdefault((s.subsystem, recorded_unit(s)[0]), []).append(paths[s.name])
+    # one view per subsystem and unit: a view's one Y axis never mixes K with J or µm with N
+    per_unit = [
+        rrb.TimeSeriesView(
+            origin="/", contents=[f"+ {p}" for p in members], name=f"{sub} [{unit}]" if unit else sub
         )
-        # The error budget is what a run is for: first and 60 % of the height.
-        root: rrb.Container = rrb.Vertical(budget_view, grid, row_shares=[3, 2])
+        for (sub, unit), members in groups.items()
+    ]
+    grid = rrb.Grid(*per_unit)
+    top: list[rrb.View] = []
+    if budget:
+        top.append(
+            rrb.TimeSeriesView(
+                origin="/", contents=[f"+ {paths[name]}" for name in budget], name=BUDGET_VIEW_NAME
+            )
+        )
+    if scene:
+        from twin.outputs.scene3d import ROOT
+
+        top.append(rrb.Spatial3DView(origin=ROOT, name=SCENE_VIEW_NAME))
+    if top:
+        # The error budget (and where it comes from) is what a run is for: first, 60 % of the height.
+        first = top[0] if len(top) == 1 else rrb.Horizontal(*top, column_shares=[3, 2])
+        root: rrb.Container = rrb.Vertical(first, grid, row_shares=[3, 2])
     else:
         root = grid
     return rrb.Blueprint(root, rrb.TimePanel(timeline=TIMELINE), collapse_panels=False)
@@ -120,9 +154,12 @@ class RecordingWriter(ClosesOnExit):
         app_id: str = "twin",
         recording_name: str | None = None,
         budget_columns: Sequence[str] | None = None,
+        scene: TesterScene | None = None,
     ) -> None:
         self.path = Path(path)
         self.signals = list(signals)
+        self.scene = scene
+        self.scale = {s.name: recorded_unit(s)[1] for s in self.signals}
         self.paths = {s.name: entity_path(s) for s in self.signals}
         owner: dict[str, str] = {}
         for name, path_ in self.paths.items():
@@ -139,15 +176,20 @@ class RecordingWriter(ClosesOnExit):
         # An explicit stream (not rr.init's global one) with a fresh id: several recordings
         # can be written from one process without mixing.
         self._rec: rr.RecordingStream | None = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        self._rec.save(self.path, default_blueprint=_blueprint(self.signals, self.paths, budget))
+        self._rec.save(
+            self.path, default_blueprint=_blueprint(self.signals, self.paths, budget, scene is not None)
+        )
         name = recording_name or self.path.resolve().parent.name or self.path.stem
         self._rec.send_recording_name(name)
         for s in self.signals:
             path_ = self.paths[s.name]
+            unit, scale = recorded_unit(s)
             self._rec.log(
                 path_,
                 rr.SeriesLines(names=_series_label(s)),
-                rr.AnyValues(signal=s.name, unit=s.unit, description=s.description),
+                rr.AnyValues(
+                    signal=s.name, unit=unit, si_unit=s.unit, to_si=1.0 / scale, description=s.description
+                ),
                 static=True,
                 strict=True,
             )
@@ -177,6 +219,7 @@ class RecordingWriter(ClosesOnExit):
             for name in self.paths
             if name in columns_chunk
         }
+        arrays = {name: v * self.scale[name] if self.scale[name] != 1.0 else v for name, v in arrays.items()}
         for name, values in arrays.items():
             if values.shape != t.shape:
                 raise ValueError(f"column '{name}' has shape {values.shape}, time has {t.shape}")
@@ -196,6 +239,8 @@ class RecordingWriter(ClosesOnExit):
         if self._rec is not None:
             rec, self._rec = self._rec, None
             try:
+                if self.scene is not None:
+                    self.scene.send(rec, TIMELINE)
                 rec.flush()
             except RuntimeError as exc:
                 # rerun writes from its own thread and reports a failed write only as
@@ -242,8 +287,10 @@ class RecordingSink:
         late_signals: Sequence[Signal] = (),
         budget_columns: Sequence[str] | None = None,
         replay: Path | None = None,
+        scene: TesterScene | None = None,
     ) -> None:
         self.path = path
+        self.scene = scene
         self.recording_name = recording_name
         self.late_signals = list(late_signals)
         self.budget_columns = budget_columns
@@ -256,16 +303,22 @@ class RecordingSink:
             [*signals, *self.late_signals],
             recording_name=self.recording_name,
             budget_columns=self.budget_columns,
+            scene=self.scene,
         )
         if self.replay is not None:
             from twin.outputs.csv import read_signals_csv
 
             before = read_signals_csv(self.replay)
-            self._writer.append(before.time, {s.name: before[s.name] for s in signals}, partial=True)
+            columns = {s.name: before[s.name] for s in signals}
+            self._writer.append(before.time, columns, partial=True)
+            if self.scene is not None:
+                self.scene.collect(before.time, columns)
 
     def write(self, block: Block) -> None:
         assert self._writer is not None, "write before open"
         self._writer.append(block.time, block.columns, partial=True)
+        if self.scene is not None:
+            self.scene.collect(block.time, block.columns)
 
     def close(self, outcome: Outcome) -> None:
         if self._writer is None:
@@ -305,7 +358,8 @@ def write_recording(
 
 
 def read_recording(path: str | os.PathLike[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Read the scalar series of an ``.rrd`` back: entity path -> (sim_time in s, values).
+    """Read the scalar series of an ``.rrd`` back: entity path -> (sim_time in s, values as
+    recorded: lengths in µm, see :func:`recorded_unit`).
 
     Meant for tests and quick checks (it loads everything); rows are sorted by time.
     """

@@ -36,6 +36,7 @@ from twin.outputs.summary import write_json_atomic
 
 if TYPE_CHECKING:
     from twin.outputs.plots import BudgetColumns
+    from twin.outputs.scene3d import TesterScene
     from twin.outputs.sink import Sink
     from twin.signals.table import Signal
 
@@ -47,6 +48,7 @@ __all__ = [
     "RUN_FILE",
     "SIGNALS_CSV",
     "SUMMARY_JSON",
+    "WEAR_PNG",
     "Checkpoint",
     "RunFolder",
     "RunMeta",
@@ -56,6 +58,7 @@ SIGNALS_CSV = "signals.csv"
 RECORDING = "recording.rrd"
 ERRORMODEL_CSV = "errormodel.csv"
 ERROR_BUDGET_PNG = "error_budget.png"
+WEAR_PNG = "wear.png"
 SUMMARY_JSON = "summary.json"
 RUN_FILE = "run.json"
 CHECKPOINT_FILE = "checkpoint.npz"
@@ -73,6 +76,7 @@ RUN_OUTPUTS = (
     "errormodel.csv",
     "errormodel.units.json",
     "error_budget.png",
+    "wear.png",
     "summary.json",
     "uncertainty.csv",
     "checkpoint.npz",
@@ -307,12 +311,14 @@ class RunFolder:
         budget_view: Sequence[str],
         plot: BudgetColumns,
         resume: Checkpoint | None = None,
+        scene: TesterScene | None = None,
     ) -> list[Sink]:
         """Every output of a twin run, in the order they close.
 
         ``name`` names the recording and titles the plot; ``late_signals`` are the columns
         the error model adds after the run (declared to the recording up front) and
-        ``budget_view`` those of the recording's error-budget view; ``plot`` the plot's.
+        ``budget_view`` those of the recording's error-budget view; ``plot`` the plot's;
+        ``scene`` the recording's 3D view of the tester (none when None).
         With ``resume``, signals.csv is cut back to the checkpoint and continued, and the
         recording is written anew from the rows the CSV kept.
         """
@@ -333,6 +339,7 @@ class RunFolder:
                 late_signals=late_signals,
                 budget_columns=budget_view,
                 replay=csv_path if resume is not None else None,
+                scene=scene,
             ),
             *self.result_sinks(name=name, plot=plot),
         ]
@@ -341,14 +348,16 @@ class RunFolder:
         """The outputs written once the error model has run: errormodel.csv, the plot
         (titled after ``name``) and summary.json, last."""
         from twin.outputs.csv import DerivedCsvSink
-        from twin.outputs.plots import ErrorBudgetSink
+        from twin.outputs.plots import ErrorBudgetSink, WearPlotSink
         from twin.outputs.summary import SummarySink
 
-        return [
+        sinks: list[Sink] = [
             DerivedCsvSink(self.file(ERRORMODEL_CSV)),
             ErrorBudgetSink(self.file(ERROR_BUDGET_PNG), plot, f"{name}: predicted error and its parts"),
-            SummarySink(self.file(SUMMARY_JSON)),
         ]
+        if plot.wear_columns() is not None:
+            sinks.append(WearPlotSink(self.file(WEAR_PNG), plot, f"{name}: wear against swing cycles"))
+        return [*sinks, SummarySink(self.file(SUMMARY_JSON))]
 
 
 def _run_meta(path: Path) -> RunMeta:

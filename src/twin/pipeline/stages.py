@@ -42,6 +42,7 @@ from twin.outputs.run_folder import (
     RunMeta,
     scenario_fingerprint,
 )
+from twin.outputs.scene3d import tester_scene
 from twin.outputs.sink import Outcome, Sink
 from twin.paper import DRIFT_M, PAPER_SCENARIO, TEMPERATURE_RISE_K
 from twin.pipeline.run_summary import RunSummary, Timing
@@ -229,13 +230,25 @@ def write_outputs(
         sink.close(outcome)
 
 
-def budget_columns(cfg: EvaluationConfig) -> BudgetColumns:
-    """What the error-budget plot draws for an error model configured as ``cfg``."""
+def cycles_column(scenario: Scenario) -> str | None:
+    """The swing-cycle counter of the scenario's oscillation drive (wear.png's axis), if one."""
+    names = [f.name for f in scenario.fmus if f.model == "OscillationDrive"]
+    return f"{names[0]}.cycles" if len(names) == 1 else None
+
+
+def budget_columns(cfg: EvaluationConfig, scenario: Scenario | None = None) -> BudgetColumns:
+    """What the plots draw for an error model configured as ``cfg`` (and, for a run, its
+    ``scenario``: the cycle counter and the wear limit of wear.png)."""
+    limit = scenario.wear_limit_mm if scenario is not None else None
     return BudgetColumns(
         reading=cfg.reading,
         predicted="errormodel.e_z",
         parts={f.label: f.column for f in FACTORS},
-        temperatures=list(cfg.temperatures.values()),
+        temperatures=dict(cfg.temperatures),
+        compensated="errormodel.wear_compensated",
+        true_wear=cfg.true_wear,
+        cycles=cycles_column(scenario) if scenario is not None else None,
+        wear_limit_m=limit * 1e-3 if limit is not None else None,
     )
 
 
@@ -293,13 +306,15 @@ def _run_locked(
             name=scenario.name,
             late_signals=evaluation_signals(with_true_wear=bool(cfg.true_wear)),
             budget_view=["errormodel.e_z", *[f.column for f in FACTORS], "errormodel.reading_change"],
-            plot=budget_columns(cfg),
+            plot=budget_columns(cfg, scenario),
             resume=resume,
+            scene=tester_scene(scenario),
         )
         simulation = simulate(
             scenario,
             sinks=sinks,
-            keep=set(input_columns(cfg)) | truth_columns(scenario),
+            # the cycle counter too: wear.png's axis
+            keep=set(input_columns(cfg)) | truth_columns(scenario) | {cycles_column(scenario)} - {None},
             progress=progress,
             loop=loop,
             stop=stop,
