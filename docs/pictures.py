@@ -24,7 +24,10 @@ def main() -> None:
     from twin.pipeline.stages import budget_columns
 
     with tempfile.TemporaryDirectory() as tmp:
-        for name, picture in (("li2017-thermal-experiment", "error_budget_paper"), ("mil-endurance", "wear_mil")):
+        for name, picture in (
+            ("li2017-thermal-experiment", "error_budget_paper"),
+            ("mil-endurance", "wear_mil"),
+        ):
             out = Path(tmp) / name
             assert twin(["run", name, "--out", str(out), "--quiet", "--uncertainty", "0"]) == 0
             scenario = load_scenario(scenarios_dir() / f"{name}.toml")

@@ -12,3 +12,20 @@ from twin.fmu.build import ensure_fmu, model_names
 @pytest.fixture(scope="session")
 def fmu_paths() -> dict[str, Path]:
     return {name: ensure_fmu(name) for name in model_names()}
+
+
+@pytest.fixture(scope="session")
+def lowpass_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An FMU the project did not write: tests/data/LowPass (its own C file, not the twin's FMU
+    wrapper) built by fmpy's own cmake build and zipped as any FMU tool would."""
+    import shutil
+
+    from fmpy.build import build_platform_binary
+
+    root = tmp_path_factory.mktemp("lowpass")
+    unzipped = root / "LowPass"
+    shutil.copytree(Path(__file__).parent / "data" / "LowPass", unzipped)
+    (root / "build").mkdir()
+    build_platform_binary(unzipped, build_dir=root / "build")
+    archive = shutil.make_archive(str(root / "LowPass"), "zip", unzipped)
+    return Path(shutil.move(archive, root / "LowPass.fmu"))

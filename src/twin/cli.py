@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from twin import __version__, identify_cli, inspect_cli
+from twin import __version__, identify_cli, inspect_cli, ssp_cli
 from twin.errors import ConfigError, TwinError
 from twin.sweep.cli import add_sweep_parser  # cheap: dask and pandas load only when a sweep runs
 from twin.validation import cli as heldout_cli  # cheap: dask loads only when it runs
@@ -49,7 +49,7 @@ def _scenario_path(name: str | None) -> Path:
     if not name:
         return default_scenario_path()
     path = Path(name)
-    if path.exists() or path.suffix == ".toml" or len(path.parts) > 1:
+    if path.exists() or path.suffix in (".toml", ".ssp") or len(path.parts) > 1:
         return path  # a file (a missing one is reported by the loader, naming it)
     shipped = {p.stem: p for p in sorted(scenarios_dir().glob("*.toml"))}
     if name in shipped:
@@ -401,7 +401,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "scenario",
         nargs="?",
-        help="scenario TOML file or a shipped scenario's name, e.g. sine-load (default: li2017-thermal-experiment)",
+        help="scenario TOML file, an SSP archive (.ssp), or a shipped scenario's name, e.g. sine-load "
+        "(default: li2017-thermal-experiment)",
     )
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
     p.add_argument(
@@ -431,7 +432,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_resume)
 
     p = sub.add_parser("validate", help="check a scenario without running it")
-    p.add_argument("scenario", help="scenario TOML file")
+    p.add_argument("scenario", help="scenario TOML file, SSP archive (.ssp) or shipped scenario's name")
     p.add_argument(
         "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
     )
@@ -476,6 +477,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_calibrate)
     identify_cli.add_parser(sub)
     inspect_cli.add_parser(sub)
+    ssp_cli.add_parser(sub)
     add_sweep_parser(sub)
     heldout_cli.add_parser(sub)
     return parser

@@ -128,8 +128,9 @@ def _parameters(p: Problems, model: str, given: Mapping[str, tuple[Any, str]]) -
     return params
 
 
-def _model_of(p: Problems, name: str, raw: Any, known: list[str]) -> str | None:
-    """The model an instance table names, or None (and a problem) when it names none we have."""
+def _model_of(p: Problems, name: str, raw: Any, known: list[str], base_dir: Path) -> str | None:
+    """The model an instance table names (one of the twin's, or an FMU file's resolved path),
+    or None (and a problem) when it names none we have."""
     if not isinstance(raw, dict):
         p.add(f"fmu.{name}", "expected a table")
         return None
@@ -138,12 +139,26 @@ def _model_of(p: Problems, name: str, raw: Any, known: list[str]) -> str | None:
     prefix = f"fmu.{name}."
     p.unknown_keys(raw, _FMU_KEYS, prefix)
     if "model" not in raw:
-        p.add(prefix + "model", f"missing (one of: {', '.join(known)})")
+        p.add(prefix + "model", f"missing (one of: {', '.join(known)}, or an FMU file)")
         return None
+    if isinstance(raw["model"], str) and raw["model"].endswith(".fmu"):
+        return _external(p, raw["model"], prefix, base_dir)
     if raw["model"] not in known:
         p.add(prefix + "model", f"unknown model {raw['model']!r} (known: {', '.join(known)})")
         return None
     return str(raw["model"])
+
+
+def _external(p: Problems, given: str, prefix: str, base_dir: Path) -> str | None:
+    """An FMU file named by path (relative to the scenario file), checked as fmpy validates;
+    its resolved path is the model's name from here on."""
+    from twin.fmu import external
+
+    try:
+        return str(external.check(base_dir / given).path)
+    except ConfigError as exc:
+        p.add(prefix + "model", f"{given}: {exc.message}")
+        return None
 
 
 def _period(p: Problems, raw: Mapping[str, Any], prefix: str, step_ns: int | None) -> int | None:
@@ -162,7 +177,7 @@ def _instance(
     p: Problems, name: str, raw: Any, known: list[str], base_dir: Path, step_ns: int | None
 ) -> FMUSpec | None:
     """One instance, or None when it is unusable (its problems are in ``p``)."""
-    model = _model_of(p, name, raw, known)
+    model = _model_of(p, name, raw, known, base_dir)
     if model is None:
         return None
     prefix = f"fmu.{name}."

@@ -105,8 +105,13 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
 
     ``extends = "base/tester-system.toml"`` (relative to the file) takes that file as the
     starting point; the file's own tables merge over it key by key. A base's
-    ``parameter_files`` stay relative to the base.
+    ``parameter_files`` stay relative to the base. An SSP archive (``.ssp``) is read as
+    :func:`twin.ssp.read_ssp_data` reads it.
     """
+    if path.suffix == ".ssp":  # a system from another FMI tool: its FMUs run as external ones
+        from twin.ssp import read_ssp_data
+
+        return read_ssp_data(path)
     data = read_toml(path, str(path))
     parent = data.pop("extends", None)
     if parent is None:
@@ -138,7 +143,8 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
 
 
 def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
-    """Read (resolving ``extends``), override (``--set``) and check a scenario file."""
+    """Read (resolving ``extends``), override (``--set``) and check a scenario file (TOML, or an
+    SSP archive: :mod:`twin.ssp`)."""
     path = Path(path)
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")

@@ -208,7 +208,12 @@ def model(name: str, src: Path | None = None) -> Model:
 
 
 def variables(name: str) -> Mapping[str, Variable]:
-    """The variables of model ``name`` by name, from its modelDescription.xml (no build needed)."""
+    """The variables of model ``name`` by name, from its modelDescription.xml (no build needed);
+    for an external FMU (a name ending in ``.fmu``, :mod:`twin.fmu.external`), from its file."""
+    from twin.fmu import external
+
+    if external.is_external(name):
+        return external.check(name).description.variables
     return _variables(name, sources_dir())
 
 
@@ -218,5 +223,10 @@ def _variables(name: str, src: Path) -> Mapping[str, Variable]:
 
 
 def fmu(name: str) -> Path:
-    """Path of an up-to-date ``.fmu`` of model ``name`` (built and cached on first use)."""
+    """Path of an up-to-date ``.fmu`` of model ``name`` (built and cached on first use); an
+    external FMU's own file, hashed again (it must be the file that was checked)."""
+    from twin.fmu import external
+
+    if external.is_external(name):
+        return external.verified_path(name)
     return model(name).fmu()
