@@ -59,7 +59,9 @@ class RunResult:
     table: SignalTable | None
     status: str  # "completed" | "failed" | "interrupted"
     error: RunError | None = None
-    cosim_s: float = 0.0
+    cosim_s: float = 0.0  # from the FMUs' loading to the last row: setup_s and open_s included
+    setup_s: float = 0.0  # loading, instantiating and initializing the FMUs
+    open_s: float = 0.0  # opening the recorder's sinks (the recording's blueprint among them)
     macro_steps: int = 0
     fmu_steps: int = 0
     end_ns: int = 0
@@ -133,7 +135,9 @@ class Master:
         start = wallclock.perf_counter()
         stepping, tick = self._start()
         plan = self.plan
+        self._setup_s = wallclock.perf_counter() - start
         self.recorder.open([c.meta for c in plan.columns])
+        self._open_s = wallclock.perf_counter() - start - self._setup_s
         env = simpy.Environment(initial_time=tick * plan.step_ns)
         events.start(
             env,
@@ -192,6 +196,8 @@ class Master:
             info={"interrupted_by": detail} if status == "interrupted" else {},
             error=detail if status == "failed" else None,
             cosim_s=wallclock.perf_counter() - start,
+            setup_s=getattr(self, "_setup_s", 0.0),
+            open_s=getattr(self, "_open_s", 0.0),
             macro_steps=int(c.macro_steps),
             fmu_steps=int(c.fmu_steps),
             # every tick before the end, the failure or the interruption was done

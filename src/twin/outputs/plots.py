@@ -165,8 +165,10 @@ def _new_figure(size: tuple[float, float]) -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    # constrained layout keeps the panels, their labels and the outside legends apart
-    fig = Figure(figsize=size, dpi=DPI, layout="constrained")
+    # fixed margins, the right one wide enough for the legends outside the panels: matplotlib's
+    # constrained layout would find them too, but by drawing the whole figure once more (half
+    # of the plot's time); tests/outputs/test_plots.py checks that nothing overlaps
+    fig = Figure(figsize=size, dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
 
@@ -213,7 +215,19 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
         return table[name][::every] * _UM_PER_M
 
     fig = _new_figure(FIGSIZE_IN)
-    drift, budget, temps = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [3, 3, 2]})
+    drift, budget, temps = fig.subplots(
+        3,
+        1,
+        sharex=True,
+        gridspec_kw={
+            "height_ratios": [3, 3, 2],
+            "left": 0.07,
+            "right": 0.79,
+            "top": 0.92,
+            "bottom": 0.07,
+            "hspace": 0.3,
+        },
+    )
     fig.suptitle(title)
 
     drift.plot(t, _rise(um(columns.reading)), color="black", linewidth=1.6, label="measured drift (probe)")
@@ -254,7 +268,7 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
     every = max(1, len(table.time) // _MAX_POINTS)
     with _style():
         fig = _new_figure(WEAR_FIGSIZE_IN)
-        ax = fig.subplots()
+        ax = fig.subplots(gridspec_kw={"left": 0.08, "right": 0.71, "top": 0.9, "bottom": 0.12})
         n = table[cycles][::every]
         ax.plot(
             n, _rise(table[true_wear][::every]) * _UM_PER_M, color="black", linewidth=1.8, label="true wear"

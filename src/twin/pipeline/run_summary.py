@@ -31,6 +31,9 @@ class Timing:
     macro_steps: int
     fmu_steps: int
     realtime_factor: float | None  # simulated seconds per second of cosim_s
+    #: the run's phases, s: FMU set-up, opening the outputs, stepping, writing while it ran, the
+    #: error model, then each output file as it is closed (benchmarks/bench_phases.py reads it)
+    phases_s: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
 
 def _versions() -> dict[str, str]:
@@ -102,7 +105,7 @@ class RunSummary:
             status=data["status"],
             seed=data["seed"],
             sim_end_s=data["sim_end_s"],
-            timing=Timing(**{f.name: timing[f.name] for f in dataclasses.fields(Timing)}),
+            timing=Timing(**{f.name: timing[f.name] for f in dataclasses.fields(Timing) if f.name in timing}),
             error=data.get("error"),
             errormodel_error=data.get("errormodel_error"),
             results={k: v for k, v in data.items() if k not in _FIELDS},

@@ -176,14 +176,24 @@ def truth_thermal_parts(simulation: Simulation) -> dict[str, float]:
     return out
 
 
-def summarize(simulation: Simulation, evaluated: Evaluated, *, process_start: float) -> RunSummary:
-    """The run's summary; ``process_start`` (``time.perf_counter()``) starts its total time."""
+def summarize(
+    simulation: Simulation,
+    evaluated: Evaluated,
+    *,
+    process_start: float,
+    phases: Mapping[str, float] | None = None,
+) -> RunSummary:
+    """The run's summary; ``process_start`` (``time.perf_counter()``) starts its total time;
+    ``phases`` adds to the timing's phases (the error model's and the outputs' times)."""
     result, sc = simulation.result, simulation.scenario
     error = str(result.error) if result.error is not None else None
     if result.status == "interrupted":
         error = f"interrupted by {result.info.get('interrupted_by')}"
     end_s = result.end_ns / NS_PER_S
     cosim_s = result.cosim_s - simulation.write_s
+    # the recorder's write_s counts its sinks' opening (the recording's blueprint) and writing
+    own = {"fmu_setup": result.setup_s, "stepping": cosim_s - result.setup_s}
+    own |= {"outputs_open": result.open_s, "outputs_write": simulation.write_s - result.open_s}
     timing = Timing(
         cosim_s=cosim_s,
         write_s=simulation.write_s,
@@ -191,6 +201,7 @@ def summarize(simulation: Simulation, evaluated: Evaluated, *, process_start: fl
         macro_steps=result.macro_steps,
         fmu_steps=result.fmu_steps,
         realtime_factor=end_s / cosim_s if cosim_s > 0 else None,
+        phases_s={k: round(v, 6) for k, v in {**own, **(phases or {})}.items()},
     )
     return RunSummary(
         scenario=sc.name,
@@ -212,8 +223,10 @@ def write_outputs(
     *,
     stop: Callable[[], str | None] | None = None,
     skipped: list[str] | None = None,
+    timings: dict[str, float] | None = None,
 ) -> None:
-    """Close every sink, in order, with the run's outcome.
+    """Close every sink, in order, with the run's outcome (each one's time into ``timings``,
+    by its file's name, when given).
 
     ``summary`` is called once, when the first sink asks for it (the summary sink, last),
     so the summary's total time counts the writing of every other file. Once ``stop``
@@ -227,7 +240,10 @@ def write_outputs(
             if skipped is not None:
                 skipped.append(Path(getattr(sink, "path", type(sink).__name__)).name)
             continue
+        t0 = time.perf_counter()
         sink.close(outcome)
+        if timings is not None:
+            timings[Path(getattr(sink, "path", type(sink).__name__)).name] = time.perf_counter() - t0
 
 
 def cycles_column(scenario: Scenario) -> str | None:
@@ -322,12 +338,18 @@ def _run_locked(
             on_checkpoint=folder.save_checkpoint,
             resume=resume,
         )
+        t0 = time.perf_counter()
         evaluated = evaluate_run(simulation, cfg)
+        phases = {"errormodel": time.perf_counter() - t0}
         skipped: list[str] = []
         summary = functools.cache(
-            lambda: _late_stop(summarize(simulation, evaluated, process_start=process_start), stop, skipped)
+            lambda: _late_stop(
+                summarize(simulation, evaluated, process_start=process_start, phases=phases), stop, skipped
+            )
         )
-        write_outputs(sinks, evaluated, lambda: summary().to_dict(), stop=stop, skipped=skipped)
+        write_outputs(
+            sinks, evaluated, lambda: summary().to_dict(), stop=stop, skipped=skipped, timings=phases
+        )
     except OSError as exc:
         _fail(sinks, exc)
         if exc.errno in DISK_FULL_ERRNOS:

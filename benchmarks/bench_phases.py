@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Where the time of a `twin run` goes (a script, not a timed test).
+
+Runs each scenario as a fresh `twin run` process (warm FMU cache) several times and prints, side
+by side, the medians of: the whole process's wall time, its peak resident memory, and the run's
+own phases from summary.json (``timing.phases_s``: FMU set-up, stepping, opening and writing the
+outputs while the run goes, the error model, each output file's closing). What the phases do not
+cover is the interpreter's start, the imports and the command's checks (``start+imports``), so
+the columns add up to the wall time.
+
+    python benchmarks/bench_phases.py                     # the paper's replay and the MIL endurance test
+    python benchmarks/bench_phases.py --reps 5 --quick    # the paper's replay only
+    python benchmarks/bench_phases.py --set fmu.sensors.parameters.solver_step=0.1   # a what-if
+
+Goals of issue 15: the paper's replay <= 0.8 s for the whole process; the MIL endurance run
+<= 4 s and <= 150 MB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RUNS = {
+    "paper replay": ["li2017-thermal-experiment", "--uncertainty", "0"],
+    "MIL endurance": ["mil-endurance"],
+}
+GOALS = {"paper replay": (0.8, None), "MIL endurance": (4.0, 150.0)}
+
+
+def one_run(args: list[str], sets: list[str], out: Path) -> dict[str, float]:
+    """One fresh process: wall s, peak MB (this child's alone, from wait4), the run's phases."""
+    cmd = [sys.executable, "-m", "twin", "run", *args, "--out", str(out), "--quiet", "--force"]
+    for s in sets:
+        cmd += ["--set", s]
+    start = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(
+            f"twin run {' '.join(args)} failed: {proc.stderr.read().decode() if proc.stderr else ''}"
+        )
+    phases = json.loads((out / "summary.json").read_text())["timing"]["phases_s"]
+    row = {"wall": wall, "peak MB": usage.ru_maxrss / 1024.0}
+    row["start+imports"] = wall - sum(phases.values())
+    row.update(phases)
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--reps", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="the paper's replay only")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to twin run")
+    args = parser.parse_args(argv)
+    runs = {k: v for k, v in RUNS.items() if not (args.quick and k != "paper replay")}
+    rows: dict[str, dict[str, float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for run_args in runs.values():
+            one_run(run_args, args.set, Path(tmp) / "warm")  # builds or finds the FMUs first
+        samples: dict[str, list[dict[str, float]]] = {name: [] for name in runs}
+        for _ in range(args.reps):  # the runs alternate: a slow spell of the machine hits both
+            for name, run_args in runs.items():
+                samples[name].append(one_run(run_args, args.set, Path(tmp) / name.replace(" ", "-")))
+        for name, reps in samples.items():
+            keys = list(dict.fromkeys(k for r in reps for k in r))
+            rows[name] = {k: statistics.median(r.get(k, 0.0) for r in reps) for k in keys}
+    keys = list(dict.fromkeys(k for r in rows.values() for k in r))
+    print(
+        f"twin run, medians of {args.reps} fresh processes each (s; peak in MB)"
+        + (f", --set {args.set}" if args.set else "")
+    )
+    print(f"{'':24}" + "".join(f"{name:>16}" for name in rows))
+    for k in keys:
+        print(f"{k:24}" + "".join(f"{r.get(k, 0.0):16.3f}" for r in rows.values()))
+    for name, r in rows.items():
+        wall_goal, mem_goal = GOALS[name]
+        verdict = (
+            "met" if r["wall"] <= wall_goal and (mem_goal is None or r["peak MB"] <= mem_goal) else "NOT met"
+        )
+        mem = f", <= {mem_goal:g} MB" if mem_goal else ""
+        print(f"goal {name}: <= {wall_goal:g} s{mem}: {verdict}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
