@@ -17,8 +17,6 @@ from twin.cli import main
 from twin.config.load import default_scenario_path
 from twin.geometry import load_geometry
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-
 BODIES = [
     "base",
     "heel_block",

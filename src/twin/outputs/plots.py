@@ -302,21 +302,25 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
-class ErrorBudgetSink(OutcomeSink):
-    """``error_budget.png`` as a sink: drawn from the outcome's table when the run is over.
+class _PlotSink(OutcomeSink):
+    """A PNG drawn from the outcome's table when the run is over, into ``path``."""
 
-    Only when the error model ran (the plot shows its prediction); temperatures the table
-    lacks are left out rather than failing the plot.
-    """
-
-    #: a run interrupted after its co-simulation leaves the plot out (it only draws what
-    #: errormodel.csv holds, and importing matplotlib alone takes half a second)
+    #: a run interrupted after its co-simulation leaves the plots out (they only draw what
+    #: the CSV files hold, and importing matplotlib alone takes half a second)
     skippable = True
 
     def __init__(self, path: Path, columns: BudgetColumns, title: str) -> None:
         self.path = path
         self.columns = columns
         self.title = title
+
+
+class ErrorBudgetSink(_PlotSink):
+    """``error_budget.png`` as a sink.
+
+    Only when the error model ran (the plot shows its prediction); temperatures the table
+    lacks are left out rather than failing the plot.
+    """
 
     def write_outcome(self, outcome: Outcome) -> None:
         table = outcome.table
@@ -329,16 +333,9 @@ class ErrorBudgetSink(OutcomeSink):
         _save(budget_figure(table, columns, self.title), self.path)
 
 
-class WearPlotSink(OutcomeSink):
-    """``wear.png``: wear against swing cycles with the wear limit, drawn when the run is over
-    (only for a run whose table has the true wear, the compensated wear and the cycles)."""
-
-    skippable = True
-
-    def __init__(self, path: Path, columns: BudgetColumns, title: str) -> None:
-        self.path = path
-        self.columns = columns
-        self.title = title
+class WearPlotSink(_PlotSink):
+    """``wear.png``: wear against swing cycles with the wear limit (only for a run whose table
+    has the true wear, the compensated wear and the cycles)."""
 
     def write_outcome(self, outcome: Outcome) -> None:
         if outcome.table is None:
