@@ -70,3 +70,29 @@ def test_a_shared_extraction_parent_is_refused(tmp_path: Path, mode: int) -> Non
         env=_env(tmp_path), capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert done.returncode != 0 and "is not a private folder of this user" in done.stderr
+
+
+def test_instances_of_one_fmu_file_share_one_unpacked_folder(tmp_path: Path) -> None:
+    """A run's or a sweep worker's instances of one FMU load one folder, unpacked once."""
+    from twin.fmu.slot import FMUSlot
+
+    fmu = ensure_fmu("HydraulicLoader")
+    a, b = FMUSlot(fmu, "a"), FMUSlot(fmu, "b")
+    try:
+        assert a.unzipdir == b.unzipdir and Path(a.unzipdir).is_dir()
+        # two instances, one library: each keeps its own state
+        a.setup(0.0)
+        b.setup(0.0)
+        a.set_value("load_mean", 1.0)
+        b.set_value("load_mean", 2.0)
+        pa, pb = a.port(["load_mean"]), b.port(["load_mean"])
+        for slot in (a, b):
+            slot.enter_initialization()
+            slot.exit_initialization()
+        a.read(pa)
+        b.read(pb)
+        assert pa.values[0] == 1.0 and pb.values[0] == 2.0
+    finally:
+        a.close()
+        b.close()
+    assert Path(a.unzipdir).is_dir()  # kept for the next instance; removed with the process

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import shutil
+import functools
+import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -25,7 +26,7 @@ from fmpy import extract
 from fmpy.fmi2 import FMU2Slave
 
 from twin.errors import FMUError
-from twin.fmu.catalog import Variable, describe
+from twin.fmu.catalog import Description, Variable, describe
 from twin.fmu.workdir import extraction_dir
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
@@ -122,6 +123,23 @@ def _extract(fmu_path: Path, instance_name: str) -> str:
         raise
 
 
+def _file_key(path: Path) -> tuple[str, int, int]:
+    st = os.stat(path)
+    return str(Path(path).resolve()), st.st_size, st.st_mtime_ns
+
+
+@functools.cache
+def _unpacked(key: tuple[str, int, int]) -> tuple[Description, str]:
+    """One FMU file's description and unpacked folder, once per process: every instance of it
+    (the five of a run, a sweep's points on a worker) loads the same folder instead of reading
+    and unpacking the zip again (about 6 ms an instance). The file is one
+    :func:`twin.fmu.catalog.fmu` has just verified; the folder is private to this process
+    (:func:`twin.fmu.workdir.process_dir`) and removed with it. A failed unpacking (a full disk)
+    is not remembered: the next instance tries again."""
+    path = Path(key[0])
+    return describe(path), _extract(path, path.stem)
+
+
 class FMUSlot:
     """An FMU instance with name-based setup and buffer-based stepping.
 
@@ -130,9 +148,11 @@ class FMUSlot:
 
     def __init__(self, fmu_path: Path, instance_name: str, *, unzipdir: str | None = None) -> None:
         self.name = instance_name
-        self.description = describe(fmu_path)
-        self._own_unzipdir = unzipdir is None
-        self.unzipdir = unzipdir or _extract(fmu_path, instance_name)
+        if unzipdir is None:
+            self.description, unzipdir = _unpacked(_file_key(fmu_path))
+        else:
+            self.description = describe(fmu_path)
+        self.unzipdir = unzipdir
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self.time = 0.0
@@ -259,5 +279,3 @@ class FMUSlot:
         with contextlib.suppress(Exception):
             self._slave.freeInstance()
         forget_logging(self.name)
-        if self._own_unzipdir:
-            shutil.rmtree(self.unzipdir, ignore_errors=True)
