@@ -14,7 +14,7 @@ them; where along X and Y a body stands is a schematic placement, not a drawing)
 * the spindle turns with the swing angle of the oscillation drive.
 
 Rerun's view is Z-up; the tester's frame is Z-down (the wear direction), so heights are negated.
-Between :data:`MAX_FRAMES` and twice as many frames are kept (every n-th recorded row, n doubling as the run grows):
+At most twice :data:`MAX_FRAMES` frames are kept (every n-th recorded row, n doubling as the run grows):
 the 3D view shows the trend, the time-series views every sample.
 """
 
