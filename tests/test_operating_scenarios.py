@@ -4,12 +4,13 @@ Goal (loading/oscillation issue): in every operating scenario the compensation r
 90 % of the RMS detecting error (reading minus true wear); the endurance run ends with a true wear
 inside the MIL limit and the compensated curve within 2 um RMS of it.
 
-Honest figures since the tester is richer than the error model (issue 12): under a held load the
-liner creeps (10 % of its 29 um elastic compression at 200 kN, time constant 2 h) and one probe
-cannot tell creep from wear, so the scenarios with a constant load keep about 3-6 um RMS:
-measured 65 % removed (constant-load, 2 h), 60 % (day-night, 24 h), 61 % (MIL endurance, 5.7 um
-RMS after). The varying loads (sine, trapezoid) still meet 90 %. The tests assert these figures
-with a margin, not the goal.
+Honest figures since the tester is richer than the error model (issue 12): the liner creeps
+under the held load, softens as it warms and has a hysteresis loop, and parts no sensor sees
+change temperature. Since `twin identify` fits a creep spectrum on a static load hold (the
+error model's own generic form, not the FMU's), the constant loads keep about 1.5-2.5 um RMS:
+measured 83 % removed (constant-load, 2 h, 1.45 um RMS), 83 % (day-night, 24 h, 2.41 um), 85 %
+(MIL endurance, 41.7 h, 2.29 um RMS after: goal 2 um not met); the varying loads (sine 94 %,
+trapezoid 94 %) meet 90 %. The tests assert these figures with a margin, not the goal.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def check_summary(run_summary: RunSummary, removed: float = 0.9) -> None:
 
 
 #: the share of the RMS detecting error each scenario's compensation removes at least (see above)
-REMOVED = {"constant-load": 0.6, "sine-load": 0.9, "trapezoid-load": 0.9, "day-night": 0.55}
+REMOVED = {"constant-load": 0.78, "sine-load": 0.9, "trapezoid-load": 0.9, "day-night": 0.78}
 
 
 @pytest.mark.parametrize("name", sorted(REMOVED))
@@ -61,8 +62,9 @@ def test_compensation_removes_the_detecting_error(name: str, tmp_path: Path) -> 
 
 def test_mil_endurance_run(tmp_path: Path) -> None:
     summary = run(load_scenario(scenarios_dir() / "mil-endurance.toml"), tmp_path)
-    check_summary(summary, 0.55)
+    check_summary(summary, 0.8)
     assert 0.0 < summary.results["wear_mm"]["true"] < MIL_WEAR_LIMIT_MM
-    # goal 2 um; the liner's creep under the held load stays in the compensated curve: 5.7 um
-    assert summary.results["compensation"]["residual_rms_um"]["after"] <= 6.5
+    # goal 2 um; measured 2.29 um (the liner's softening with the bearing's friction heat and
+    # its hysteresis stay in the compensated curve)
+    assert summary.results["compensation"]["residual_rms_um"]["after"] <= 2.6
     assert summary.timing.macro_steps == 1_500_000  # the swing resolved at 0.1 s

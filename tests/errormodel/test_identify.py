@@ -31,7 +31,15 @@ from twin.errormodel.identify import (
     lab_channels,
     run_experiment,
 )
-from twin.errormodel.sources import Columns, MechanicalCoefficients, ThermalCoefficients, thermal_errors
+from twin.errormodel.sources import (
+    CREEP_COEFFICIENTS,
+    RETARDATION_TIMES_S,
+    Columns,
+    MechanicalCoefficients,
+    ThermalCoefficients,
+    load_history,
+    thermal_errors,
+)
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError
 from twin.signals.table import Signal, SignalTable
@@ -49,6 +57,11 @@ TRUTH = {
     "runout_phase": -1.9,
     "probe_scale": math.cos(0.02),
     "abbe_rotation": 3.5e-9,
+    # a creep spectrum unlike the start values' even spread
+    "creep_compliance_15min": 2.0e-12,
+    "creep_compliance_1h": 6.0e-12,
+    "creep_compliance_4h": 9.0e-12,
+    "creep_compliance_16h": 3.0e-12,
 }
 PROBE_NOISE, PROBE_Q, TEMP_NOISE = 50e-9, 0.1e-6, 0.02
 #: the fits of the mechanical coefficients (quick: the thermal ones keep their priors)
@@ -125,6 +138,8 @@ def synthetic_records(seed: int) -> dict[str, Record]:
     gauge = np.select([short < 40, short < 80, short < 120], [0.0, 0.5e-3, 1.0e-3], 0.5e-3)
     load = 50e3 * np.clip(np.floor(short / 20.0), 0, 4)
     swing = np.pi * np.sin(2 * np.pi * short / 60.0)
+    hold_t = np.arange(0.0, 36000.0, 10.0)
+    hold = np.interp(hold_t, [0, 600, 660, 29400, 29460, 36000], [0, 0, 200e3, 200e3, 0, 0])
     light = np.arange(0.0, 300.0, 0.1)
     angle = np.deg2rad(25) * np.sin(2 * np.pi * light / 20.0)
     torque = -32.0 * np.sign(np.cos(2 * np.pi * light / 20.0))
@@ -150,6 +165,9 @@ def synthetic_records(seed: int) -> dict[str, Record]:
             load=20e3 + 0 * light,
             vibration=vibration,
         ),
+        "load_hold": record(
+            "load_hold", hold_t, rng, load=hold
+        ),  # the room held: the thermal coefficients stay at their priors in the quick fits
     }
 
 
@@ -193,7 +211,21 @@ def test_the_fit_recovers_the_mechanical_coefficients(fitted: Coefficients) -> N
     for name in MechanicalCoefficients.units():
         c = fitted.coefficients[name]
         assert abs(c.value - TRUTH[name]) <= 4 * c.std_error, (name, c.value, TRUTH[name], c.std_error)
+        if name in CREEP_COEFFICIENTS:
+            continue  # neighbouring retardation times trade off: their sum is what is sharp (below)
         assert 0 < c.std_error < 0.05 * max(abs(TRUTH[name]), 1.0 if c.unit in ("1", "rad") else 0.0), name
+    # the creep a held load gives after 2 h and 8 h (inside the 10 h hold): within 5 % of the
+    # truth's; after 2 days (beyond it) within 4 standard errors of the combination
+    taus = np.array(RETARDATION_TIMES_S)
+    cov = fitted.covariance(CREEP_COEFFICIENTS)
+    for hours in (2.0, 8.0, 48.0):
+        shape = 1.0 - np.exp(-hours * 3600.0 / taus)
+        fit = shape @ np.array([fitted.coefficients[n].value for n in CREEP_COEFFICIENTS])
+        true = shape @ np.array([TRUTH[n] for n in CREEP_COEFFICIENTS])
+        assert abs(fit - true) <= 4 * math.sqrt(shape @ cov @ shape), (hours, fit, true)
+        if hours < 10:
+            assert abs(fit - true) < 0.05 * true, (hours, fit, true)
+    assert fitted.fits["load_compliance"].experiments == ("load_steps", "load_hold")
     # the experiment each came from
     assert fitted.coefficients["load_compliance"].experiment == "load_compliance"
     assert fitted.fits["runout"].experiments == ("runout_check",)
@@ -307,9 +339,35 @@ def test_with_identified_coefficients_the_predicted_drift_meets_the_probes(
     em = read_signals_csv(tmp_path / "errormodel.csv")
     start, end = endpoints(em.time, em["errormodel.residual"], 300.0)  # compensated - true wear
     drift = summary["drift_mm"]
-    # the goal is 0.005 mm; the tester as built creeps under load (its liner's cold flow, which
-    # one probe cannot tell from wear) and its liner softens as the bearing warms, neither in the
-    # model's linear compliance: measured 5.6 um (day-night) and 5.9 um (MIL endurance) on the
-    # long loaded runs, so the honest bound there is 7 um; every other scenario keeps 5 um
-    bound = {"day-night.toml": 0.007, "mil-endurance.toml": 0.007}.get(scenario, 0.005)
-    assert abs((end - start) * 1e3) <= bound, (drift, summary["wear_mm"])
+    # measured since the creep spectrum is identified on the load hold: 0.9 um (constant-load),
+    # 2.6 um (day-night), 1.8 um (MIL endurance), below 0.3 um in the others
+    assert abs((end - start) * 1e3) <= 0.005, (drift, summary["wear_mm"])
+
+
+@pytest.mark.parametrize("tau_h", [0.7, 2.0, 6.0])
+def test_the_creep_spectrum_follows_a_creep_unlike_its_grid(tau_h: float) -> None:
+    # the tester's creep with one time constant between or beyond the grid's (15 min .. 16 h):
+    # the spectrum fitted on the 10 h hold predicts the creep within 10 % inside the hold's
+    # time; beyond it, for a 2-day held load, it extrapolates: measured +13 % (2 h) and +22 %
+    # (6 h) over the truth, so 25 % there
+    records = synthetic_records(7)
+    hold = records["load_hold"]
+    t, load = hold.table.time, hold.table[COLUMNS.load]
+    total = 1.5e-11  # m/N: 10 % of the liner's elastic compliance (facts 4 and 6)
+    creep = np.zeros(len(t))
+    for i in range(1, len(t)):
+        a = math.exp(-(t[i] - t[i - 1]) / (tau_h * 3600.0))
+        creep[i] = a * creep[i - 1] + (1 - a) * total * np.clip(load[i - 1], 0, None)
+    # the records carry TRUTH's spectrum; put the single-time creep in its place
+    spectrum = load_history(t, load).T @ np.array([TRUTH[n] for n in CREEP_COEFFICIENTS])
+    hold.table.columns[COLUMNS.reading] = hold.table[COLUMNS.reading] - TRUTH["probe_scale"] * (
+        spectrum - creep
+    )
+    only = [c for c in CALIBRATIONS if c.name == "load_compliance"]
+    priors = {n: p if p.sigma else replace(p, sigma=abs(p.value) or 1.0) for n, p in PRIORS.items()}
+    fitted = fit_records({k: records[k] for k in ("load_steps", "load_hold")}, priors, calibrations=only)
+    j = np.array([fitted.coefficients[n].value for n in CREEP_COEFFICIENTS])
+    for hours in (1.0, 8.0, 48.0):
+        shape = 1.0 - np.exp(-hours * 3600.0 / np.array(RETARDATION_TIMES_S))
+        true = total * (1.0 - math.exp(-hours / tau_h))
+        assert abs(shape @ j - true) < (0.1 if hours < 10 else 0.25) * total, (hours, shape @ j, true)

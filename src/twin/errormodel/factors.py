@@ -34,6 +34,7 @@ from twin.errormodel.sources import (
     MechanicalCoefficients,
     fluctuating_errors,
     hampel,
+    load_history,
     loading_errors,
     positioning_errors,
     thermal_errors,
@@ -111,8 +112,10 @@ class Measured:
 
     ``reading`` is the displacement probe's reading, ``cleaned`` the same after the robust
     (Hampel) filter and ``spikes`` where that filter found interference; ``temperatures`` the
-    eight measuring points' readings. Built by :meth:`read`, which raises
-    :class:`~twin.errors.ConfigError` for a missing reading or temperature column.
+    eight measuring points' readings; ``history`` the load cell's history as the liner's creep
+    sees it (:class:`~twin.errormodel.sources.LoadHistory`, shape (K, n)), ``None`` without a
+    load cell. Built by :meth:`read`, which raises :class:`~twin.errors.ConfigError` for a
+    missing reading or temperature column.
     """
 
     table: SignalTable
@@ -122,6 +125,7 @@ class Measured:
     cleaned: np.ndarray
     spikes: np.ndarray
     temperatures: dict[str, np.ndarray]
+    history: np.ndarray | None = None
 
     @classmethod
     def read(
@@ -130,12 +134,15 @@ class Measured:
         cfg: EvaluationConfig,
         model: ErrorModel,
         filtered: tuple[np.ndarray, np.ndarray] | None = None,
+        history: np.ndarray | None = None,
     ) -> Measured:
         """The streams of ``table``: the reading (filtered first: the positioning factor and the
-        reading change start from the cleaned reading) and the eight temperatures.
+        reading change start from the cleaned reading), the eight temperatures and the load's
+        history.
 
         ``filtered`` is the robust filter's (cleaned, spikes) of these rows when the filter ran
-        on a longer stretch (a streamed record, whose windows reach over chunk ends)."""
+        on a longer stretch (a streamed record, whose windows reach over chunk ends), ``history``
+        the load's history of these rows when it ran over the record before them."""
         if len(table.time) < 2:
             raise ConfigError("the error model needs at least two samples", source="errormodel")
         reading = _column(table, cfg.reading, "probe reading")
@@ -145,7 +152,10 @@ class Measured:
         temperatures = {
             point: _column(table, col, f"temperature at '{point}'") for point, col in cfg.temperatures.items()
         }
-        return cls(table, cfg, model, reading, cleaned, spikes, temperatures)
+        if history is None:
+            load = table.columns.get(cfg.load)
+            history = None if load is None else load_history(table.time, load)
+        return cls(table, cfg, model, reading, cleaned, spikes, temperatures, history)
 
     @property
     def n(self) -> int:
@@ -343,11 +353,12 @@ def _thermal_report(c: Contribution, m: Measured) -> dict[str, Any]:
 
 
 def _loading(m: Measured) -> Contribution:
-    """Loading dE_F: the load cell's change compresses the liner and the structure."""
+    """Loading dE_F: the load cell's change compresses the liner and the structure, and the
+    liner creeps under the load's history."""
     load = m.change("load")
     if load is None:
         return m.zero()
-    return Contribution(m.e_z(loading_errors(load, m.coefficients)))
+    return Contribution(m.e_z(loading_errors(load, m.coefficients, m.history)))
 
 
 def _fluctuating(m: Measured) -> Contribution:

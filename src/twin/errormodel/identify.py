@@ -3,7 +3,8 @@
 A lab does not know its tester's expansion coefficients, lengths, compliances or runout; it
 measures what they do. So does this module, on the twin: it runs the calibration experiments of
 ``scenarios/calibration/`` (:data:`EXPERIMENTS`: a thermal soak with the drive off, gauge blocks
-under the pole, static load steps, a runout check, a slow oscillation at light load), records
+under the pole, static load steps, a runout check, a slow oscillation at light load, a static
+load hold for the liner's creep), records
 only the channels a lab's DAQ records (:class:`LabRecorder`: the ``sensors.*`` readings the
 error model reads, never a true or internal FMU value), and fits the error model's own form to
 them, one experiment after the other, each fit using what the ones before found.
@@ -46,7 +47,7 @@ from twin.config.spec import Scenario
 from twin.errormodel.coefficients import Coefficient, Coefficients, Fit, Prior, coefficient_units
 from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, Measured
-from twin.errormodel.sources import Columns, MechanicalCoefficients, ThermalCoefficients
+from twin.errormodel.sources import CREEP_COEFFICIENTS, Columns, MechanicalCoefficients, ThermalCoefficients
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError, RunError
 from twin.signals.table import Signal, SignalTable
@@ -117,6 +118,7 @@ EXPERIMENTS: tuple[Experiment, ...] = (
     Experiment("load_steps", "load-steps.toml", nuisance=("offset", "drift")),
     Experiment("runout_check", "runout-check.toml", nuisance=("offset", "drift")),
     Experiment("light_oscillation", "light-oscillation.toml", nuisance=("offset", "drift")),
+    Experiment("load_hold", "load-hold.toml"),
 )
 
 #: the fits, in order: the thermal one first, so the short mechanical experiments take their
@@ -124,7 +126,11 @@ EXPERIMENTS: tuple[Experiment, ...] = (
 CALIBRATIONS: tuple[Calibration, ...] = (
     Calibration("thermal", ("thermal_soak", "hot_cooldown"), fit=tuple(ThermalCoefficients.units())),
     Calibration("probe_scale", ("gauge_blocks",), fit=("probe_scale",)),
-    Calibration("load_compliance", ("load_steps",), fit=("load_compliance",)),
+    # the loading chain: the steps give the elastic compliance, the hold the liner's creep
+    # spectrum (each >= 0); fitted together, as the hold's first minutes see both. No drift term
+    # in the hold: a line in time would take the creep's place
+    Calibration("load_compliance", ("load_steps", "load_hold"), fit=("load_compliance", *CREEP_COEFFICIENTS),
+                lower=dict.fromkeys(CREEP_COEFFICIENTS, 0.0)),
     Calibration("runout", ("runout_check",), fit=("spindle_runout", "runout_phase"),
                 starts={"runout_phase": (math.pi / 2, math.pi, -math.pi / 2)}, lower={"spindle_runout": 0.0}),
     Calibration("abbe", ("light_oscillation",), fit=("abbe_rotation",)),

@@ -7,7 +7,9 @@ some of them:
 
 - thermal dE_T: ``alpha * L * dT`` of every body from the eight temperature sensors, plus the
   probe's own zero drift with temperature (body 7): :func:`thermal_errors`;
-- loading dE_F: the load cell times the loading chain's compliance: :func:`loading_errors`;
+- loading dE_F: the load cell times the loading chain's compliance, and the liner's creep under
+  the load held, a discrete retardation spectrum over the load's history
+  (:class:`LoadHistory`): :func:`loading_errors`;
 - fluctuating dE_V: the spindle's runout against the angle encoder, the vibration pickup:
   :func:`fluctuating_errors`;
 - positioning dE_G: the probe's tilt (cosine error) and the T-plate's rotation by the friction
@@ -201,12 +203,114 @@ class MechanicalCoefficients(_Coefficients):
     runout_phase: float = _declare("rad", "spindle angle of the runout's high point")
     probe_scale: float = _declare("1", "probe reading per unit motion along Z: cos of its axis' tilt")
     abbe_rotation: float = _declare("m/(N.m)", "probe reading per N.m of friction torque: Abbe offset x T-plate rotation")
+    creep_compliance_15min: float = _declare("m/N", "liner's creep per N of load held, retardation time 15 min")
+    creep_compliance_1h: float = _declare("m/N", "liner's creep per N of load held, retardation time 1 h")
+    creep_compliance_4h: float = _declare("m/N", "liner's creep per N of load held, retardation time 4 h")
+    creep_compliance_16h: float = _declare("m/N", "liner's creep per N of load held, retardation time 16 h")
     # fmt: on
 
+    def creep_compliances(self) -> np.ndarray:
+        """The retardation spectrum's compliances, in the order of :data:`RETARDATION_TIMES_S`."""
+        return np.array([getattr(self, name) for name in CREEP_COEFFICIENTS])
 
-def loading_errors(load_change: np.ndarray, c: MechanicalCoefficients) -> dict[str, dict[str, np.ndarray]]:
-    """Loading dE_F: the measured load change compresses liner and structure (T-plate down)."""
-    return {"spherical_plain_bearing": {"p_dz": c.load_compliance * load_change}}
+
+#: The liner's creep compliance as a lab models a polymer's: a discrete retardation spectrum
+#: J(t) = sum_k J_k (1 - exp(-t / tau_k)) at fixed times a factor 4 apart (a generalised
+#: Kelvin-Voigt body, Ferry 1980 ch. 3; the times cover a 10 h hold and a 2-day test), each J_k
+#: >= 0 fitted by ``twin identify`` on a static load hold (scenarios/calibration/load-hold.toml).
+#: Nothing in the times comes from the tester: they are a grid, not a fitted time constant.
+RETARDATION_TIMES_S: tuple[float, ...] = (900.0, 3600.0, 14400.0, 57600.0)
+#: the coefficients of :data:`RETARDATION_TIMES_S`, in that order
+CREEP_COEFFICIENTS: tuple[str, ...] = (
+    "creep_compliance_15min",
+    "creep_compliance_1h",
+    "creep_compliance_4h",
+    "creep_compliance_16h",
+)
+#: two sample intervals within this fraction of the record's first are taken as equal (a
+#: logger's clock jitter), so a regular record runs through one recursive filter
+_INTERVAL_RTOL = 1e-3
+
+
+class LoadHistory:
+    """The load's history as the creep spectrum sees it: for each retardation time tau_k the
+    load through a first-order lag, h_k' = (F - h_k) / tau_k, exact for the load held between
+    samples, and h_k = 0 at the record's first sample (the probe is zeroed with the load just
+    applied: creep starts at the zero).
+
+    Boltzmann superposition then gives the creep as sum_k J_k h_k(t) for any load history. Fed
+    in chunks (:meth:`feed`), it gives the same numbers bit for bit as the whole record at once,
+    so the streamed error model (:mod:`~twin.errormodel.streaming`) equals the whole one.
+    """
+
+    def __init__(self, times_s: tuple[float, ...] = RETARDATION_TIMES_S) -> None:
+        self.taus = np.asarray(times_s, dtype=float)
+        self._dt0: float | None = None
+        self._last: tuple[float, float, np.ndarray] | None = None  # time, load, h at the last sample
+
+    def feed(self, time: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """h_k at each of these samples (shape (K, n)), following on from those fed before."""
+        n, k = len(time), len(self.taus)
+        out = np.empty((k, n))
+        if n == 0:
+            return out
+        if self._last is None:
+            self._last = (float(time[0]), float(load[0]), np.zeros(k))
+            out[:, 0] = 0.0
+            time, load, first = time[1:], load[1:], 1
+        else:
+            first = 0
+        if len(time) == 0:
+            return out
+        t_prev, f_prev, h = self._last
+        if self._dt0 is None:
+            self._dt0 = float(time[0]) - t_prev
+        # the samples' own previous load and interval: the load held over each interval is the
+        # one sampled at its start (the DAQ's sample and hold)
+        f_held = np.r_[f_prev, load[:-1]]
+        dt = np.diff(np.r_[t_prev, time])
+        regular = bool(np.all(np.abs(dt - self._dt0) <= _INTERVAL_RTOL * abs(self._dt0)))
+        for i, tau in enumerate(self.taus):
+            out[i, first:] = self._lag(tau, f_held, dt, float(h[i]), regular)
+        self._last = (float(time[-1]), float(load[-1]), out[:, -1].copy())
+        return out
+
+    def _lag(self, tau: float, f_held: np.ndarray, dt: np.ndarray, h0: float, regular: bool) -> np.ndarray:
+        """h[n] = a h[n-1] + (1 - a) F[n-1], a = exp(-dt / tau): one recursive filter where
+        the intervals are regular, else the same arithmetic sample by sample."""
+        assert self._dt0 is not None
+        a0 = float(np.exp(-self._dt0 / tau))
+        if regular:
+            from scipy.signal import lfilter
+
+            y, _ = lfilter([1.0 - a0, 0.0], [1.0, -a0], f_held, zi=[a0 * h0])
+            return np.asarray(y)
+        y = np.empty(len(f_held))
+        h = h0
+        for j, (f, d) in enumerate(zip(f_held.tolist(), dt.tolist(), strict=True)):
+            a = a0 if abs(d - self._dt0) <= _INTERVAL_RTOL * abs(self._dt0) else float(np.exp(-d / tau))
+            h = (1.0 - a) * f + a * h
+            y[j] = h
+        return y
+
+
+def load_history(time: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """:class:`LoadHistory` of a whole record."""
+    return LoadHistory().feed(np.asarray(time, dtype=float), np.asarray(load, dtype=float))
+
+
+def loading_errors(
+    load_change: np.ndarray, c: MechanicalCoefficients, history: np.ndarray | None = None
+) -> dict[str, dict[str, np.ndarray]]:
+    """Loading dE_F: the measured load change compresses liner and structure (T-plate down),
+    and with the load's ``history`` (:class:`LoadHistory`) the liner creeps, sum_k J_k h_k."""
+    dz = c.load_compliance * load_change
+    if history is not None:
+        # term by term, not a matrix product: BLAS may sum in another order for another row
+        # count, and a streamed record must give the whole record's numbers bit for bit
+        for j_k, h_k in zip(c.creep_compliances().tolist(), history, strict=True):
+            dz = dz + j_k * h_k
+    return {"spherical_plain_bearing": {"p_dz": dz}}
 
 
 def fluctuating_errors(

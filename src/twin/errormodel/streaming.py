@@ -10,6 +10,8 @@ memory. :class:`StreamingEvaluation` holds only what its numbers need:
 * the record's first row: every series is taken relative to it, so each chunk is evaluated
   with that row put in front (:func:`~twin.errormodel.evaluate.evaluate_rows`), which gives
   every row the numbers of the whole record;
+* the load's history (:class:`~twin.errormodel.sources.LoadHistory`: the liner's creep
+  depends on the whole load history, not on the first row only), carried from chunk to chunk;
 * the rows within the drift window of the start and of the (current) end: the drifts are
   least-squares lines through exactly those rows (:func:`~twin.errormodel.factors.endpoints`),
   fitted when the record is over;
@@ -40,7 +42,7 @@ from twin.errormodel.evaluate import (
     summarize,
 )
 from twin.errormodel.factors import FACTORS, Contribution, Measured
-from twin.errormodel.sources import hampel
+from twin.errormodel.sources import LoadHistory, hampel
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError
 from twin.signals.table import Signal, SignalTable
@@ -167,6 +169,7 @@ class StreamingEvaluation:
         self._squares = {f.name: 0.0 for f in FACTORS}
         self._spikes = 0
         self._wear: list[Block] = []
+        self._history = LoadHistory() if cfg.load in self.signals else None
 
     @property
     def rows(self) -> int:
@@ -222,7 +225,13 @@ class StreamingEvaluation:
         table = SignalTable(time=with_first.time)
         for name, values in with_first.columns.items():
             table.add(self.signals[name], values)
-        m = Measured.read(table, self.cfg, self.model, (np.r_[c0, cleaned], np.r_[s0, spikes]))
+        history = None
+        if self._history is not None:
+            # the rows' history carried on from the chunk before; the first row's is zero (the
+            # creep starts at the zero)
+            h = self._history.feed(rows.time, rows.columns[self.cfg.load])
+            history = np.concatenate([np.zeros((h.shape[0], 1)), h], axis=1)
+        m = Measured.read(table, self.cfg, self.model, (np.r_[c0, cleaned], np.r_[s0, spikes]), history)
         contributions, columns = evaluate_rows(m)
         results = Block(rows.time, {f"errormodel.{k}": v[1:] for k, v in columns.items()})
         self._account(rows, cleaned, spikes, contributions, results)
