@@ -70,6 +70,8 @@ __all__ = [
 RANK_RTOL = 1e-7
 #: a flat prior's sigma in units of the parameter's scale (for the count of informative directions)
 FLAT = 1e6
+#: passes over the fits (:func:`fit_records`): the second sees every coefficient identified
+PASSES = 2
 
 
 @dataclass(frozen=True)
@@ -512,8 +514,11 @@ def fit_records(
     identified: Mapping[str, Any] | None = None,
     calibrations: Sequence[Calibration] = CALIBRATIONS,
 ) -> Coefficients:
-    """Fit the calibrations in order, each with what the ones before found, to the records
-    (by experiment name) of their experiments.
+    """Fit the calibrations in order, each with what the others found, to the records (by
+    experiment name) of their experiments: :data:`PASSES` times over, as the fits depend on
+    each other through the experiments (the cool-down of the thermal fit runs under load, so
+    the liner creeps in it; the load hold warms a little, so it drifts), the first pass with
+    the priors' values for what is not fitted yet, the next with the pass before's.
 
     A coefficient no calibration fits keeps its prior, with the prior's sigma as its standard
     error (its experiment says "prior"); one without a prior sigma is an error.
@@ -521,12 +526,13 @@ def fit_records(
     values = {n: p.value for n, p in priors.items()}
     found: dict[str, Coefficient] = {}
     fits: dict[str, Fit] = {}
-    for cal in calibrations:
-        coefficients, fits[cal.name] = fit_calibration(
-            cal, [records[e] for e in cal.experiments], values, priors
-        )
-        found.update(coefficients)
-        values.update({n: c.value for n, c in coefficients.items()})
+    for _ in range(PASSES):
+        for cal in calibrations:
+            coefficients, fits[cal.name] = fit_calibration(
+                cal, [records[e] for e in cal.experiments], values, priors
+            )
+            found.update(coefficients)
+            values.update({n: c.value for n, c in coefficients.items()})
     for name in coefficient_units():
         prior = priors[name]
         if name not in found and prior.sigma is None:

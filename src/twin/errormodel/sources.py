@@ -189,8 +189,9 @@ def thermal_errors(
 @dataclass(frozen=True)
 class MechanicalCoefficients(_Coefficients):
     """What a lab identifies once on its tester: static load steps (the loading chain's
-    compliance), gauge blocks (the probe's scale), a runout check and a slow oscillation under
-    a light load (the friction torque's Abbe effect); see ``twin identify``.
+    compliance) and a static load hold (the liner's creep spectrum), gauge blocks (the probe's
+    scale), a runout check and a slow oscillation under a light load (the friction torque's
+    Abbe effect); see ``twin identify``.
 
     Each is the combination an experiment determines, not the parts it is made of: the liner's
     and the structure's compliance add, the Abbe offset multiplies the T-plate's rotation per
