@@ -10,7 +10,12 @@ Prints side by side, in one run:
     that returns at once, so all that is left is submitting, scheduling, the result's way
     back and the client's bookkeeping), goal < 20 ms;
 (c) peak resident memory of each worker over a 1000-point sweep: after its first tenth of
-    the points and at the end (goal: flat, within 20 %).
+    the points and at the end (goal: flat, within 20 %);
+(d) FMU set-up per point (the run's ``fmu_setup`` phase: instances, parameters,
+    initialization, the stepping loop's set-up), in this process, of a point with fresh
+    instances and of one with the instances of the point before, reset (``twin.fmu.pool``, as
+    a sweep's worker runs its points): medians side by side and their ratio (issue 15's goal
+    for reused instances: <= 5 ms).
 
 Timings start once the cluster is up (its start-up is printed apart). The cluster's start,
 the design and the table are the real ``twin sweep`` code paths (:func:`run_sweep`).
@@ -117,6 +122,28 @@ def memory(folder: Path, points: int) -> dict[int, tuple[float, float]]:
     return {pid: (rss[max(0, len(rss) // 10 - 1)], rss[-1]) for pid, rss in seen.items() if len(rss) >= 10}
 
 
+def setup_per_point(points: int) -> dict[str, float]:
+    """(d): median ms of the ``fmu_setup`` phase and of the whole point, fresh vs reused,
+    alternating so a slow drift of the machine hits both alike."""
+    import statistics
+
+    from twin.config.load import load_scenario
+    from twin.fmu.pool import SlotPool
+    from twin.pipeline.stages import run_point
+
+    sc = load_scenario(PAPER, ['scenario.duration="60 min"'])
+    pool = SlotPool()
+    run_point(sc), run_point(sc, pool=pool)  # warm: the FMU files unpacked, the pool filled
+    got: dict[str, list[float]] = {"fresh": [], "reused": [], "fresh point": [], "reused point": []}
+    for _ in range(points):
+        for label, kwargs in (("fresh", {}), ("reused", {"pool": pool})):
+            start = time.perf_counter()
+            summary = run_point(sc, **kwargs)
+            got[f"{label} point"].append(time.perf_counter() - start)
+            got[label].append(summary.timing.phases_s["fmu_setup"])
+    return {k: statistics.median(v) * 1e3 for k, v in got.items()}
+
+
 def _row(name: str, value: str, goal: str = "", ok: bool | str | None = None) -> str:
     verdict = ok if isinstance(ok, str) else {None: "", True: "yes", False: "NO"}[ok]
     return f"| {name:<44} | {value:>22} | {goal:>12} | {verdict:>4} |"
@@ -127,6 +154,7 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="small sizes: a check that it runs, not figures")
     args = parser.parse_args()
     points, reps, noop_points, memory_points = (40, 1, 100, 100) if args.quick else (200, 2, 500, 1000)
+    setup_points = 10 if args.quick else 60
     load = os.getloadavg()[0]
     print(
         f"twin sweep benchmark: {os.cpu_count()} cores, load {load:.1f}, Python {platform.python_version()}"
@@ -138,6 +166,7 @@ def main() -> int:
         t = throughput(folder, points, reps)
         rt = round_trip(folder, noop_points)
         mem = memory(folder, memory_points)
+    setup = setup_per_point(setup_points)
     w1, w2 = t["workers"][1], t["workers"][2]
     lines = [
         _row("measure", "measured", "goal", "ok"),
@@ -165,6 +194,20 @@ def main() -> int:
                 abs(growth) <= 0.2,
             )
         )
+    lines += [
+        _row("(d) FMU set-up per point, fresh instances", f"{setup['fresh']:.2f} ms"),
+        _row(
+            "(d) FMU set-up per point, reused (pool)",
+            f"{setup['reused']:.2f} ms",
+            "<= 5 ms",
+            setup["reused"] <= 5.0,
+        ),
+        _row("    ratio fresh / reused", f"{setup['fresh'] / setup['reused']:.2f}x"),
+        _row(
+            "    whole point (60 min replay), fresh / reused",
+            f"{setup['fresh point']:.1f} / {setup['reused point']:.1f} ms",
+        ),
+    ]
     print("\n".join(lines))
     return 0
 

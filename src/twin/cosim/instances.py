@@ -14,15 +14,23 @@ from twin.cosim.plan import Plan
 from twin.cosim.state import State
 from twin.cosim.stepping import Gather
 from twin.fmu import catalog
+from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 
 
-def open_slots(plan: Plan) -> list[FMUSlot]:
-    """One instantiated FMU per planned instance, parameters set; none left open on a failure."""
+def open_slots(plan: Plan, pool: SlotPool | None = None) -> list[FMUSlot]:
+    """One instantiated FMU per planned instance, parameters set; none left open on a failure.
+
+    With a ``pool``, an idle instance of the same FMU file and name is reset and reused
+    (:mod:`twin.fmu.pool`) instead of instantiating another."""
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:
-            slot = FMUSlot(catalog.fmu(inst.model), inst.name)
+            path = catalog.fmu(inst.model)
+            if pool is None:
+                slot = FMUSlot(path, inst.name)
+            else:
+                slot = pool.open(path, inst.name, lambda p=path, n=inst.name: FMUSlot(p, n))
             slots.append(slot)
             slot.setup(0.0)
             for name, value in inst.parameters:
@@ -47,10 +55,14 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         buf.commit()
 
 
-def close_slots(slots: Sequence[FMUSlot]) -> None:
-    """Terminate and free every instance (never raises)."""
+def close_slots(slots: Sequence[FMUSlot], pool: SlotPool | None = None) -> None:
+    """Terminate and free every instance, or with a ``pool`` give them back to it for the
+    next run (never raises)."""
     for slot in slots:
-        slot.close()
+        if pool is None:
+            slot.close()
+        else:
+            pool.release(slot)
 
 
 __all__ = ["close_slots", "initialize", "open_slots"]

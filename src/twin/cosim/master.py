@@ -43,6 +43,7 @@ from twin.cosim.recording import MemoryRecorder, Recorder, batch_rows
 from twin.cosim.state import State, make_state
 from twin.cosim.stepping import Loop, Stepping, check_loop, final_tick, make_stepping
 from twin.errors import FMUError, RunError
+from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 from twin.signals.table import SignalTable
 
@@ -75,7 +76,8 @@ class Master:
     ``stop`` is polled between batches: a signal name when the run must stop. With
     ``checkpoint_every_ns``, ``on_checkpoint`` receives a snapshot of the whole master at that
     interval; ``resume`` continues from such a snapshot. ``plan`` reuses a plan already made
-    from ``scenario``.
+    from ``scenario``. With a ``pool`` the FMU instances come from it and go back to it after
+    a run that completed (:mod:`twin.fmu.pool`: a sweep's points on one worker).
     """
 
     def __init__(
@@ -90,8 +92,10 @@ class Master:
         on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
         resume: dict[str, Any] | None = None,
         plan: Plan | None = None,
+        pool: SlotPool | None = None,
     ) -> None:
         self.scenario = scenario
+        self.pool = pool
         self.progress = progress
         self.loop = check_loop(loop)
         self.recorder = recorder if recorder is not None else MemoryRecorder()
@@ -110,7 +114,7 @@ class Master:
         if self.plan is None:
             self.plan = make_plan(self.scenario)
         self.state = make_state(self.plan)
-        self.slots = open_slots(self.plan)
+        self.slots = open_slots(self.plan, self.pool)
 
     def _initialize(self) -> None:
         initialize(self.plan, self.state, self.slots)
@@ -148,10 +152,11 @@ class Master:
             checkpoint_every_ns=self.checkpoint_every_ns,
         )
         clock = env.process(self._clock(env, stepping, tick))  # started last: see twin.cosim.events
+        outcome: _Outcome = ("failed", None)
         try:
             outcome = env.run(until=clock)
         finally:
-            self.close()
+            self.close(reuse=outcome[0] == "completed")
             self.recorder.close()
         return self._result(outcome, start)
 
@@ -204,9 +209,9 @@ class Master:
             end_ns=int(c.macro_steps) * self.plan.step_ns,
         )
 
-    def close(self) -> None:
-        """Free the FMU instances (again: a no-op)."""
-        close_slots(self.slots)
+    def close(self, *, reuse: bool = False) -> None:
+        """Free the FMU instances, or with ``reuse`` give them back to the pool (again: a no-op)."""
+        close_slots(self.slots, self.pool if reuse else None)
         self.slots = []
 
 

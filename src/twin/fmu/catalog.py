@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cache
@@ -191,6 +192,18 @@ class Model:
             k: v for k, v in folder_files(self.root / "common").items() if Path(k).suffix in _COMMON_SUFFIXES
         }
         return common | folder_files(self.folder)
+
+    def stat_key(self) -> tuple[tuple[str, int, int], ...]:
+        """(name, size, modification time) of every file :meth:`files` reads: what a process
+        may keep the files' content hash by (a sweep's worker asks for every point)."""
+        common = [p for p in (self.root / "common").iterdir() if p.suffix in _COMMON_SUFFIXES]
+        own = [p for p in self.folder.iterdir() if not p.name.startswith(".")]
+        out = []
+        for p in sorted(common, key=lambda p: p.name) + sorted(own, key=lambda p: p.name):
+            st = p.stat()
+            if stat.S_ISREG(st.st_mode):
+                out.append((str(p), st.st_size, st.st_mtime_ns))
+        return tuple(out)
 
     def fmu(self) -> Path:
         """An up-to-date ``.fmu`` from the cache, built when any of its files changed."""

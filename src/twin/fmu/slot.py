@@ -123,7 +123,8 @@ def _extract(fmu_path: Path, instance_name: str) -> str:
         raise
 
 
-def _file_key(path: Path) -> tuple[str, int, int]:
+def file_key(path: Path) -> tuple[str, int, int]:
+    """An FMU file's identity for this process's caches: resolved path, size, modification time."""
     st = os.stat(path)
     return str(Path(path).resolve()), st.st_size, st.st_mtime_ns
 
@@ -149,7 +150,7 @@ class FMUSlot:
     def __init__(self, fmu_path: Path, instance_name: str, *, unzipdir: str | None = None) -> None:
         self.name = instance_name
         if unzipdir is None:
-            self.description, unzipdir = _unpacked(_file_key(fmu_path))
+            self.description, unzipdir = _unpacked(file_key(fmu_path))
         else:
             self.description = describe(fmu_path)
         self.unzipdir = unzipdir
@@ -168,6 +169,8 @@ class FMUSlot:
         self._get_real = dll.fmi2GetReal
         self._do_step = dll.fmi2DoStep
         self._c = self._slave.component
+        self.pool_key: Any = None  # set by the SlotPool that made it (twin.fmu.pool)
+        self._initialized = False  # fmi2Terminate is allowed only after initialization
 
     def native_handles(self) -> NativeHandles:
         """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints."""
@@ -210,6 +213,7 @@ class FMUSlot:
 
     def exit_initialization(self) -> None:
         self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+        self._initialized = True
 
     def set_value(self, name: str, value: float | int | bool) -> None:
         v = self.variables[name]
@@ -270,12 +274,32 @@ class FMUSlot:
         finally:
             self._slave.freeFMUstate(state)
 
+    # -- reuse (twin.fmu.pool) ----------------------------------------------------------------------
+
+    def reset(self) -> bool:
+        """``fmi2Reset``: back to the state after instantiation, every variable at its start
+        value. False when the FMU refuses (the caller then frees it)."""
+        try:
+            self._call("fmi2Reset", self._slave.reset)
+        except FMUError:
+            return False
+        self._initialized = False
+        forget_logging(self.name)
+        return True
+
+    def reuse(self) -> None:
+        """Take a reset instance into a new run: its own messages again, the clock at zero."""
+        self.messages.clear()
+        self.time = 0.0
+        self._make_callbacks()  # routes this name's messages to this instance again
+
     # -- end -------------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Terminate (if possible) and free the instance; never raises."""
-        with contextlib.suppress(Exception):
-            self._slave.terminate()
+        """Terminate (if initialized) and free the instance; never raises."""
+        if self._initialized:
+            with contextlib.suppress(Exception):
+                self._slave.terminate()
         with contextlib.suppress(Exception):
             self._slave.freeInstance()
         forget_logging(self.name)

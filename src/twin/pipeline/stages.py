@@ -33,6 +33,7 @@ from twin.errormodel.config import evaluation_config, input_columns
 from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_signals
 from twin.errormodel.factors import FACTORS
 from twin.errors import ConfigError, RunError
+from twin.fmu.pool import SlotPool
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
     DISK_FULL_ERRNOS,
@@ -88,6 +89,7 @@ def simulate(
     checkpoint_every_ns: int | None = None,
     on_checkpoint: Callable[[Checkpoint], None] | None = None,
     resume: Checkpoint | None = None,
+    pool: SlotPool | None = None,
 ) -> Simulation:
     """Co-simulate ``scenario``: rows stream to ``sinks`` (opened here, closed by
     :func:`write_outputs`), the ``keep`` columns stay in memory (default: those the
@@ -96,7 +98,8 @@ def simulate(
     ``stop`` is polled between batches (a signal name ends the run as "interrupted").
     With ``checkpoint_every_ns``, ``on_checkpoint`` receives the whole twin at that
     interval; ``resume`` continues from such a checkpoint. An FMU failure does not raise: it
-    ends the run with ``result.status == "failed"`` and the rows up to it recorded.
+    ends the run with ``result.status == "failed"`` and the rows up to it recorded. With a
+    ``pool`` the FMU instances are reused from it and given back (:mod:`twin.fmu.pool`).
     """
     if keep is None:
         keep = set(input_columns(evaluation_config(scenario))) | truth_columns(scenario)
@@ -119,6 +122,7 @@ def simulate(
         checkpoint_every_ns=checkpoint_every_ns,
         on_checkpoint=save if checkpoint_every_ns and on_checkpoint else None,
         resume=resume.master if resume else None,
+        pool=pool,
     )
     result = master.run()
     return Simulation(scenario, result, recorder.table(), recorder.write_s)
@@ -420,11 +424,13 @@ def run_point(
     loop: Loop = "fast",
     progress: Callable[[int, int], None] | None = None,
     stop: Callable[[], str | None] | None = None,
+    pool: SlotPool | None = None,
 ) -> RunSummary:
     """Simulate and evaluate ``scenario`` in memory, no file written (a sweep's point).
 
     A failing FMU does not raise: the summary says ``"failed"`` and why, with the figures
-    of the rows recorded up to the failure. A bad scenario raises :class:`ConfigError`.
+    of the rows recorded up to the failure. A bad scenario raises :class:`ConfigError`. With
+    a ``pool`` the FMU instances of the points before are reused (:mod:`twin.fmu.pool`).
     """
     start = time.perf_counter()
     cfg = evaluation_config(scenario)
@@ -434,6 +440,7 @@ def run_point(
         loop=loop,
         progress=progress,
         stop=stop,
+        pool=pool,
     )
     return summarize(simulation, evaluate_run(simulation, cfg), process_start=start)
 

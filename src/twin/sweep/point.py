@@ -56,11 +56,14 @@ def flatten(summary: Mapping[str, Any]) -> dict[str, float]:
 def run_point(scenario: Scenario) -> dict[str, float]:
     """Co-simulate ``scenario`` in memory, evaluate the error model, return the figures.
 
+    The FMU instances come from the process's pool (:func:`twin.fmu.pool.sweep_pool`): a
+    worker's points after the first reuse the instances of the point before, reset.
     Raises :class:`~twin.errors.RunError` when the run fails (an FMU error).
     """
+    from twin.fmu.pool import sweep_pool
     from twin.pipeline import run_point as simulate_and_evaluate
 
-    summary = simulate_and_evaluate(scenario)
+    summary = simulate_and_evaluate(scenario, pool=sweep_pool())
     if summary.status == "failed":
         raise RunError(summary.error or "the run failed")
     return flatten(summary.results)
