@@ -115,6 +115,16 @@ static void take_sample(ModelInstance *comp) {
     m->angle_sample = quantize(r[VR_angle_true], r[VR_encoder_resolution]); /* no noise */
 }
 
+/* What take_sample draws, without the sample: a sample before the last of a communication
+ * step is overwritten before anyone reads it, so only its random draws matter (they keep the
+ * streams, and with them every later sample, bit-identical to drawing it: doStep(2h) still
+ * equals two doStep(h)). The filters and the interference process run on every step. */
+static void skip_sample(ModelInstance *comp) {
+    ModelState *m = &comp->v.m;
+    rng_skip_gauss(&m->rng, SD_TEMPS + 1); /* the temperatures, the probe */
+    rng_skip_gauss(&m->rng2, 3);           /* load, torque, vibration */
+}
+
 /* ------------------------------------------------------------------ model contract */
 
 int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
@@ -151,7 +161,10 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] += m->a_temp * (comp->v.r[VR_TRUE[i]] - m->temp_lag[i]);
     m->probe_filt += m->a_probe * (comp->v.r[VR_probe_true] - m->probe_filt);
     update_spike(comp);
-    take_sample(comp);
+    if (comp->last_substep)
+        take_sample(comp);
+    else
+        skip_sample(comp);
     return fmi2OK;
 }
 

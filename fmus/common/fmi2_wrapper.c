@@ -797,6 +797,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     }
 #endif
     for (k = 0; k < n; k++) {
+        comp->last_substep = k + 1 == n;
         if (model_step(comp, h_int) != fmi2OK) {
             comp->state = ST_ERROR;
             return fmi2Error;

@@ -91,6 +91,10 @@ typedef struct ModelInstance {
     fmi2ComponentEnvironment env;
     int logging_on;
     int state; /* InstanceState */
+    /* set by fmi2DoStep before each model_step: 1 for the last internal step of the
+     * communication step, whose values the host reads; a model may skip computing what only
+     * an earlier step's outputs would show (not part of the FMU state) */
+    int last_substep;
     ModelValues v;
 } ModelInstance;
 

@@ -59,6 +59,22 @@ double rng_gauss(Rng *r) {
     return rad * cos(RNG_TWO_PI * u2);
 }
 
+void rng_skip_gauss(Rng *r, int n) {
+    while (n > 0) {
+        if (r->has_spare) { /* the kept value, unread */
+            r->has_spare = 0;
+            n--;
+        } else if (n == 1) { /* half a pair: its second value is the next draw's, so compute it */
+            (void)rng_gauss(r);
+            n = 0;
+        } else { /* a whole pair, both values unread: its two uniforms only */
+            (void)rng_next_u64(r);
+            (void)rng_next_u64(r);
+            n -= 2;
+        }
+    }
+}
+
 /* the largest |normal| rng_gauss can return: sqrt(-2 ln 2^-53) = 8.5716..., rounded up */
 #define RNG_GAUSS_MAX 8.5717
 

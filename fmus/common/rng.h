@@ -31,6 +31,10 @@ double rng_uniform(Rng *r);
 /* Standard normal N(0, 1) by Box-Muller; each pair costs two uniforms. */
 double rng_gauss(Rng *r);
 
+/* Advance r exactly as n calls of rng_gauss would, computing only a value that is kept as the
+ * spare (the one the next rng_gauss returns): the draws of a DAQ sample nobody reads. */
+void rng_skip_gauss(Rng *r, int n);
+
 /* NULL if r can be a generator's state (after rng_seed and any draws), else why not: the
  * xoshiro256** state is never all zero, has_spare is 0 or 1, and the spare normal is one
  * Box-Muller can give (|x| <= sqrt(-2 ln 2^-53) ~ 8.57, the uniforms being >= 2^-53).

@@ -553,3 +553,32 @@ def test_same_seed_same_spikes_and_new_noise_different_seed_different(fmu_paths:
     for name in ("load_meas", "torque_meas", "vibration_meas"):
         assert np.mean(a[:, col[name]] != c[:, col[name]]) > 0.5, name
     assert a[:, col["angle_meas"]].tobytes() == c[:, col["angle_meas"]].tobytes()  # no noise
+
+
+@pytest.mark.parametrize("inner", [2, 3, 10, 17])
+def test_samples_nobody_reads_are_skipped_without_changing_what_is_read(
+    inner: int, fmu_paths: dict[str, Path]
+) -> None:
+    # doStep(n h) draws the noise of its first n - 1 samples without computing them (nobody
+    # reads them): what it outputs is bit for bit what n doStep(h) output at the same time,
+    # noise and spikes on, inputs moving between the communication steps
+    outputs = [*T_OUT, "probe_meas", "load_meas", "torque_meas", "vibration_meas", "spike", "angle_meas"]
+    params = {"solver_step": 0.01, "spike_rate": 50.0, "spike_duration": 0.03, "seed": 5}
+    one, many = start(fmu_paths, params, name="one"), start(fmu_paths, params, name="many")
+    spikes = 0
+    for k in range(60):
+        inputs = {
+            **dict.fromkeys(T_IN, T0 + 0.1 * k),
+            "probe_true": 4.805e-3 + 1e-6 * np.sin(k),
+            "load_true": 2e5 + 100.0 * k,
+            "torque_true": 30.0 * np.cos(k),
+            "vibration_true": 1e-7 * k,
+        }
+        one.set(inputs), many.set(inputs)
+        for _ in range(inner):
+            one.step(0.01)
+        many.step(0.01 * inner)
+        got, want = many.get(outputs), one.get(outputs)
+        assert np.array_equal(np.asarray(got), np.asarray(want)), (k, got, want)
+        spikes += int(got[outputs.index("spike")])
+    assert spikes > 0  # a spike was on at some of the compared samples

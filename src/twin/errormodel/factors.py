@@ -152,7 +152,7 @@ class Measured:
         temperatures = {
             point: _column(table, col, f"temperature at '{point}'") for point, col in cfg.temperatures.items()
         }
-        if history is None:
+        if history is None and "loading" in cfg.factors:
             load = table.columns.get(cfg.load)
             history = None if load is None else load_history(table.time, load)
         return cls(table, cfg, model, reading, cleaned, spikes, temperatures, history)

@@ -32,6 +32,7 @@ that moves the clamp's contact face down (pole, clamp) is a negative ``p_dz`` of
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, Self
@@ -228,70 +229,78 @@ CREEP_COEFFICIENTS: tuple[str, ...] = (
     "creep_compliance_4h",
     "creep_compliance_16h",
 )
-#: two sample intervals within this fraction of the record's first are taken as equal (a
-#: logger's clock jitter), so a regular record runs through one recursive filter
-_INTERVAL_RTOL = 1e-3
+#: a block of the history's scan ends where its decay product would fall below exp(-1) on a
+#: regular record, or at a sample whose own decay is below a half (a gap in the record): within
+#: a block 1 / product stays small, so the scan loses no precision
+_BLOCK_DECAY = 0.5
 
 
 class LoadHistory:
     """The load's history as the creep spectrum sees it: for each retardation time tau_k the
     load through a first-order lag, h_k' = (F - h_k) / tau_k, exact for the load held between
-    samples, and h_k = 0 at the record's first sample (the probe is zeroed with the load just
-    applied: creep starts at the zero).
+    samples (the DAQ's sample and hold: over each interval the load sampled at its start), and
+    h_k = 0 at the record's first sample (the probe is zeroed with the load just applied:
+    creep starts at the zero).
 
-    Boltzmann superposition then gives the creep as sum_k J_k h_k(t) for any load history. Fed
-    in chunks (:meth:`feed`), it gives the same numbers bit for bit as the whole record at once,
-    so the streamed error model (:mod:`~twin.errormodel.streaming`) equals the whole one.
+    Boltzmann superposition then gives the creep as sum_k J_k h_k(t) for any load history.
+    The recursion h[n] = a_n h[n-1] + (1 - a_n) F[n-1], a_n = exp(-dt_n / tau), runs as numpy
+    scans over blocks (h[n] = A_n (h_0 + sum_i (1 - a_i) F_i / A_i), A_n the product of the
+    a_i since the block's start), whose ends depend on the samples alone (every L-th sample of
+    the record, L = tau over its first interval, and any sample after a gap). Fed in chunks
+    (:meth:`feed`), with the block's running product and sum carried over, it gives the same
+    numbers bit for bit as the whole record at once, so the streamed error model
+    (:mod:`~twin.errormodel.streaming`) equals the whole one.
     """
 
     def __init__(self, times_s: tuple[float, ...] = RETARDATION_TIMES_S) -> None:
         self.taus = np.asarray(times_s, dtype=float)
-        self._dt0: float | None = None
-        self._last: tuple[float, float, np.ndarray] | None = None  # time, load, h at the last sample
+        self._n = 0  # samples fed
+        self._last: tuple[float, float] | None = None  # time and load of the last sample
+        self._block: list[int] = []  # samples per block, per tau (from the first interval)
+        # per tau: the value at the block's start, the block's running product and sum, the
+        # last value; the first block starts at the record's first sample, where h = 0
+        self._carry = np.tile([0.0, 1.0, 0.0, 0.0], (len(self.taus), 1))
 
     def feed(self, time: np.ndarray, load: np.ndarray) -> np.ndarray:
         """h_k at each of these samples (shape (K, n)), following on from those fed before."""
-        n, k = len(time), len(self.taus)
-        out = np.empty((k, n))
+        n = len(time)
+        out = np.zeros((len(self.taus), n))
         if n == 0:
             return out
-        if self._last is None:
-            self._last = (float(time[0]), float(load[0]), np.zeros(k))
-            out[:, 0] = 0.0
-            time, load, first = time[1:], load[1:], 1
-        else:
-            first = 0
-        if len(time) == 0:
-            return out
-        t_prev, f_prev, h = self._last
-        if self._dt0 is None:
-            self._dt0 = float(time[0]) - t_prev
-        # the samples' own previous load and interval: the load held over each interval is the
-        # one sampled at its start (the DAQ's sample and hold)
-        f_held = np.r_[f_prev, load[:-1]]
-        dt = np.diff(np.r_[t_prev, time])
-        regular = bool(np.all(np.abs(dt - self._dt0) <= _INTERVAL_RTOL * abs(self._dt0)))
-        for i, tau in enumerate(self.taus):
-            out[i, first:] = self._lag(tau, f_held, dt, float(h[i]), regular)
-        self._last = (float(time[-1]), float(load[-1]), out[:, -1].copy())
+        first = 0
+        if self._last is None:  # the record's first sample: h = 0
+            self._last, self._n, first = (float(time[0]), float(load[0])), 1, 1
+            if n == 1:
+                return out
+        t_prev, f_prev = self._last
+        dt = np.diff(np.r_[t_prev, time[first:]])
+        f_held = np.r_[f_prev, load[first:-1]]
+        if not self._block:
+            self._block = [max(1, int(tau // dt[0])) if dt[0] > 0 else 1 for tau in self.taus]
+        index = np.arange(self._n, self._n + len(dt))  # the samples' index in the record
+        for k, tau in enumerate(self.taus):
+            a = np.exp(-dt / tau)
+            out[k, first:] = self._scan(k, a, (1.0 - a) * f_held, index)
+        self._n += len(dt)
+        self._last = (float(time[-1]), float(load[-1]))
         return out
 
-    def _lag(self, tau: float, f_held: np.ndarray, dt: np.ndarray, h0: float, regular: bool) -> np.ndarray:
-        """h[n] = a h[n-1] + (1 - a) F[n-1], a = exp(-dt / tau): one recursive filter where
-        the intervals are regular, else the same arithmetic sample by sample."""
-        assert self._dt0 is not None
-        a0 = float(np.exp(-self._dt0 / tau))
-        if regular:
-            from scipy.signal import lfilter
-
-            y, _ = lfilter([1.0 - a0, 0.0], [1.0, -a0], f_held, zi=[a0 * h0])
-            return np.asarray(y)
-        y = np.empty(len(f_held))
-        h = h0
-        for j, (f, d) in enumerate(zip(f_held.tolist(), dt.tolist(), strict=True)):
-            a = a0 if abs(d - self._dt0) <= _INTERVAL_RTOL * abs(self._dt0) else float(np.exp(-d / tau))
-            h = (1.0 - a) * f + a * h
-            y[j] = h
+    def _scan(self, k: int, a: np.ndarray, bx: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """One tau's values at these samples, block by block, the block state carried."""
+        starts = (index % self._block[k] == 0) | (a < _BLOCK_DECAY)
+        cuts = [0, *np.flatnonzero(starts[1:]) + 1, len(a)]
+        h0, prod, acc, last = self._carry[k]
+        y = np.empty(len(a))
+        for lo, hi in itertools.pairwise(cuts):
+            if hi == lo:
+                continue
+            if starts[lo]:  # a new block starts from the value before it
+                h0, prod, acc = last, 1.0, 0.0
+            p = np.multiply.accumulate(np.r_[prod, a[lo:hi]])[1:]
+            s = np.add.accumulate(np.r_[acc, bx[lo:hi] / p])[1:]
+            y[lo:hi] = p * (h0 + s)
+            prod, acc, last = float(p[-1]), float(s[-1]), float(y[hi - 1])
+        self._carry[k] = (h0, prod, acc, last)
         return y
 
 
