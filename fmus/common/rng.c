@@ -25,6 +25,7 @@ void rng_seed(Rng *r, uint64_t seed) {
     for (k = 0; k < 4; k++) r->s[k] = splitmix64(&x);
     r->has_spare = 0;
     r->gauss_spare = 0.0;
+    r->spare_u2 = 0.0;
 }
 
 /* xoshiro256** (Blackman and Vigna 2018) */
@@ -47,9 +48,14 @@ double rng_uniform(Rng *r) {
 
 double rng_gauss(Rng *r) {
     double u1, u2, rad;
-    if (r->has_spare) {
+    if (r->has_spare == 1) {
         r->has_spare = 0;
         return r->gauss_spare;
+    }
+    if (r->has_spare == 2) { /* the spare a skip left uncomputed: the same expression as below */
+        r->has_spare = 0;
+        rad = sqrt(-2.0 * log(r->gauss_spare));
+        return rad * sin(RNG_TWO_PI * r->spare_u2);
     }
     u1 = rng_uniform(r);
     u2 = rng_uniform(r);
@@ -61,11 +67,13 @@ double rng_gauss(Rng *r) {
 
 void rng_skip_gauss(Rng *r, int n) {
     while (n > 0) {
-        if (r->has_spare) { /* the kept value, unread */
+        if (r->has_spare) { /* the kept value (or its uniforms), unread */
             r->has_spare = 0;
             n--;
-        } else if (n == 1) { /* half a pair: its second value is the next draw's, so compute it */
-            (void)rng_gauss(r);
+        } else if (n == 1) { /* half a pair: its second value is the next draw's, kept uncomputed */
+            r->gauss_spare = rng_uniform(r);
+            r->spare_u2 = rng_uniform(r);
+            r->has_spare = 2;
             n = 0;
         } else { /* a whole pair, both values unread: its two uniforms only */
             (void)rng_next_u64(r);
@@ -80,7 +88,11 @@ void rng_skip_gauss(Rng *r, int n) {
 
 const char *rng_problem(const Rng *r) {
     if (!(r->s[0] | r->s[1] | r->s[2] | r->s[3])) return "the xoshiro256** state is all zero (its stream would be constant)";
-    if (r->has_spare != 0 && r->has_spare != 1) return "has_spare is neither 0 nor 1";
-    if (!(fabs(r->gauss_spare) <= RNG_GAUSS_MAX)) return "the spare normal is not one Box-Muller can draw";
+    if (r->has_spare < 0 || r->has_spare > 2) return "has_spare is not 0, 1 or 2";
+    if (r->has_spare == 2) {
+        if (!(r->gauss_spare > 0.0 && r->gauss_spare <= 1.0 && r->spare_u2 > 0.0 && r->spare_u2 <= 1.0))
+            return "a pending spare normal's uniforms are not in (0, 1]";
+    } else if (!(fabs(r->gauss_spare) <= RNG_GAUSS_MAX))
+        return "the spare normal is not one Box-Muller can draw";
     return NULL;
 }

@@ -15,8 +15,10 @@
 
 typedef struct {
     uint64_t s[4];      /* xoshiro256** state (never all zero after rng_seed) */
-    double gauss_spare; /* second Box-Muller value, returned by the next rng_gauss */
-    int has_spare;
+    double gauss_spare; /* has_spare 1: the second Box-Muller value, returned by the next rng_gauss;
+                           has_spare 2: the first uniform of the pair whose second value it is */
+    int has_spare;      /* 0 none, 1 a spare normal, 2 a spare not computed yet (rng_skip_gauss) */
+    double spare_u2;    /* has_spare 2: the pair's second uniform */
 } Rng;
 
 /* Expand a seed into the 256-bit state by splitmix64 and drop any spare normal. */
@@ -36,7 +38,8 @@ double rng_gauss(Rng *r);
 void rng_skip_gauss(Rng *r, int n);
 
 /* NULL if r can be a generator's state (after rng_seed and any draws), else why not: the
- * xoshiro256** state is never all zero, has_spare is 0 or 1, and the spare normal is one
+ * xoshiro256** state is never all zero, has_spare is 0, 1 or 2, a pending pair's uniforms are
+ * in (0, 1], and the spare normal is one
  * Box-Muller can give (|x| <= sqrt(-2 ln 2^-53) ~ 8.57, the uniforms being >= 2^-53).
  * For the FMU state checks of the models that carry a generator. */
 const char *rng_problem(const Rng *r);

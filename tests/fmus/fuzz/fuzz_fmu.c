@@ -707,7 +707,7 @@ static const char *craft_model(int k, Blob *b) {
 #endif
 #ifdef OSCILLATION_DRIVE_CONFIG_H
         case 0: memset(m->rng.s, 0, sizeof m->rng.s); return "all zero";
-        case 1: m->rng.has_spare = 2; return "has_spare";
+        case 1: m->rng.has_spare = 3; return "has_spare";
         case 2: m->rng.gauss_spare = 100.0; return "spare normal";
         case 3: m->n_window = 0; return "n_window";
         case 4: m->n_block = m->n_window; return "n_block";
