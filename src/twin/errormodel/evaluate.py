@@ -130,9 +130,10 @@ def evaluate_rows(m: Measured) -> tuple[dict[str, Contribution], dict[str, np.nd
     """Every factor's contribution and the per-sample columns (names without ``errormodel.``,
     in the order of :func:`evaluation_signals`) of the measured streams ``m``.
 
-    Every number of a row depends on that row and the first row only (each series is taken
-    relative to its first sample), so rows evaluated in chunks, each with the record's first
-    row put in front, give the same numbers as the whole record (:mod:`~twin.errormodel.streaming`).
+    Every number of a row depends on that row, the first row (each series is taken relative to
+    its first sample) and the load's history (``m.history``, the liner's creep), so rows
+    evaluated in chunks, each with the record's first row put in front and the history
+    carried on, give the same numbers as the whole record (:mod:`~twin.errormodel.streaming`).
     """
     cfg, table = m.cfg, m.table
     contributions = {f.name: f.contribution(m) for f in FACTORS}
