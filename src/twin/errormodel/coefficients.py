@@ -406,7 +406,12 @@ def parse_coefficients(data: Mapping[str, Any], source: str) -> Coefficients:
     raw = _table(data.get("coefficients"), source, "coefficients", set(units))
     missing = [name for name in units if name not in raw]
     if missing:
-        raise ConfigError(f"missing coefficient(s): {', '.join(missing)}", source=source, key="coefficients")
+        raise ConfigError(
+            f"missing coefficient(s): {', '.join(missing)} (`twin identify` writes every one the "
+            "error model declares; a file from an older twin lacks the newer ones)",
+            source=source,
+            key="coefficients",
+        )
     coefficients = {
         name: _coefficient(raw[name], unit, source, f"coefficients.{name}") for name, unit in units.items()
     }
