@@ -229,10 +229,6 @@ CREEP_COEFFICIENTS: tuple[str, ...] = (
     "creep_compliance_4h",
     "creep_compliance_16h",
 )
-#: a block of the history's scan ends where its decay product would fall below exp(-1) on a
-#: regular record, or at a sample whose own decay is below a half (a gap in the record): within
-#: a block 1 / product stays small, so the scan loses no precision
-_BLOCK_DECAY = 0.5
 
 
 class LoadHistory:
@@ -244,22 +240,23 @@ class LoadHistory:
 
     Boltzmann superposition then gives the creep as sum_k J_k h_k(t) for any load history.
     The recursion h[n] = a_n h[n-1] + (1 - a_n) F[n-1], a_n = exp(-dt_n / tau), runs as numpy
-    scans over blocks (h[n] = A_n (h_0 + sum_i (1 - a_i) F_i / A_i), A_n the product of the
-    a_i since the block's start), whose ends depend on the samples alone (every L-th sample of
-    the record, L = tau over its first interval, and any sample after a gap). Fed in chunks
-    (:meth:`feed`), with the block's running product and sum carried over, it gives the same
-    numbers bit for bit as the whole record at once, so the streamed error model
-    (:mod:`~twin.errormodel.streaming`) equals the whole one.
+    scans over blocks of one tau of record time each (sample n is in block floor((t_n - t_0) /
+    tau)): a block's first sample takes the recursion's step from the value before it (however
+    long the gap before it), the rest h[n] = A_n (h_f + sum_i (1 - a_i) F_i / A_i) with A_n the
+    product of the a_i since the first, which stays above exp(-1), so the scan loses no
+    precision. The blocks depend on the samples' times alone: fed in chunks (:meth:`feed`), the
+    block's running product and sum carried over, it gives the same numbers bit for bit as the
+    whole record at once, so the streamed error model (:mod:`~twin.errormodel.streaming`)
+    equals the whole one.
     """
 
     def __init__(self, times_s: tuple[float, ...] = RETARDATION_TIMES_S) -> None:
         self.taus = np.asarray(times_s, dtype=float)
-        self._n = 0  # samples fed
+        self._t0: float | None = None  # the record's first time
         self._last: tuple[float, float] | None = None  # time and load of the last sample
-        self._block: list[int] = []  # samples per block, per tau (from the first interval)
-        # per tau: the value at the block's start, the block's running product and sum, the
-        # last value; the first block starts at the record's first sample, where h = 0
-        self._carry = np.tile([0.0, 1.0, 0.0, 0.0], (len(self.taus), 1))
+        # per tau: the block's first value, running product and sum, the last value, its block
+        self._carry = np.zeros((len(self.taus), 5))
+        self._carry[:, 1] = 1.0
 
     def feed(self, time: np.ndarray, load: np.ndarray) -> np.ndarray:
         """h_k at each of these samples (shape (K, n)), following on from those fed before."""
@@ -268,39 +265,43 @@ class LoadHistory:
         if n == 0:
             return out
         first = 0
-        if self._last is None:  # the record's first sample: h = 0
-            self._last, self._n, first = (float(time[0]), float(load[0])), 1, 1
+        if self._last is None:  # the record's first sample: h = 0, block 0 starts with it
+            self._t0 = float(time[0])
+            self._last, first = (float(time[0]), float(load[0])), 1
             if n == 1:
                 return out
+        assert self._t0 is not None
         t_prev, f_prev = self._last
-        dt = np.diff(np.r_[t_prev, time[first:]])
+        t = time[first:]
+        dt = np.diff(np.r_[t_prev, t])
         f_held = np.r_[f_prev, load[first:-1]]
-        if not self._block:
-            self._block = [max(1, int(tau // dt[0])) if dt[0] > 0 else 1 for tau in self.taus]
-        index = np.arange(self._n, self._n + len(dt))  # the samples' index in the record
         for k, tau in enumerate(self.taus):
             a = np.exp(-dt / tau)
-            out[k, first:] = self._scan(k, a, (1.0 - a) * f_held, index)
-        self._n += len(dt)
+            block = np.floor((t - self._t0) / tau)
+            out[k, first:] = self._scan(k, a, (1.0 - a) * f_held, block)
         self._last = (float(time[-1]), float(load[-1]))
         return out
 
-    def _scan(self, k: int, a: np.ndarray, bx: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """One tau's values at these samples, block by block, the block state carried."""
-        starts = (index % self._block[k] == 0) | (a < _BLOCK_DECAY)
-        cuts = [0, *np.flatnonzero(starts[1:]) + 1, len(a)]
-        h0, prod, acc, last = self._carry[k]
+    def _scan(self, k: int, a: np.ndarray, bx: np.ndarray, block: np.ndarray) -> np.ndarray:
+        """One tau's values at these samples, block by block, the block's state carried."""
+        h0, prod, acc, last, current = self._carry[k]
+        starts = block != np.r_[current, block[:-1]]
+        cuts = [*np.flatnonzero(starts), len(a)]
+        if cuts[0] != 0:
+            cuts.insert(0, 0)
         y = np.empty(len(a))
         for lo, hi in itertools.pairwise(cuts):
-            if hi == lo:
-                continue
-            if starts[lo]:  # a new block starts from the value before it
-                h0, prod, acc = last, 1.0, 0.0
-            p = np.multiply.accumulate(np.r_[prod, a[lo:hi]])[1:]
-            s = np.add.accumulate(np.r_[acc, bx[lo:hi] / p])[1:]
-            y[lo:hi] = p * (h0 + s)
-            prod, acc, last = float(p[-1]), float(s[-1]), float(y[hi - 1])
-        self._carry[k] = (h0, prod, acc, last)
+            rest = lo
+            if starts[lo]:  # the block's first sample: one step of the recursion
+                h0 = a[lo] * last + bx[lo]
+                y[lo], prod, acc, rest = h0, 1.0, 0.0, lo + 1
+            if hi > rest:
+                p = np.multiply.accumulate(np.r_[prod, a[rest:hi]])[1:]
+                s = np.add.accumulate(np.r_[acc, bx[rest:hi] / p])[1:]
+                y[rest:hi] = p * (h0 + s)
+                prod, acc = float(p[-1]), float(s[-1])
+            last = float(y[hi - 1])
+        self._carry[k] = (h0, prod, acc, last, block[-1])
         return y
 
 
