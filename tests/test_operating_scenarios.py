@@ -6,11 +6,12 @@ inside the MIL limit and the compensated curve within 2 um RMS of it.
 
 Honest figures since the tester is richer than the error model (issue 12): the liner creeps
 under the held load, softens as it warms and has a hysteresis loop, and parts no sensor sees
-change temperature. Since `twin identify` fits a creep spectrum on a static load hold (the
-error model's own generic form, not the FMU's), the constant loads keep about 1.3-2.2 um RMS:
-measured 84.5 % removed (constant-load, 2 h, 1.30 um RMS), 84.5 % (day-night, 24 h, 2.21 um),
-85.9 % (MIL endurance, 41.7 h, 2.09 um RMS after: goal 2 um not met); the varying loads (sine
-94.5 %, trapezoid 94.3 %) meet 90 %. The tests assert these figures with a margin, not the goal.
+change temperature. `twin identify` fits a creep spectrum on a static load hold (the error
+model's own generic form, not the FMU's) and, since the pole-heating experiment, separates the
+long pole's growth from the frame's. Measured (RMS after, % removed): constant-load 0.44 um,
+94.7 %; sine 1.22 um, 96.6 %; trapezoid 0.85 um, 97.0 %; day-night 0.39 um, 97.3 %; MIL
+endurance 0.38 um, 97.4 % (its goal: 2 um). The tests assert the goals, which these meet with
+a margin.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def check_summary(run_summary: RunSummary, removed: float = 0.9) -> None:
 
 
 #: the share of the RMS detecting error each scenario's compensation removes at least (see above)
-REMOVED = {"constant-load": 0.78, "sine-load": 0.9, "trapezoid-load": 0.9, "day-night": 0.78}
+REMOVED = {"constant-load": 0.9, "sine-load": 0.9, "trapezoid-load": 0.9, "day-night": 0.9}
 
 
 @pytest.mark.parametrize("name", sorted(REMOVED))
@@ -62,9 +63,8 @@ def test_compensation_removes_the_detecting_error(name: str, tmp_path: Path) -> 
 
 def test_mil_endurance_run(tmp_path: Path) -> None:
     summary = run(load_scenario(scenarios_dir() / "mil-endurance.toml"), tmp_path)
-    check_summary(summary, 0.8)
+    check_summary(summary, 0.9)
     assert 0.0 < summary.results["wear_mm"]["true"] < MIL_WEAR_LIMIT_MM
-    # goal 2 um; measured 2.09 um (the liner's softening with the bearing's friction heat and
-    # its hysteresis stay in the compensated curve)
-    assert summary.results["compensation"]["residual_rms_um"]["after"] <= 2.4
+    # the goal: the compensated curve within 2 um RMS of the true wear (measured 0.38 um)
+    assert summary.results["compensation"]["residual_rms_um"]["after"] <= 2.0
     assert summary.timing.macro_steps == 1_500_000  # the swing resolved at 0.1 s

@@ -4,7 +4,7 @@
 
 #define TN_NODES 14
 #define TN_EDGES 17
-#define TN_INPUTS 3 /* t_room, q_hydraulic, q_friction */
+#define TN_INPUTS 4 /* t_room, q_hydraulic, q_friction, q_pole_heater */
 #define TN_AUG (2 * TN_NODES + TN_INPUTS)
 
 typedef struct {

@@ -2,8 +2,9 @@
  * ThermalNetwork -- lumped RC network of the bearing tester's bodies (equations in readme.md).
  *
  *   C_i dT_i/dt = sum_j G_ij (T_j - T_i) + G_i,room (T_room - T_i) + s^hyd_i Q_hyd + s^fric_i Q_fric
+ *                 (+ Q_heater into the lower pole)
  *
- * Written as dT/dt = A T + B u with u = (T_room, Q_hyd, Q_fric) held constant over each internal
+ * Written as dT/dt = A T + B u with u = (T_room, Q_hyd, Q_fric, Q_heater) held constant over each internal
  * step (zero-order hold, exactly what a co-simulation master delivers). The step map is exact:
  * [phi gamma; psi lambda] come from one matrix exponential of the augmented system
  *
@@ -96,6 +97,7 @@ static void inputs(const ModelInstance *comp, double u[TN_INPUTS]) {
     u[0] = comp->v.r[VR_t_room];
     u[1] = comp->v.r[VR_q_hydraulic];
     u[2] = comp->v.r[VR_q_friction];
+    u[3] = comp->v.r[VR_q_pole_heater];
 }
 
 /* Builds the step matrices for step h from the parameters. */
@@ -121,6 +123,7 @@ static fmi2Status make_step_matrices(ModelInstance *comp, double h) {
         aug[i * N + 2 * TN_NODES + 0] = groom / c;
         aug[i * N + 2 * TN_NODES + 1] = comp->v.r[VR_HYD[i]] / c;
         aug[i * N + 2 * TN_NODES + 2] = comp->v.r[VR_FRIC[i]] / c;
+        aug[i * N + 2 * TN_NODES + 3] = i == POLE_LOWER ? 1.0 / c : 0.0; /* the heater tape */
         aug[(TN_NODES + i) * N + i] = 1.0; /* S' = T */
     }
     for (i = 0; i < (int)(N * N); i++) aug[i] *= h;
@@ -175,7 +178,7 @@ fmi2Status model_step(ModelInstance *comp, double h) {
         lost += comp->v.r[VR_GROOM[i]] * (tint[i] - h * u[0]);
     }
     memcpy(m->temp, tnew, sizeof tnew);
-    m->energy_in += h * (u[1] * share_sum(comp, VR_HYD) + u[2] * share_sum(comp, VR_FRIC));
+    m->energy_in += h * (u[1] * share_sum(comp, VR_HYD) + u[2] * share_sum(comp, VR_FRIC) + u[3]);
     m->energy_lost += lost;
     return fmi2OK;
 }
@@ -198,7 +201,7 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
     const ModelState *m = &comp->v.m;
     const double *r = comp->v.r;
     double elapsed = (double)comp->v.steps_taken * r[VR_solver_step];
-    double q_max = real_var(VR_q_hydraulic)->max + real_var(VR_q_friction)->max;
+    double q_max = real_var(VR_q_hydraulic)->max + real_var(VR_q_friction)->max + real_var(VR_q_pole_heater)->max;
     double t_low = real_var(VR_t_room)->min;
     ModelInstance fresh = *comp;
     int i;

@@ -169,3 +169,22 @@ def test_start_temperatures_are_used_when_not_starting_at_room(fmu_paths: dict[s
     t_bearing, t_base = d.get(["t_bearing", "t_base"])
     d.close()
     assert t_bearing == 310.0 and t_base == 293.15
+
+
+def test_the_pole_heater_warms_the_lower_pole_and_counts_in_the_energy(fmu_paths: dict[str, Path]) -> None:
+    # a calibration's heater tape (q_pole_heater) enters pole_lower alone: the pole warms most,
+    # the frame's upper half far less, and the heat put in is the heater's, in the balance
+    d = Driver(fmu_paths["ThermalNetwork"])
+    net = Network(d)
+    d.init(inputs={"t_room": 293.15, "q_hydraulic": 0.0, "q_friction": 0.0, "q_pole_heater": 1.0})
+    outs = [f"t_{n}" for n in net.nodes]
+    t0 = d.get(outs)
+    for k in range(240):
+        d.slave.doStep(currentCommunicationPoint=k * 60.0, communicationStepSize=60.0)
+    stored, put_in, lost = d.get(["energy_stored", "energy_in", "energy_lost"])
+    rise = dict(zip(net.nodes, d.get(outs) - t0, strict=True))
+    d.close()
+    assert put_in == pytest.approx(1.0 * 240 * 60.0, rel=1e-12)
+    assert stored == pytest.approx(put_in - lost, rel=1e-9, abs=1e-3)
+    assert max(rise, key=rise.get) == "pole_lower" and rise["pole_lower"] > 1.0
+    assert rise["detecting_frame"] < 0.1 * rise["pole_lower"]

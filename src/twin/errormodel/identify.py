@@ -4,7 +4,7 @@ A lab does not know its tester's expansion coefficients, lengths, compliances or
 measures what they do. So does this module, on the twin: it runs the calibration experiments of
 ``scenarios/calibration/`` (:data:`EXPERIMENTS`: a thermal soak with the drive off, gauge blocks
 under the pole, static load steps, a runout check, a slow oscillation at light load, a static
-load hold for the liner's creep), records
+load hold for the liner's creep, the long pole heated alone), records
 only the channels a lab's DAQ records (:class:`LabRecorder`: the ``sensors.*`` readings the
 error model reads, never a true or internal FMU value), and fits the error model's own form to
 them, one experiment after the other, each fit using what the ones before found.
@@ -121,12 +121,14 @@ EXPERIMENTS: tuple[Experiment, ...] = (
     Experiment("runout_check", "runout-check.toml", nuisance=("offset", "drift")),
     Experiment("light_oscillation", "light-oscillation.toml", nuisance=("offset", "drift")),
     Experiment("load_hold", "load-hold.toml"),
+    Experiment("pole_heating", "pole-heating.toml"),
 )
 
 #: the fits, in order: the thermal one first, so the short mechanical experiments take their
 #: small thermal drift from it
 CALIBRATIONS: tuple[Calibration, ...] = (
-    Calibration("thermal", ("thermal_soak", "hot_cooldown"), fit=tuple(ThermalCoefficients.units())),
+    # the pole heated alone tells its growth apart from the frame's (the soak warms both)
+    Calibration("thermal", ("thermal_soak", "hot_cooldown", "pole_heating"), fit=tuple(ThermalCoefficients.units())),
     Calibration("probe_scale", ("gauge_blocks",), fit=("probe_scale",)),
     # the loading chain: the steps give the elastic compliance, the hold the liner's creep
     # spectrum (each >= 0); fitted together, as the hold's first minutes see both. No drift term
