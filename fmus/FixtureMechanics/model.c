@@ -104,6 +104,18 @@ static double bearing_branch(ModelInstance *comp, const double *dt) {
     return r[VR_z_t_plate];
 }
 
+/* Thermal bending of the detecting frame: the bearing assembly's radiation (its rise over the
+ * frame's mean rise) heats the frame's side face towards the probe (+X). Across the frame's width
+ * w the faces differ by q w / k, so the curvature alpha (q w / k) / w = alpha q / k does not
+ * depend on w; uniform along the frame hanging from the base, it turns the lower end by
+ * kappa L. The warmer +X face is the longer one: the sensor's head, e beside the axis on the +X
+ * side, goes down (+Z) by e * tilt. Rises since the start, as every thermal term. */
+static void frame_bending(double *r, const double *dt) {
+    double q = r[VR_h_radiation_frame] * r[VR_frame_view_factor] * (dt[BEARING] - 0.5 * (dt[FRAME] + dt[FRAME_LOWER]));
+    r[VR_frame_tilt] = r[VR_alpha_steel] * q / r[VR_k_frame] * r[VR_l_detecting_frame];
+    r[VR_dz_frame_bending] = r[VR_abbe_offset] * r[VR_frame_tilt];
+}
+
 /* Branch 2: the frame hangs from the base and grows down, carrying the sensor; the pole grows
  * down from its top (held on the T-plate) to the clamp, and the clamp down to the head's
  * contact face. */
@@ -114,7 +126,8 @@ static void detecting_branch(double *r, const double *dt) {
     r[VR_dz_long_pole] = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
                                  r[VR_l_pole_lower] * dt[POLE_LOWER]);
     r[VR_dz_clamp] = a_st * r[VR_l_clamp] * dt[CLAMP];
-    r[VR_z_sensor] = r[VR_dz_detecting_frame];
+    frame_bending(r, dt);
+    r[VR_z_sensor] = r[VR_dz_detecting_frame] + r[VR_dz_frame_bending];
 }
 
 /* Contact: with the pole top at z_top, the spring pushes up with f_spring0 + k_spring*z_top,
@@ -143,12 +156,13 @@ static void pole_contact(double *r, double z_t) {
 }
 
 /* Positioning: the friction torque turns the T-plate, and with it pole and clamp, by a small
- * angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi. Its axis
- * tilted from Z reads the relative motion times cos(tilt). */
+ * angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi. Its axis,
+ * tilted from Z by its mounting and by the frame's bending, reads the relative motion times
+ * cos(tilt). */
 static void probe_reading(double *r) {
     double rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
     double relative = r[VR_z_clamp] - r[VR_z_sensor];
-    double measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt]);
+    double measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt] + r[VR_frame_tilt]);
     r[VR_tplate_rotation] = rotation;
     r[VR_dz_positioning] = measured - relative;
     r[VR_probe_true] = r[VR_probe_preload] + measured;

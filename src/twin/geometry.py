@@ -173,6 +173,16 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
             rod * g.prop("long_pole", "rho") + g.dim("bodies.clamp.mass"),
             "paper: 730 mm x 10 mm steel rod, plus the clamp (estimate)",
         ),
+        # the frame's thermal bending (FixtureMechanics readme): radiation from the bearing
+        # assembly onto its painted side face, conducted across its width
+        "frame_view_factor": Derived(
+            g.dim("bodies.detecting_frame.bearing_view_factor"),
+            "drawing estimate: the bearing assembly's radiation on the frame's +X face",
+        ),
+        "h_radiation_frame": Derived(
+            g.dim("surfaces.h_radiation_painted"), "handbook: facts 5, painted surfaces about 5 W/(m2 K)"
+        ),
+        "k_frame": Derived(g.prop("detecting_frame", "k"), "handbook: facts 5, steel 45"),
     }
 
 

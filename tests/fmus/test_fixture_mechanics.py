@@ -51,8 +51,24 @@ def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> 
     assert sp + br + tp == pytest.approx(FEM_PARTS_M["t_plate"], rel=0.25)
     assert fr == pytest.approx(FEM_PARTS_M["detecting_frame"], rel=0.25)
     assert pole + cl == pytest.approx(FEM_PARTS_M["long_pole"], rel=0.25)
-    (probe,) = mech.get(["probe_true"])
-    assert probe - 4.805e-3 == pytest.approx(bb + sp + br + tp + pole + cl - fr, abs=1e-12)
+    probe, bending = mech.get(["probe_true", "dz_frame_bending"])
+    # the frame bends too (its rise is above the bearing's here: it radiates towards it), by 0.01 um
+    assert abs(bending) < 2e-8
+    assert probe - 4.805e-3 == pytest.approx(bb + sp + br + tp + pole + cl - fr - bending, abs=1e-12)
+
+
+def test_hand_calculation_of_the_frames_thermal_bending(mech: Driver) -> None:
+    # the bearing 50 K above the frame (the MIL test's rise): flux h_r F dT = 5 x 0.1 x 50 W/m2,
+    # curvature alpha q / k, the lower end turns by kappa L, the head at e = 45 mm goes down
+    mech.set({"t_bearing": T0 + 50.0})
+    tilt, bending, sensor, frame = mech.get(["frame_tilt", "dz_frame_bending", "z_sensor", "dz_detecting_frame"])
+    expected = 11.7e-6 * (5.0 * 0.1 * 50.0) / 51.0 * 0.362
+    assert tilt == pytest.approx(expected, rel=1e-12)
+    assert bending == pytest.approx(0.045 * expected, rel=1e-12)  # 0.09 um: about the probe's resolution
+    assert sensor == pytest.approx(frame + bending, abs=1e-15)
+    # the frame warmed alike on both faces does not bend
+    mech.set({"t_detecting_frame": T0 + 50.0, "t_detecting_frame_lower": T0 + 50.0})
+    assert mech.get(["frame_tilt"])[0] == pytest.approx(0.0, abs=1e-18)
 
 
 def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
