@@ -157,7 +157,7 @@ def config(**em: Any) -> EvaluationConfig:
         **model_defaults(),
         "spindle_runout": 3e-6,
         "probe_scale": float(np.cos(0.05)),
-        "abbe_rotation": 0.05 * 1e-6,
+        "clamp_rotation": 1e-6,
     }
     return errormodel_config(values, em, "test", 60.0)
 

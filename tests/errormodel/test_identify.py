@@ -56,7 +56,8 @@ TRUTH = {
     "spindle_runout": 2.2e-6,
     "runout_phase": -1.9,
     "probe_scale": math.cos(0.02),
-    "abbe_rotation": 3.5e-9,
+    # the torque turns the clamp about -Y here (a sign the fit must find by itself)
+    "clamp_rotation": -7.8e-8,
     # a creep spectrum unlike the start values' even spread
     "creep_compliance_15min": 2.0e-12,
     "creep_compliance_1h": 6.0e-12,
@@ -64,6 +65,8 @@ TRUTH = {
     "creep_compliance_16h": 3.0e-12,
 }
 PROBE_NOISE, PROBE_Q, TEMP_NOISE = 50e-9, 0.1e-6, 0.02
+#: e_z per rad of the clamp's rotation about Y: the sensor 45 mm beside the pole (topology)
+ABBE_LEVER = float(tester_model().e_z_coefficients()[("contacting_clamp", "p_ey")])
 #: the fits of the mechanical coefficients (quick: the thermal ones keep their priors)
 MECHANICAL = [c for c in CALIBRATIONS if c.name != "thermal"]
 
@@ -101,8 +104,10 @@ def record(name: str, t: np.ndarray, rng: np.random.Generator, *, known=None, **
     add(COLUMNS.reading, np.zeros(n))  # replaced below, once the motion it reads is known
     motion = _motion(table, temps, true)
     s = TRUTH["probe_scale"]
-    # the probe reads the motion through its scale; the Abbe term as the model writes it
-    change = s * (motion + known) + s**2 * TRUTH["abbe_rotation"] * (true["torque"] - true["torque"][0])
+    # the probe reads the motion through its scale; the clamp's rotation as the model writes it,
+    # at the characteristic matrices' Abbe lever
+    abbe = ABBE_LEVER * TRUTH["clamp_rotation"]
+    change = s * (motion + known) + s**2 * abbe * (true["torque"] - true["torque"][0])
     reading = 4.805e-3 + change + PROBE_NOISE * rng.standard_normal(n)
     reading[rng.choice(np.arange(50, n - 50), 3, replace=False)] += 20e-6
     table.columns[COLUMNS.reading] = np.round(reading / PROBE_Q) * PROBE_Q
@@ -256,12 +261,12 @@ def test_standard_errors_are_honest_over_noise_realisations() -> None:
 def test_a_coefficient_nothing_fits_and_no_prior_knows_is_an_error() -> None:
     records = synthetic_records(5)
     partial = [c for c in MECHANICAL if c.name != "abbe"]
-    with pytest.raises(ConfigError, match="abbe_rotation"):
+    with pytest.raises(ConfigError, match="clamp_rotation"):
         fit_records(records, PRIORS, calibrations=partial)
-    priors = {**PRIORS, "abbe_rotation": Prior(1e-9, 1e-9, "m/(N.m)", "test")}
+    priors = {**PRIORS, "clamp_rotation": Prior(1e-8, 1e-8, "rad/(N.m)", "test")}
     c = fit_records(records, priors, calibrations=partial)
-    assert c.coefficients["abbe_rotation"].experiment == "prior"
-    assert c.coefficients["abbe_rotation"].std_error == 1e-9
+    assert c.coefficients["clamp_rotation"].experiment == "prior"
+    assert c.coefficients["clamp_rotation"].std_error == 1e-8
 
 
 # ----------------------------------------------------------------------------- on the twin

@@ -112,6 +112,28 @@ def test_positioning_errors_give_abbe_terms() -> None:
     assert coef[("detecting_frame", "p_ex")] == 0.0  # on the pole axis: no lever
 
 
+def test_the_friction_torques_rotation_reaches_e_z_at_the_drawings_abbe_lever(tmp_path: Path) -> None:
+    # the positioning factor gives the clamp's rotation, not a length: the characteristic
+    # matrices turn it into Z at the sensor's offset from the pole, so another drawing (the
+    # probe 30 mm beside the pole instead of 45) changes the prediction in proportion
+    from twin.errormodel.sources import MechanicalCoefficients, positioning_errors
+
+    c = MechanicalCoefficients(**{**dict.fromkeys(MechanicalCoefficients.units(), 0.0), "probe_scale": 1.0,
+                                  "clamp_rotation": 1e-7})  # fmt: skip
+    torque = np.array([0.0, 50.0, 150.0])
+    errors = positioning_errors(np.zeros(3), torque, c)
+    np.testing.assert_allclose(tester_model().e_z(errors), -0.045 * 1e-7 * torque, rtol=1e-12, atol=1e-20)
+    text = resources.files("twin.errormodel").joinpath("tester_topology.toml").read_text(encoding="utf-8")
+    moved = text.replace("position.x = { value = 0.045,", "position.x = { value = 0.030,").replace(
+        "position.x = { value = -0.045,", "position.x = { value = -0.030,"
+    )
+    assert moved.count("0.030,") == 2
+    (tmp_path / "topology.toml").write_text(moved, encoding="utf-8")
+    np.testing.assert_allclose(
+        tester_model(tmp_path / "topology.toml").e_z(errors), -0.030 * 1e-7 * torque, rtol=1e-12, atol=1e-20
+    )
+
+
 BAD_FILE = """
 [[branch]]
 end = "b"

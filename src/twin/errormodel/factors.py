@@ -372,7 +372,8 @@ def _fluctuating(m: Measured) -> Contribution:
 
 def _positioning(m: Measured) -> Contribution:
     """Positioning dE_G: the probe's tilt from Z (cosine error of the cleaned reading change)
-    and the T-plate's rotation by the friction torque at the Abbe offset."""
+    and the T-plate's rotation by the friction torque, a rotation error of the clamp that the
+    characteristic matrices read at the Abbe lever."""
     errors = positioning_errors(_rel(m.cleaned), m.change("torque"), m.coefficients)
     return Contribution(_rel(m.e_z(errors)))
 

@@ -137,7 +137,7 @@ CALIBRATIONS: tuple[Calibration, ...] = (
                 lower=dict.fromkeys(CREEP_COEFFICIENTS, 0.0)),
     Calibration("runout", ("runout_check",), fit=("spindle_runout", "runout_phase"),
                 starts={"runout_phase": (math.pi / 2, math.pi, -math.pi / 2)}, lower={"spindle_runout": 0.0}),
-    Calibration("abbe", ("light_oscillation",), fit=("abbe_rotation",)),
+    Calibration("abbe", ("light_oscillation",), fit=("clamp_rotation",)),
 )
 # fmt: on
 

@@ -195,8 +195,11 @@ class MechanicalCoefficients(_Coefficients):
     Abbe effect); see ``twin identify``.
 
     Each is the combination an experiment determines, not the parts it is made of: the liner's
-    and the structure's compliance add, the Abbe offset multiplies the T-plate's rotation per
-    unit torque, and the probe's tilt shows only as the cosine that scales its reading.
+    and the structure's compliance add, and the probe's tilt shows only as the cosine that
+    scales its reading. The friction torque's effect is identified as a rotation (the T-plate
+    turning, with the pole and the clamp on it, against its anti-rotation arm); the Abbe offset
+    it acts at is the characteristic matrices' lever (the sensor 45 mm beside the pole in
+    ``tester_topology.toml``), not a fitted number.
     """
 
     # fmt: off
@@ -204,7 +207,7 @@ class MechanicalCoefficients(_Coefficients):
     spindle_runout: float = _declare("m", "amplitude of the spindle's runout at the bearing")
     runout_phase: float = _declare("rad", "spindle angle of the runout's high point")
     probe_scale: float = _declare("1", "probe reading per unit motion along Z: cos of its axis' tilt")
-    abbe_rotation: float = _declare("m/(N.m)", "probe reading per N.m of friction torque: Abbe offset x T-plate rotation")
+    clamp_rotation: float = _declare("rad/(N.m)", "rotation about Y of the T-plate, long pole and clamp per N.m of friction torque (its sign: the torque sensor's positive sense)")
     creep_compliance_15min: float = _declare("m/N", "liner's creep per N of load held, retardation time 15 min")
     creep_compliance_1h: float = _declare("m/N", "liner's creep per N of load held, retardation time 1 h")
     creep_compliance_4h: float = _declare("m/N", "liner's creep per N of load held, retardation time 4 h")
@@ -344,12 +347,17 @@ def positioning_errors(
 ) -> dict[str, dict[str, np.ndarray]]:
     """Positioning dE_G: the probe's axis tilted from Z reads motion times cos(tilt), its
     ``probe_scale`` (cosine error, second order in the tilt, so it is given explicitly rather
-    than left to the first-order MBS form), and the T-plate's rotation by the friction torque
-    moves the clamp by the Abbe offset times the angle (``abbe_rotation`` per N.m, read through
-    the same cosine). Both act at the sensor (body 7, branch 2: sign -1)."""
+    than left to the first-order MBS form: a translation error of the sensor, body 7), and the
+    friction torque turns the T-plate, with the long pole and the contacting clamp on it, by
+    ``clamp_rotation`` per N.m: a rotation error about Y of the clamp relative to the sensor
+    (body 8's dT_ijp, ``p_ey``), read through the same cosine. The characteristic matrices turn
+    that rotation into Z at the lever between the probe's axis and the pole's (the Abbe
+    offset of the topology's drawing)."""
     cosine = -(1.0 - c.probe_scale) / c.probe_scale * reading_change
-    abbe = 0.0 if torque_change is None else c.abbe_rotation * torque_change * c.probe_scale
-    return {"displacement_sensor": {"p_dz": -(cosine + abbe)}}
+    out: dict[str, dict[str, np.ndarray]] = {"displacement_sensor": {"p_dz": -cosine}}
+    if torque_change is not None:
+        out["contacting_clamp"] = {"p_ey": c.clamp_rotation * torque_change * c.probe_scale}
+    return out
 
 
 def hampel(
