@@ -61,7 +61,9 @@ def test_hand_calculation_of_the_frames_thermal_bending(mech: Driver) -> None:
     # the bearing 50 K above the frame (the MIL test's rise): flux h_r F dT = 5 x 0.1 x 50 W/m2,
     # curvature alpha q / k, the lower end turns by kappa L, the head at e = 45 mm goes down
     mech.set({"t_bearing": T0 + 50.0})
-    tilt, bending, sensor, frame = mech.get(["frame_tilt", "dz_frame_bending", "z_sensor", "dz_detecting_frame"])
+    tilt, bending, sensor, frame = mech.get(
+        ["frame_tilt", "dz_frame_bending", "z_sensor", "dz_detecting_frame"]
+    )
     expected = 11.7e-6 * (5.0 * 0.1 * 50.0) / 51.0 * 0.362
     assert tilt == pytest.approx(expected, rel=1e-12)
     assert bending == pytest.approx(0.045 * expected, rel=1e-12)  # 0.09 um: about the probe's resolution
