@@ -2,7 +2,8 @@
 """Where the time of a `twin run` goes (a script, not a timed test).
 
 Runs each scenario as a fresh `twin run` process (warm FMU cache) several times and prints, side
-by side, the medians of: the whole process's wall time, its peak resident memory, and the run's
+by side, the medians of: the whole process's wall time, its peak resident memory (of all its
+processes together, the plot helper included, sampled every 20 ms; and of the largest), and the run's
 own phases from summary.json (``timing.phases_s``: FMU set-up, stepping, opening and writing the
 outputs while the run goes, the error model, each output file's closing). What the phases do not
 cover is the interpreter's start, the imports and the command's checks (``start+imports``), so
@@ -19,12 +20,14 @@ Goals of issue 15: the paper's replay <= 0.8 s for the whole process; the MIL en
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -35,21 +38,47 @@ RUNS = {
 GOALS = {"paper replay": (0.8, None), "MIL endurance": (4.0, 150.0)}
 
 
+def _tree_peak_mb(pid: int, done: threading.Event, out: list[float]) -> None:
+    """The largest sum of resident memory of ``pid`` and its descendants (the plot helper),
+    sampled every 20 ms until ``done`` (psutil, a dependency of Dask's)."""
+    import psutil
+
+    peak = 0
+    try:
+        root = psutil.Process(pid)
+        while not done.is_set():
+            total = 0
+            for proc in [root, *root.children(recursive=True)]:
+                with contextlib.suppress(psutil.Error):
+                    total += proc.memory_info().rss
+            peak = max(peak, total)
+            done.wait(0.02)
+    except psutil.Error:
+        pass
+    out.append(peak / 2**20)
+
+
 def one_run(args: list[str], sets: list[str], out: Path) -> dict[str, float]:
-    """One fresh process: wall s, peak MB (this child's alone, from wait4), the run's phases."""
+    """One fresh process: wall s; peak MB of the largest process (wait4: the run's own, or its
+    plot helper's) and of all of them together (sampled); the run's phases."""
     cmd = [sys.executable, "-m", "twin", "run", *args, "--out", str(out), "--quiet", "--force"]
     for s in sets:
         cmd += ["--set", s]
     start = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    done, tree = threading.Event(), []
+    sampler = threading.Thread(target=_tree_peak_mb, args=(proc.pid, done, tree))
+    sampler.start()
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
+    done.set()
+    sampler.join()
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(
             f"twin run {' '.join(args)} failed: {proc.stderr.read().decode() if proc.stderr else ''}"
         )
     phases = json.loads((out / "summary.json").read_text())["timing"]["phases_s"]
-    row = {"wall": wall, "peak MB": usage.ru_maxrss / 1024.0}
+    row = {"wall": wall, "peak MB, all": tree[0], "peak MB, largest": usage.ru_maxrss / 1024.0}
     row["start+imports"] = wall - sum(phases.values())
     row.update(phases)
     return row
@@ -84,7 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     for name, r in rows.items():
         wall_goal, mem_goal = GOALS[name]
         verdict = (
-            "met" if r["wall"] <= wall_goal and (mem_goal is None or r["peak MB"] <= mem_goal) else "NOT met"
+            "met"
+            if r["wall"] <= wall_goal and (mem_goal is None or r["peak MB, all"] <= mem_goal)
+            else "NOT met"
         )
         mem = f", <= {mem_goal:g} MB" if mem_goal else ""
         print(f"goal {name}: <= {wall_goal:g} s{mem}: {verdict}")

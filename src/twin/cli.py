@@ -190,6 +190,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     import time
 
     from twin.errormodel.config import evaluation_config
+    from twin.outputs.plot_process import PlotProcess
     from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import run
     from twin.validation.replay import for_run
@@ -206,25 +207,35 @@ def _cmd_run(args: argparse.Namespace) -> int:
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
-    _build_fmus(scenario, stop)
-    folder = RunFolder(out)
-    folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
+    # the plots' own process, started now: it imports matplotlib while this one builds, sets
+    # up and runs (twin.outputs.plot_process)
+    plots = PlotProcess.started()
     try:
-        _refuse_an_earlier_run(out, args.force)
-        stage = functools.partial(
-            run,
-            scenario,
-            out,
-            process_start=args.process_start or start,
-            overrides=args.set or [],
-            checkpoint_every_ns=every,
-        )
-        summary = _supervised(args.quiet, stage, stop)
-        if uncertainty is not None and summary.status == "completed" and stop() is None:
-            summary = _uncertainty(uncertainty, out, summary, args.quiet, stop)
-        return _finish(summary, out, args.quiet, stop())
+        _build_fmus(scenario, stop)
+        folder = RunFolder(out)
+        folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
+        try:
+            _refuse_an_earlier_run(out, args.force)
+            stage = functools.partial(
+                run,
+                scenario,
+                out,
+                process_start=args.process_start or start,
+                overrides=args.set or [],
+                checkpoint_every_ns=every,
+                plot_process=plots,
+            )
+            summary = _supervised(args.quiet, stage, stop)
+            if plots is not None:
+                plots.close()
+            if uncertainty is not None and summary.status == "completed" and stop() is None:
+                summary = _uncertainty(uncertainty, out, summary, args.quiet, stop)
+            return _finish(summary, out, args.quiet, stop())
+        finally:
+            folder.unlock()
     finally:
-        folder.unlock()
+        if plots is not None:
+            plots.close()
 
 
 def _build_fmus(scenario: Scenario, stop: Callable[[], str | None]) -> None:

@@ -35,7 +35,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+    from twin.outputs.plot_process import PlotProcess
     from twin.outputs.sink import Outcome
+    from twin.signals.table import Signal
 
 __all__ = [
     "DPI",
@@ -47,6 +49,8 @@ __all__ = [
     "budget_figure",
     "error_budget_png",
     "human_name",
+    "save_png",
+    "warm_up",
     "wear_figure",
 ]
 
@@ -150,7 +154,7 @@ def error_budget_png(
     Raises ``KeyError`` naming a column the table lacks.
     """
     columns = BudgetColumns(reading, predicted, parts, temperatures)
-    return _save(budget_figure(table, columns, title), Path(path))
+    return save_png(budget_figure(table, columns, title), Path(path))
 
 
 def _checked(table: SignalTable, columns: BudgetColumns) -> None:
@@ -296,23 +300,75 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
     return fig
 
 
-def _save(fig: Figure, path: Path) -> Path:
+def save_png(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` to the PNG ``path``; returns ``path``."""
     # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
     fig.savefig(path, format="png", dpi=DPI, metadata={"Software": None})
     return path
 
 
+def warm_up() -> None:
+    """Import matplotlib and draw a throw-away figure with text (loads the fonts): what the
+    first plot would pay, paid ahead (:mod:`twin.outputs.plot_process` calls it on start)."""
+    import io
+
+    with _style():
+        fig = _new_figure((1.0, 1.0))
+        ax = fig.subplots()
+        ax.set_title("warm-up")
+        ax.plot([0.0, 1.0], [0.0, 1.0], label="x")
+        ax.legend()
+        fig.savefig(io.BytesIO(), format="png", dpi=DPI, metadata={"Software": None})
+
+
 class _PlotSink(OutcomeSink):
-    """A PNG drawn from the outcome's table when the run is over, into ``path``."""
+    """A PNG drawn from the outcome's table when the run is over, into ``path``; by the run's
+    :class:`~twin.outputs.plot_process.PlotProcess` when given one (started when the run
+    opens its outputs), else in process."""
 
     #: a run interrupted after its co-simulation leaves the plots out (they only draw what
-    #: the CSV files hold, and importing matplotlib alone takes half a second)
+    #: the CSV files hold, and importing matplotlib alone takes a third of a second)
     skippable = True
 
-    def __init__(self, path: Path, columns: BudgetColumns, title: str) -> None:
+    def __init__(
+        self, path: Path, columns: BudgetColumns, title: str, process: PlotProcess | None = None
+    ) -> None:
         self.path = path
         self.columns = columns
         self.title = title
+        self.process = process.use() if process is not None else None
+
+    def open(self, signals: list[Signal]) -> None:
+        """The run starts: so does the plot process, which imports matplotlib meanwhile."""
+        if self.process is not None:
+            self.process.start()
+
+    def close(self, outcome: Outcome) -> None:
+        try:
+            super().close(outcome)
+        finally:
+            self._release()
+
+    def fail(self, error: BaseException) -> None:
+        """Nothing was drawn before the outcome; the plot process is let go."""
+        self._release()
+
+    def _release(self) -> None:
+        process, self.process = self.process, None
+        if process is not None:
+            process.release()
+
+    def _drawn_by_process(
+        self, kind: str, table: SignalTable, columns: BudgetColumns, names: list[str]
+    ) -> bool:
+        """Whether the plot process drew it (False: draw it here)."""
+        if self.process is None or not self.process.running:
+            return False
+        from twin.outputs.plot_process import columns_json, thinned
+
+        return self.process.draw(
+            kind, self.path, thinned(table, names, _MAX_POINTS), columns_json(columns), self.title
+        )
 
 
 class ErrorBudgetSink(_PlotSink):
@@ -330,7 +386,11 @@ class ErrorBudgetSink(_PlotSink):
         columns = dataclasses.replace(self.columns, temperatures=present)
         if columns.compensated and columns.compensated not in table:
             columns = dataclasses.replace(columns, compensated=None)
-        _save(budget_figure(table, columns, self.title), self.path)
+        _checked(table, columns)
+        names = [columns.reading, columns.predicted, *columns.parts.values(), *present.values()]
+        names += [columns.compensated] if columns.compensated else []
+        if not self._drawn_by_process("budget", table, columns, list(dict.fromkeys(names))):
+            save_png(budget_figure(table, columns, self.title), self.path)
 
 
 class WearPlotSink(_PlotSink):
@@ -338,8 +398,12 @@ class WearPlotSink(_PlotSink):
     has the true wear, the compensated wear and the cycles)."""
 
     def write_outcome(self, outcome: Outcome) -> None:
-        if outcome.table is None:
+        table = outcome.table
+        wear = self.columns.wear_columns()
+        if table is None or wear is None or any(c not in table for c in (*wear, self.columns.reading)):
             return
-        fig = wear_figure(outcome.table, self.columns, self.title)
-        if fig is not None:
-            _save(fig, self.path)
+        names = list(dict.fromkeys([*wear, self.columns.reading]))
+        if not self._drawn_by_process("wear", table, self.columns, names):
+            fig = wear_figure(table, self.columns, self.title)
+            if fig is not None:
+                save_png(fig, self.path)

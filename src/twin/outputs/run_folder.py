@@ -35,6 +35,7 @@ from twin.outputs import checkpoint_file
 from twin.outputs.summary import write_json_atomic
 
 if TYPE_CHECKING:
+    from twin.outputs.plot_process import PlotProcess
     from twin.outputs.plots import BudgetColumns
     from twin.outputs.scene3d import TesterScene
     from twin.outputs.sink import Sink
@@ -312,13 +313,15 @@ class RunFolder:
         plot: BudgetColumns,
         resume: Checkpoint | None = None,
         scene: TesterScene | None = None,
+        plot_process: PlotProcess | None = None,
     ) -> list[Sink]:
         """Every output of a twin run, in the order they close.
 
         ``name`` names the recording and titles the plot; ``late_signals`` are the columns
         the error model adds after the run (declared to the recording up front) and
         ``budget_view`` those of the recording's error-budget view; ``plot`` the plot's;
-        ``scene`` the recording's 3D view of the tester (none when None).
+        ``scene`` the recording's 3D view of the tester (none when None); ``plot_process``
+        draws the plots (in this process when None).
         With ``resume``, signals.csv is cut back to the checkpoint and continued, and the
         recording is written anew from the rows the CSV kept.
         """
@@ -341,22 +344,29 @@ class RunFolder:
                 replay=csv_path if resume is not None else None,
                 scene=scene,
             ),
-            *self.result_sinks(name=name, plot=plot),
+            *self.result_sinks(name=name, plot=plot, plot_process=plot_process),
         ]
 
-    def result_sinks(self, *, name: str, plot: BudgetColumns) -> list[Sink]:
+    def result_sinks(
+        self, *, name: str, plot: BudgetColumns, plot_process: PlotProcess | None = None
+    ) -> list[Sink]:
         """The outputs written once the error model has run: errormodel.csv, the plot
-        (titled after ``name``) and summary.json, last."""
+        (titled after ``name``; drawn by ``plot_process`` when given) and summary.json, last."""
         from twin.outputs.csv import DerivedCsvSink
         from twin.outputs.plots import ErrorBudgetSink, WearPlotSink
         from twin.outputs.summary import SummarySink
 
+        process = plot_process
         sinks: list[Sink] = [
             DerivedCsvSink(self.file(ERRORMODEL_CSV)),
-            ErrorBudgetSink(self.file(ERROR_BUDGET_PNG), plot, f"{name}: predicted error and its parts"),
+            ErrorBudgetSink(
+                self.file(ERROR_BUDGET_PNG), plot, f"{name}: predicted error and its parts", process
+            ),
         ]
         if plot.wear_columns() is not None:
-            sinks.append(WearPlotSink(self.file(WEAR_PNG), plot, f"{name}: wear against swing cycles"))
+            sinks.append(
+                WearPlotSink(self.file(WEAR_PNG), plot, f"{name}: wear against swing cycles", process)
+            )
         return [*sinks, SummarySink(self.file(SUMMARY_JSON))]
 
 

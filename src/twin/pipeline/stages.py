@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Loop, Master, RunResult
@@ -49,6 +49,9 @@ from twin.paper import DRIFT_M, PAPER_SCENARIO, TEMPERATURE_RISE_K
 from twin.pipeline.run_summary import RunSummary, Timing
 from twin.signals.recorder import TeeRecorder
 from twin.signals.table import SignalTable
+
+if TYPE_CHECKING:
+    from twin.outputs.plot_process import PlotProcess
 
 
 @dataclass
@@ -283,12 +286,14 @@ def run(
     stop: Callable[[], str | None] | None = None,
     checkpoint_every_ns: int | None = None,
     resume: Checkpoint | None = None,
+    plot_process: PlotProcess | None = None,
 ) -> RunSummary:
     """Run ``scenario`` into the run folder ``out_dir``; returns the summary written there.
 
     Raises before the run starts (a bad error-model configuration), or :class:`RunError`
     after writing everything recorded up to a failure. ``stop``, ``checkpoint_every_ns``
-    and ``resume`` as for :func:`simulate` (checkpoints go to the folder's checkpoint file).
+    and ``resume`` as for :func:`simulate` (checkpoints go to the folder's checkpoint file);
+    ``plot_process`` draws the plots (:mod:`twin.outputs.plot_process`; in process when None).
     """
     process_start = process_start or time.perf_counter()
     cfg = evaluation_config(scenario)  # checked before anything runs
@@ -296,7 +301,17 @@ def run(
     folder.lock()  # before anything in the folder changes: a second process is refused
     try:
         return _run_locked(
-            scenario, folder, cfg, progress, process_start, loop, overrides, stop, checkpoint_every_ns, resume
+            scenario,
+            folder,
+            cfg,
+            progress,
+            process_start,
+            loop,
+            overrides,
+            stop,
+            checkpoint_every_ns,
+            resume,
+            plot_process,
         )
     finally:
         folder.unlock()
@@ -313,6 +328,7 @@ def _run_locked(
     stop: Callable[[], str | None] | None,
     checkpoint_every_ns: int | None,
     resume: Checkpoint | None,
+    plot_process: PlotProcess | None = None,
 ) -> RunSummary:
     out_dir = folder.path
     sinks: list[Sink] = []
@@ -329,6 +345,7 @@ def _run_locked(
             plot=budget_columns(cfg, scenario),
             resume=resume,
             scene=tester_scene(scenario),
+            plot_process=plot_process,
         )
         simulation = simulate(
             scenario,

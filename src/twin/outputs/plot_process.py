@@ -1,0 +1,245 @@
+"""The run's plots drawn by a second Python process, started when the run starts.
+
+Importing matplotlib takes about a third of a second, as long as the paper replay's whole
+co-simulation and error model together, and drawing the error budget another 0.15 s. A
+:class:`PlotProcess` starts ``python -m twin.outputs.plot_process`` when the run opens its
+outputs; that process imports matplotlib (and draws a throw-away figure, which loads the fonts)
+on the machine's other core while the run goes, then draws each plot it is sent.
+
+What it is sent is only what a plot draws: the plot's columns thinned as the plot thins them
+(at most about 2 x 2000 samples each), as one JSON line (the job: kind, file, title, columns)
+followed by raw little-endian float64. Nothing it reads executes code: no pickle. It answers
+each job with one JSON line. The same drawing code on the same samples gives the same bytes as
+drawing in the run's own process (tests/outputs/test_plot_process.py).
+
+The run waits for each PNG before it goes on, so every file summary.json lists exists. If the
+process cannot be started, or dies, the plot is drawn in the run's own process instead: a
+missing second core or a killed helper costs time, never a plot. A plot that fails to draw
+raises :class:`~twin.errors.RunError` with the helper's message. The helper ends when its
+input closes: when the run closes it, and when the run's process dies.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Mapping
+from dataclasses import asdict
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from twin.errors import RunError
+from twin.signals.table import Signal, SignalTable
+
+__all__ = ["PlotProcess", "main", "thinned"]
+
+#: the jobs the helper draws: kind -> (the plot's figure function's name in twin.outputs.plots)
+KINDS = ("budget", "wear")
+#: seconds the run waits for the helper to end once its input is closed
+_EXIT_WAIT_S = 5.0
+
+
+def thinned(table: SignalTable, names: list[str], max_points: int) -> SignalTable:
+    """The columns ``names`` of ``table`` every k-th sample, k as the plots take it
+    (``len // max_points``, at least 1): the plot of the thinned table thins no further
+    (its length is below 2 x ``max_points``), so it draws exactly the samples it would draw
+    from the whole table."""
+    every = max(1, len(table.time) // max_points)
+    out = SignalTable(np.ascontiguousarray(table.time[::every]))
+    for name in names:
+        out.add(Signal(name, "", ""), np.ascontiguousarray(table[name][::every]))
+    return out
+
+
+class PlotProcess:
+    """A helper process that draws the run's plots (see the module); one per run, shared by
+    its plot sinks (:meth:`use` each, :meth:`release` each when done)."""
+
+    def __init__(self) -> None:
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._users = 0
+        self._started = False
+
+    @classmethod
+    def started(cls) -> PlotProcess | None:
+        """A started helper where the machine has a second core for it, else None (one core
+        would only take turns: the plots are then drawn in the run's process)."""
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        if cores < 2:
+            return None
+        process = cls()
+        process.start()
+        return process
+
+    def use(self) -> PlotProcess:
+        """One more sink draws through this process."""
+        self._users += 1
+        return self
+
+    def start(self) -> None:
+        """Start the helper (once; idempotent). Where it cannot start, plots are drawn in process."""
+        if self._started:
+            return
+        self._started = True
+        try:
+            # the same interpreter and environment, so the same twin and matplotlib; a helper
+            # that cannot import them ends at once, and the plots are drawn in process
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "twin.outputs.plot_process"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+            )
+        except OSError:
+            self._proc = None
+
+    @property
+    def running(self) -> bool:
+        """Whether the helper is up (started and not ended)."""
+        return self._proc is not None and self._proc.poll() is None
+
+    def draw(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
+        """Have the helper draw ``kind`` of ``table`` (already thinned, see :func:`thinned`)
+        into ``path`` and wait for it. True when drawn; False when the helper is not there
+        or died before answering (the caller draws in process). A plot the helper could not
+        draw raises :class:`RunError` with its message."""
+        proc = self._proc
+        if proc is None or proc.stdin is None or proc.stdout is None or not self.running:
+            return False
+        names = list(table.columns)
+        header = {"kind": kind, "path": str(path), "title": title, "columns": dict(columns)}
+        header |= {"n": len(table.time), "names": names}
+        data = np.stack([table.time, *(table[n] for n in names)]).astype("<f8", copy=False)
+        try:
+            proc.stdin.write(json.dumps(header).encode("utf-8") + b"\n")
+            proc.stdin.write(np.ascontiguousarray(data).tobytes())
+            proc.stdin.flush()
+            line = proc.stdout.readline()
+        except OSError:  # BrokenPipeError: it died
+            line = b""
+        if not line:
+            self._end()
+            return False
+        try:
+            answer = json.loads(line)
+        except ValueError:
+            self._end()
+            return False
+        if not answer.get("ok"):
+            raise RunError(f"{path.name}: the plot failed: {answer.get('error', 'no reason given')}")
+        return True
+
+    def release(self) -> None:
+        """One sink is done; the last one ends the helper."""
+        self._users -= 1
+        if self._users <= 0:
+            self._end()
+
+    def close(self) -> None:
+        """End the helper whoever still uses it (idempotent): the run is over."""
+        self._end()
+
+    def _end(self) -> None:
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        try:
+            if proc.stdin is not None:
+                proc.stdin.close()
+        except OSError:
+            pass
+        try:
+            proc.wait(timeout=_EXIT_WAIT_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+# ----------------------------------------------------------------------------- the helper
+
+
+def _read_exact(stream: IO[bytes], size: int) -> bytes:
+    chunks, left = [], size
+    while left:
+        chunk = stream.read(left)
+        if not chunk:
+            raise EOFError(f"input ended {left} bytes short")
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+def _read_job(line: bytes, stream: IO[bytes]) -> tuple[dict[str, Any], SignalTable]:
+    """One job's header and samples. Raises ValueError (or EOFError) on anything else: the
+    stream is then out of step, and the helper ends."""
+    header = json.loads(line)
+    if not isinstance(header, dict) or header.get("kind") not in KINDS:
+        raise ValueError("a job is a JSON object with kind 'budget' or 'wear'")
+    n, names = header.get("n"), header.get("names")
+    if not (
+        isinstance(n, int) and n >= 0 and isinstance(names, list) and all(isinstance(x, str) for x in names)
+    ):
+        raise ValueError("a job's n is a count and its names a list of strings")
+    if not isinstance(header.get("columns"), dict):
+        raise ValueError("a job's columns are a JSON object")
+    raw = _read_exact(stream, (len(names) + 1) * n * 8)
+    data = np.frombuffer(raw, dtype="<f8").reshape(len(names) + 1, n)
+    table = SignalTable(data[0].copy())
+    for i, name in enumerate(names):
+        table.add(Signal(name, "", ""), data[i + 1].copy())
+    return header, table
+
+
+def _draw(header: Mapping[str, Any], table: SignalTable) -> None:
+    from twin.outputs import plots
+
+    columns = plots.BudgetColumns(**header["columns"])
+    path, title = Path(str(header["path"])), str(header["title"])
+    if header["kind"] == "budget":
+        plots.save_png(plots.budget_figure(table, columns, title), path)
+    else:
+        fig = plots.wear_figure(table, columns, title)
+        if fig is not None:
+            plots.save_png(fig, path)
+
+
+def main() -> int:
+    """The helper: import matplotlib, then draw each job from standard input until it ends."""
+    from twin.outputs import plots
+
+    plots.warm_up()
+    stdin, stdout = sys.stdin.buffer, sys.stdout
+    while line := stdin.readline():
+        try:
+            header, table = _read_job(line, stdin)
+        except (ValueError, EOFError) as exc:
+            stdout.write(json.dumps({"ok": False, "error": f"unreadable job: {exc}"}) + "\n")
+            stdout.flush()
+            return 2
+        try:
+            _draw(header, table)
+            answer: dict[str, Any] = {"ok": True}
+        except Exception as exc:
+            answer = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+        stdout.write(json.dumps(answer) + "\n")
+        stdout.flush()
+    return 0
+
+
+def columns_json(columns: Any) -> dict[str, Any]:
+    """A :class:`~twin.outputs.plots.BudgetColumns` as JSON-able fields (mappings as dicts)."""
+    fields = asdict(columns)
+    for key in ("parts", "temperatures"):
+        value = fields[key]
+        fields[key] = dict(value) if isinstance(value, Mapping) else list(value)
+    return fields
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,172 @@
+"""The plots' own process: the same bytes as drawing in the run's process, a run that still gets
+its plots when the helper cannot start or dies, a failing plot as one RunError, a malformed job
+refused, and no helper left behind."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.errors import RunError
+from twin.outputs import plots
+from twin.outputs.plot_process import PlotProcess, columns_json, thinned
+from twin.outputs.plots import BudgetColumns, ErrorBudgetSink, WearPlotSink
+from twin.outputs.sink import Outcome
+from twin.signals.table import Signal, SignalTable
+
+from .sample import PARTS, make_table
+
+TITLE = "a run: predicted error and its parts"
+
+
+def _table() -> SignalTable:
+    # more rows than twice the plots' 2000 points: the plots thin it, and so must the helper's input
+    table = make_table(rows=5003)
+    n = len(table.time)
+    table.add(Signal("errormodel.wear_compensated", "m", "errormodel"), np.linspace(0.0, 3e-5, n))
+    table.add(Signal("mechanics.wear_depth_true", "m", "mechanics"), np.linspace(0.0, 3.1e-5, n))
+    table.add(Signal("oscillation.cycles", "1", "oscillation"), np.arange(n) * 1.7)
+    return table
+
+
+def _columns() -> BudgetColumns:
+    return BudgetColumns(
+        reading="probe.reading",
+        predicted="errormodel.e_total",
+        parts=PARTS,
+        temperatures={"base": "thermal.t_base", "spindle": "thermal.t_spindle", "room": "thermal.t_room"},
+        compensated="errormodel.wear_compensated",
+        true_wear="mechanics.wear_depth_true",
+        cycles="oscillation.cycles",
+        wear_limit_m=1.52e-4,
+    )
+
+
+def _outcome(table: SignalTable) -> Outcome:
+    return Outcome(table, (), lambda: {})
+
+
+def _draw_both(tmp: Path, process: PlotProcess | None) -> dict[str, bytes]:
+    sinks = [
+        ErrorBudgetSink(tmp / "error_budget.png", _columns(), TITLE, process),
+        WearPlotSink(tmp / "wear.png", _columns(), "a run: wear against swing cycles", process),
+    ]
+    outcome = _outcome(_table())
+    for sink in sinks:
+        sink.open([])
+    for sink in sinks:
+        sink.close(outcome)
+    return {p.name: p.read_bytes() for p in sorted(tmp.glob("*.png"))}
+
+
+def test_the_helper_draws_the_same_bytes_as_the_run_itself(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "here").mkdir()
+    (tmp_path / "helper").mkdir()
+    here = _draw_both(tmp_path / "here", None)
+    # from here on, drawing in this process fails: the files below come from the helper alone
+    monkeypatch.setattr(plots, "save_png", lambda *a: pytest.fail("drawn in the run's process"))
+    process = PlotProcess()
+    process.start()
+    helper = _draw_both(tmp_path / "helper", process)
+    assert sorted(helper) == ["error_budget.png", "wear.png"]
+    assert helper == here
+    assert not process.running  # both sinks closed: the helper ended
+
+
+def test_the_thinned_table_draws_exactly_the_samples_the_plot_draws() -> None:
+    table = _table()
+    thin = thinned(table, ["probe.reading"], 2000)
+    every = len(table.time) // 2000
+    np.testing.assert_array_equal(thin.time, table.time[::every])
+    np.testing.assert_array_equal(thin["probe.reading"], table["probe.reading"][::every])
+    assert len(thin.time) // 2000 == 1  # the plot thins it no further
+
+
+def test_a_helper_that_cannot_start_leaves_the_plots_to_the_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "here").mkdir()
+    (tmp_path / "no-helper").mkdir()
+    here = _draw_both(tmp_path / "here", None)
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-such-python"))
+    process = PlotProcess()
+    process.start()
+    assert not process.running
+    assert _draw_both(tmp_path / "no-helper", process) == here
+
+
+def test_a_helper_that_dies_leaves_the_plots_to_the_run(tmp_path: Path) -> None:
+    (tmp_path / "here").mkdir()
+    (tmp_path / "killed").mkdir()
+    here = _draw_both(tmp_path / "here", None)
+    process = PlotProcess()
+    process.start()
+    assert process._proc is not None
+    process._proc.kill()
+    process._proc.wait()
+    assert _draw_both(tmp_path / "killed", process) == here
+
+
+def test_a_plot_the_helper_cannot_draw_is_one_run_error(tmp_path: Path) -> None:
+    process = PlotProcess().use()
+    process.start()
+    try:
+        table = thinned(_table(), ["probe.reading"], 2000)
+        bad = dataclasses.replace(_columns(), predicted="errormodel.not_there")
+        with pytest.raises(
+            RunError, match=r"budget\.png: the plot failed: KeyError: .*errormodel\.not_there"
+        ):
+            process.draw("budget", tmp_path / "budget.png", table, columns_json(bad), TITLE)
+        assert not (tmp_path / "budget.png").exists()
+        assert process.running  # a failed plot does not end the helper: the next one is drawn
+        good = thinned(_table(), ["probe.reading", "mechanics.wear_depth_true", "errormodel.wear_compensated",
+                                  "oscillation.cycles"], 2000)  # fmt: skip
+        assert process.draw("wear", tmp_path / "wear.png", good, columns_json(_columns()), "wear")
+        assert (tmp_path / "wear.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    finally:
+        process.close()
+    assert not process.running
+    process.close()  # idempotent
+
+
+@pytest.mark.parametrize(
+    "job",
+    [
+        b"not json\n",
+        b'{"kind": "pickle", "n": 0, "names": [], "columns": {}}\n',
+        b'{"kind": "budget", "n": -1, "names": [], "columns": {}}\n',
+        b'{"kind": "budget", "n": 10, "names": ["a"], "columns": {}}\n' + b"\x00" * 16,  # short
+    ],
+)
+def test_the_helper_refuses_a_malformed_job_in_one_line_and_ends(job: bytes) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "twin.outputs.plot_process"],
+        input=job,
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 2
+    (line,) = done.stdout.decode().splitlines()
+    answer = json.loads(line)
+    assert answer["ok"] is False and answer["error"].startswith("unreadable job")
+
+
+def test_the_helper_ends_with_its_last_user() -> None:
+    process = PlotProcess()
+    process.use()
+    process.use()
+    process.start()
+    assert process.running
+    process.release()
+    assert process.running
+    process.release()
+    assert not process.running
