@@ -20,42 +20,22 @@ Goals of issue 15: the paper's replay <= 0.8 s for the whole process; the MIL en
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
+
+from treemem import wait_with_tree_peak
 
 RUNS = {
     "paper replay": ["li2017-thermal-experiment", "--uncertainty", "0"],
     "MIL endurance": ["mil-endurance"],
 }
 GOALS = {"paper replay": (0.8, None), "MIL endurance": (4.0, 150.0)}
-
-
-def _tree_peak_mb(pid: int, done: threading.Event, out: list[float]) -> None:
-    """The largest sum of resident memory of ``pid`` and its descendants (the plot helper),
-    sampled every 20 ms until ``done`` (psutil, a dependency of Dask's)."""
-    import psutil
-
-    peak = 0
-    try:
-        root = psutil.Process(pid)
-        while not done.is_set():
-            total = 0
-            for proc in [root, *root.children(recursive=True)]:
-                with contextlib.suppress(psutil.Error):
-                    total += proc.memory_info().rss
-            peak = max(peak, total)
-            done.wait(0.02)
-    except psutil.Error:
-        pass
-    out.append(peak / 2**20)
 
 
 def one_run(args: list[str], sets: list[str], out: Path) -> dict[str, float]:
@@ -66,19 +46,14 @@ def one_run(args: list[str], sets: list[str], out: Path) -> dict[str, float]:
         cmd += ["--set", s]
     start = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    done, tree = threading.Event(), []
-    sampler = threading.Thread(target=_tree_peak_mb, args=(proc.pid, done, tree))
-    sampler.start()
-    _, status, usage = os.wait4(proc.pid, 0)
+    status, usage, tree_mb = wait_with_tree_peak(proc.pid)
     wall = time.perf_counter() - start
-    done.set()
-    sampler.join()
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(
             f"twin run {' '.join(args)} failed: {proc.stderr.read().decode() if proc.stderr else ''}"
         )
     phases = json.loads((out / "summary.json").read_text())["timing"]["phases_s"]
-    row = {"wall": wall, "peak MB, all": tree[0], "peak MB, largest": usage.ru_maxrss / 1024.0}
+    row = {"wall": wall, "peak MB, all": tree_mb, "peak MB, largest": usage.ru_maxrss / 1024.0}
     row["start+imports"] = wall - sum(phases.values())
     row.update(phases)
     return row
