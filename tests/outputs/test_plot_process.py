@@ -170,3 +170,19 @@ def test_the_helper_ends_with_its_last_user() -> None:
     assert process.running
     process.release()
     assert not process.running
+
+
+def test_a_ctrl_c_is_the_runs_to_handle_not_the_helpers() -> None:
+    import os
+    import signal
+    import time
+
+    process = PlotProcess()
+    process.start()
+    assert process._proc is not None
+    time.sleep(1.0)  # past its start, where it ignores SIGINT
+    os.kill(process._proc.pid, signal.SIGINT)
+    time.sleep(0.3)
+    assert process.running
+    process.close()
+    assert not process.running

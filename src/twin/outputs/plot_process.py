@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 from collections.abc import Mapping
@@ -211,6 +212,9 @@ def _draw(header: Mapping[str, Any], table: SignalTable) -> None:
 
 def main() -> int:
     """The helper: import matplotlib, then draw each job from standard input until it ends."""
+    # a Ctrl-C on the terminal reaches the whole process group: the run handles it (its plots
+    # are skipped, or drawn, as it decides) and then closes this helper's input
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from twin.outputs import plots
 
     plots.warm_up()
