@@ -23,7 +23,8 @@ sensor) stays at the prior instead of running off, and the file says so.
 
 Uncertainties: the data's noise is estimated from the residuals, inflated by
 sqrt((1 + rho) / (1 - rho)) for their lag-1 correlation rho (a residual that is model misfit
-rather than white noise carries less information than its sample count), and the standard
+rather than white noise carries less information than its sample count), per record but not
+below the level of all the fit's records together (one DAQ made them all), and the standard
 errors and correlations come from the inverse of J^T J of the whitened problem (data and
 priors). Each fit reports the rank and condition number of the data's Jacobian (columns scaled
 to norm 1: the collinearity of what was measured), the number of directions the data determine
@@ -318,17 +319,43 @@ class _Block:
         r = self.target - self.predict(p)
         return r - self.basis @ (self.basis.T @ r)
 
-    def update_noise(self, p: np.ndarray, n_params: int) -> bool:
-        """The residuals' spread, inflated by sqrt((1 + rho) / (1 - rho)) for their lag-1
-        correlation rho, becomes the noise level; True when it moved by less than 1 %."""
+    def measure(self, p: np.ndarray) -> tuple[np.ndarray, int]:
+        """The residuals at ``p`` and their degrees of freedom before the fit's parameters
+        (the nuisance columns taken); keeps this record's own RMS and lag-1 inflation for the
+        report."""
         r = self.residual(p)
-        dof = max(len(r) - self.basis.shape[1] - n_params, 1)
+        dof = max(len(r) - self.basis.shape[1], 1)
         rho = _lag1(r)
         self.rms = max(float(np.sqrt(np.dot(r, r) / dof)), 1e-15)
         self.inflation = math.sqrt((1 + rho) / (1 - rho))
-        settled = abs(self.rms * self.inflation / self.sigma - 1.0) < 0.01
-        self.sigma = self.rms * self.inflation
-        return settled
+        return r, dof
+
+
+def noise_levels(blocks: Sequence[_Block], p: np.ndarray, n_params: int) -> bool:
+    """Each record's noise level: its residuals' spread, inflated by sqrt((1 + rho) / (1 - rho))
+    for their lag-1 correlation rho, but never below the fit's common level (the same of all its
+    records pooled). True when no level moved by 1 % or more.
+
+    One DAQ made every record, so none is less noisy than the common level; a record the model
+    fits worse than that carries misfit, and counts less. Without the floor a record that fits
+    well sets its own small level and outweighs the others, which then fit worse and count less
+    still: on some testers as built that feedback ended with the soak and the pole heating
+    discounted 14-fold and the thermal fit resting on the cool-down alone (issue 12).
+    """
+    rr = lag = 0.0
+    dof = 0
+    for b in blocks:
+        r, d = b.measure(p)
+        rr += float(np.dot(r, r))
+        lag += float(np.dot(r[1:], r[:-1]))
+        dof += d
+    rho = min(max(lag / rr, 0.0), 0.99) if rr > 0 else 0.0
+    common = max(math.sqrt(rr / max(dof - n_params, 1)), 1e-15) * math.sqrt((1 + rho) / (1 - rho))
+    levels = [max(common, b.rms * b.inflation) for b in blocks]
+    settled = all(abs(level / b.sigma - 1.0) < 0.01 for level, b in zip(levels, blocks, strict=True))
+    for level, b in zip(levels, blocks, strict=True):
+        b.sigma = level
+    return settled
 
 
 @dataclass
@@ -436,15 +463,15 @@ def fit_calibration(
 ) -> tuple[dict[str, Coefficient], Fit]:
     """Fit the coefficients of ``cal`` to its experiments' ``records``, the others at ``values``.
 
-    The noise levels are found with the fit: from the first differences' spread at first,
-    then from the residuals' (serial-correlation inflated) spread, refitting until they settle.
+    The noise levels are found with the fit: from each record's first differences at first,
+    then from the residuals (serial-correlation inflated, each record's own but not below the
+    records' common level: :func:`noise_levels`), refitting until they settle.
     """
     prob = _problem(cal, records, values, priors)
     lo = prob.bounds(cal.lower)
     z = _solve(prob, _starts(cal, prob), lo)
     for _ in range(8):
-        settled = [b.update_noise(prob.params(z), len(z)) for b in prob.blocks]
-        if all(settled):
+        if noise_levels(prob.blocks, prob.params(z), len(z)):
             break
         z = _solve(prob, [z], lo)
     return _report(cal, [r.experiment.name for r in records], prob, z, priors)
