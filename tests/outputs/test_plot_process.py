@@ -53,6 +53,8 @@ def _outcome(table: SignalTable) -> Outcome:
 
 
 def _draw_both(tmp: Path, process: PlotProcess | None) -> dict[str, bytes]:
+    """Both plots of the sample into the new folder ``tmp``; name -> bytes."""
+    tmp.mkdir()
     sinks = [
         ErrorBudgetSink(tmp / "error_budget.png", _columns(), TITLE, process),
         WearPlotSink(tmp / "wear.png", _columns(), "a run: wear against swing cycles", process),
@@ -65,12 +67,15 @@ def _draw_both(tmp: Path, process: PlotProcess | None) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(tmp.glob("*.png"))}
 
 
+@pytest.fixture
+def here(tmp_path: Path) -> dict[str, bytes]:
+    """The plots drawn in this process, as a run without a helper draws them."""
+    return _draw_both(tmp_path / "here", None)
+
+
 def test_the_helper_draws_the_same_bytes_as_the_run_itself(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    here: dict[str, bytes], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    (tmp_path / "here").mkdir()
-    (tmp_path / "helper").mkdir()
-    here = _draw_both(tmp_path / "here", None)
     # from here on, drawing in this process fails: the files below come from the helper alone
     monkeypatch.setattr(plots, "save_png", lambda *a: pytest.fail("drawn in the run's process"))
     process = PlotProcess()
@@ -91,11 +96,8 @@ def test_the_thinned_table_draws_exactly_the_samples_the_plot_draws() -> None:
 
 
 def test_a_helper_that_cannot_start_leaves_the_plots_to_the_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    here: dict[str, bytes], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    (tmp_path / "here").mkdir()
-    (tmp_path / "no-helper").mkdir()
-    here = _draw_both(tmp_path / "here", None)
     monkeypatch.setattr(sys, "executable", str(tmp_path / "no-such-python"))
     process = PlotProcess()
     process.start()
@@ -103,10 +105,7 @@ def test_a_helper_that_cannot_start_leaves_the_plots_to_the_run(
     assert _draw_both(tmp_path / "no-helper", process) == here
 
 
-def test_a_helper_that_dies_leaves_the_plots_to_the_run(tmp_path: Path) -> None:
-    (tmp_path / "here").mkdir()
-    (tmp_path / "killed").mkdir()
-    here = _draw_both(tmp_path / "here", None)
+def test_a_helper_that_dies_leaves_the_plots_to_the_run(here: dict[str, bytes], tmp_path: Path) -> None:
     process = PlotProcess()
     process.start()
     assert process._proc is not None
