@@ -323,8 +323,8 @@ def warm_up() -> None:
 
 class _PlotSink(OutcomeSink):
     """A PNG drawn from the outcome's table when the run is over, into ``path``; by the run's
-    :class:`~twin.outputs.plot_process.PlotProcess` when given one (started when the run
-    opens its outputs), else in process."""
+    :class:`~twin.outputs.plot_process.PlotProcess` when given one (``twin run`` starts it
+    with the command; else it starts when the run opens its outputs), else in process."""
 
     #: a run interrupted after its co-simulation leaves the plots out (they only draw what
     #: the CSV files hold, and importing matplotlib alone takes a third of a second)
