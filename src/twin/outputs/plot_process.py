@@ -12,7 +12,8 @@ followed by raw little-endian float64. Nothing it reads executes code: no pickle
 each job with one JSON line. The same drawing code on the same samples gives the same bytes as
 drawing in the run's own process (tests/outputs/test_plot_process.py).
 
-The run waits for each PNG before it goes on, so every file summary.json lists exists. If the
+The run waits for each PNG before it goes on, so every file summary.json lists exists, and for
+the helper to end (it leaves at once, without the interpreter's teardown). If the
 process cannot be started, or dies, the plot is drawn in the run's own process instead: a
 missing second core or a killed helper costs time, never a plot. A plot that fails to draw
 raises :class:`~twin.errors.RunError` with the helper's message. The helper ends when its
@@ -246,4 +247,9 @@ def columns_json(columns: Any) -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    code = main()
+    # Every PNG is written and closed and every answer flushed: nothing is left to clean up,
+    # and tearing down matplotlib's interpreter would cost about 0.1 s, which the run waits
+    # for (it waits for the helper to end, so none outlives it).
+    sys.stdout.flush()
+    os._exit(code)
