@@ -27,24 +27,23 @@ def discrete_frechet(p: np.ndarray, q: np.ndarray) -> float:
     n, m = len(p), len(q)
     if n == 0 or m == 0:
         raise ValueError("both curves need at least one point")
-    inf = np.inf
-    # diagonal k holds cells (i, k - i); stored by i in arrays of length n
-    prev2 = np.full(n, inf)  # diagonal k-2
-    prev1 = np.full(n, inf)  # diagonal k-1
+    q_rev = q[::-1]  # cell (i, k - i) of diagonal k pairs p[i] with q_rev[m - 1 - k + i]
+    # diagonal k is stored by i at index i + 1 of an array of n + 1, the rest inf: index 0 is
+    # the row before the first, and a cell outside the grid reads inf from its neighbours
+    prev2 = np.full(n + 1, np.inf)  # diagonal k-2
+    prev1 = np.full(n + 1, np.inf)  # diagonal k-1
     for k in range(n + m - 1):
-        i = np.arange(max(0, k - m + 1), min(n, k + 1))
-        j = k - i
-        d = np.sqrt(np.sum((p[i] - q[j]) ** 2, axis=1))
-        cur = np.full(n, inf)
+        lo, hi = max(0, k - m + 1), min(n, k + 1)  # the diagonal's rows i
+        d = np.sqrt(np.sum((p[lo:hi] - q_rev[m - 1 - k + lo : m - 1 - k + hi]) ** 2, axis=1))
+        cur = np.full(n + 1, np.inf)
         if k == 0:
-            cur[0] = d[0]
+            cur[1] = d[0]
         else:
-            up = np.where(i >= 1, prev1[np.maximum(i - 1, 0)], inf)  # (i-1, j): diagonal k-1 at i-1
-            left = np.where(j >= 1, prev1[i], inf)  # (i, j-1): diagonal k-1 at i
-            diag = np.where((i >= 1) & (j >= 1), prev2[np.maximum(i - 1, 0)], inf)  # (i-1, j-1)
-            cur[i] = np.maximum(d, np.minimum(np.minimum(up, left), diag))
+            # (i-1, j): prev1 at i-1; (i, j-1): prev1 at i; (i-1, j-1): prev2 at i-1
+            reach = np.minimum(np.minimum(prev1[lo:hi], prev1[lo + 1 : hi + 1]), prev2[lo:hi])
+            cur[lo + 1 : hi + 1] = np.maximum(d, reach)
         prev2, prev1 = prev1, cur
-    return float(prev1[n - 1])
+    return float(prev1[n])
 
 
 def ra_fluctuation(t: np.ndarray, z: np.ndarray, window_s: float) -> float:
