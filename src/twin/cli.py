@@ -216,6 +216,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
         try:
             _refuse_an_earlier_run(out, args.force)
+            # this process runs the twin alone: pyarrow need not import pandas (0.17 s, 43 MB)
+            # to ask whether rerun's lists are pandas objects (imported here, after the checks:
+            # bad input is refused without importing rerun)
+            from twin.outputs.rerun_rec import arrow_without_pandas_lookup
+
+            arrow_without_pandas_lookup()
             stage = functools.partial(
                 run,
                 scenario,
