@@ -240,18 +240,18 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
         drift.plot(t, um(columns.compensated), color="tab:green", linewidth=1.2, label="compensated wear")
     drift.axhline(0.0, color="0.6", linewidth=0.6)
     drift.set_ylabel("displacement (µm)")
-    drift.set_title("probe reading and the error model's prediction", fontsize="medium")
+    drift.set_title("probe reading and the error model's prediction", fontsize="medium", y=1.0)
 
     _stacked(budget, t, {label: um(column) for label, column in columns.parts.items()})
     budget.plot(t, um(columns.predicted), color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
     budget.axhline(0.0, color="0.3", linewidth=0.6)
     budget.set_ylabel("error part (µm)")
-    budget.set_title("error budget: the parts of e_z, stacked", fontsize="medium")
+    budget.set_title("error budget: the parts of e_z, stacked", fontsize="medium", y=1.0)
 
     for name, column in columns.temperature_columns().items():
         temps.plot(t, _rise(table[column][::every]), linewidth=1.0, label=name)
     temps.set_ylabel("temperature rise (K)")
-    temps.set_title("temperature rises at the measuring points", fontsize="medium")
+    temps.set_title("temperature rises at the measuring points", fontsize="medium", y=1.0)
     temps.set_xlabel(t_label)
 
     for ax in (drift, budget, temps):
@@ -294,7 +294,7 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
             )
         ax.set_xlabel("swing cycles completed")
         ax.set_ylabel("wear depth (µm)")
-        ax.set_title(title)
+        ax.set_title(title, y=1.0)
         ax.grid(True, linewidth=0.3)
         _legend_outside(ax)
     return fig
