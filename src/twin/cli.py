@@ -187,6 +187,7 @@ def _checkpoint_every(text: str | None, step_ns: int) -> int | None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     import functools
+    import gc
     import time
 
     from twin.errormodel.config import evaluation_config
@@ -222,6 +223,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             from twin.outputs.rerun_rec import arrow_without_pandas_lookup
 
             arrow_without_pandas_lookup()
+            # what is imported by now (rerun's hundreds of modules) lives as long as the
+            # process: the garbage collector need not walk it in every full collection and at
+            # exit (0.04 s of the paper replay's 0.84 s, benchmarks/bench_phases.py)
+            gc.freeze()
             stage = functools.partial(
                 run,
                 scenario,
