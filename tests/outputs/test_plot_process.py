@@ -18,6 +18,7 @@ from twin.outputs import plots
 from twin.outputs.plot_process import PlotProcess, columns_json, thinned
 from twin.outputs.plots import BudgetColumns, ErrorBudgetSink, WearPlotSink
 from twin.outputs.sink import Outcome
+from twin.pipeline.stages import Evaluated, write_outputs
 from twin.signals.table import Signal, SignalTable
 
 from .sample import PARTS, make_table
@@ -84,6 +85,72 @@ def test_the_helper_draws_the_same_bytes_as_the_run_itself(
     assert sorted(helper) == ["error_budget.png", "wear.png"]
     assert helper == here
     assert not process.running  # both sinks closed: the helper ended
+
+
+def test_a_plot_sent_when_the_outcome_is_known_is_drawn_meanwhile_and_waited_for_at_close(
+    here: dict[str, bytes], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(plots, "save_png", lambda *a: pytest.fail("drawn in the run's process"))
+    out = tmp_path / "sent"
+    out.mkdir()
+    process = PlotProcess()
+    process.start()
+    budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
+    wear = WearPlotSink(out / "wear.png", _columns(), "a run: wear against swing cycles", process)
+    outcome = _outcome(_table())
+    assert budget.prepare(outcome)
+    assert process.pending == out / "error_budget.png"
+    # one plot at a time: a second one would fill the pipe and block the run until the first
+    # is drawn; it is sent at its close instead
+    assert not wear.prepare(outcome)
+    budget.close(outcome)
+    assert process.pending is None
+    wear.close(outcome)
+    assert {p.name: p.read_bytes() for p in sorted(out.glob("*.png"))} == here
+    assert not process.running
+
+
+def test_a_stop_after_a_plot_was_sent_waits_for_it_and_skips_the_plots_not_sent(
+    here: dict[str, bytes], tmp_path: Path
+) -> None:
+    out = tmp_path / "stopped"
+    out.mkdir()
+    process = PlotProcess()
+    process.start()
+    sinks = [
+        ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process),
+        WearPlotSink(out / "wear.png", _columns(), "a run: wear against swing cycles", process),
+    ]
+    asked: list[str] = []
+
+    def stop() -> str | None:  # Ctrl-C comes in once the plots are handed out
+        asked.append("stop?")
+        return "SIGINT" if len(asked) > 2 else None
+
+    table = _table()
+    skipped: list[str] = []
+    write_outputs(sinks, Evaluated(table, ()), lambda: {}, stop=stop, skipped=skipped)
+    assert skipped == ["wear.png"]
+    assert {p.name: p.read_bytes() for p in out.glob("*.png")} == {
+        "error_budget.png": here["error_budget.png"]
+    }
+    for sink in sinks:
+        sink.fail(RuntimeError("the run is over"))  # as the run lets its sinks go
+    assert not process.running
+
+
+def test_a_sent_plot_whose_helper_dies_is_drawn_in_the_run(here: dict[str, bytes], tmp_path: Path) -> None:
+    out = tmp_path / "died"
+    out.mkdir()
+    process = PlotProcess()
+    process.start()
+    budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
+    outcome = _outcome(_table())
+    assert budget.prepare(outcome)
+    assert process._proc is not None
+    process._proc.kill()
+    budget.close(outcome)
+    assert (out / "error_budget.png").read_bytes() == here["error_budget.png"]
 
 
 def test_the_thinned_table_draws_exactly_the_samples_the_plot_draws() -> None:

@@ -65,6 +65,7 @@ class PlotProcess:
         self._proc: subprocess.Popen[bytes] | None = None
         self._users = 0
         self._started = False
+        self._pending: Path | None = None
 
     @classmethod
     def started(cls) -> PlotProcess | None:
@@ -106,11 +107,16 @@ class PlotProcess:
 
     def draw(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
         """Have the helper draw ``kind`` of ``table`` (already thinned, see :func:`thinned`)
-        into ``path`` and wait for it. True when drawn; False when the helper is not there
-        or died before answering (the caller draws in process). A plot the helper could not
-        draw raises :class:`RunError` with its message."""
+        into ``path`` and wait for it: :meth:`send` and :meth:`answer`."""
+        return self.send(kind, path, table, columns, title) and self.answer()
+
+    def send(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
+        """Hand the helper a plot to draw and return while it draws (:meth:`answer` waits for
+        it). False when the helper is not there, died, or has a plot in hand already (one at
+        a time: a second job would fill the pipe and block this process until the first is
+        drawn); the caller then draws in process, or sends again once answered."""
         proc = self._proc
-        if proc is None or proc.stdin is None or proc.stdout is None or not self.running:
+        if self._pending or proc is None or proc.stdin is None or not self.running:
             return False
         names = list(table.columns)
         header = {"kind": kind, "path": str(path), "title": title, "columns": dict(columns)}
@@ -120,8 +126,28 @@ class PlotProcess:
             proc.stdin.write(json.dumps(header).encode("utf-8") + b"\n")
             proc.stdin.write(np.ascontiguousarray(data).tobytes())
             proc.stdin.flush()
-            line = proc.stdout.readline()
         except OSError:  # BrokenPipeError: it died
+            self._end()
+            return False
+        self._pending = path
+        return True
+
+    @property
+    def pending(self) -> Path | None:
+        """The file of the plot sent and not yet answered, if any."""
+        return self._pending
+
+    def answer(self) -> bool:
+        """Wait for the plot sent last. True when drawn; False when the helper died before
+        answering (the caller draws in process). A plot the helper could not draw raises
+        :class:`RunError` with its message."""
+        path, self._pending = self._pending, None
+        proc = self._proc
+        if path is None or proc is None or proc.stdout is None:
+            return False
+        try:
+            line = proc.stdout.readline()
+        except OSError:
             line = b""
         if not line:
             self._end()
@@ -146,6 +172,7 @@ class PlotProcess:
         self._end()
 
     def _end(self) -> None:
+        self._pending = None
         proc, self._proc = self._proc, None
         if proc is None:
             return

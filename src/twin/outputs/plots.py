@@ -324,11 +324,18 @@ def warm_up() -> None:
 class _PlotSink(OutcomeSink):
     """A PNG drawn from the outcome's table when the run is over, into ``path``; by the run's
     :class:`~twin.outputs.plot_process.PlotProcess` when given one (``twin run`` starts it
-    with the command; else it starts when the run opens its outputs), else in process."""
+    with the command; else it starts when the run opens its outputs), else in process.
+
+    :meth:`prepare` sends the plot to that process as soon as the outcome is known, so it is
+    drawn while the outputs before it close; :meth:`close` waits for it. Subclasses say what
+    they draw (:meth:`_job`) and how (:meth:`_draw_here`).
+    """
 
     #: a run interrupted after its co-simulation leaves the plots out (they only draw what
     #: the CSV files hold, and importing matplotlib alone takes a third of a second)
     skippable = True
+    #: the plot process's name for this plot (twin.outputs.plot_process.KINDS)
+    kind = ""
 
     def __init__(
         self, path: Path, columns: BudgetColumns, title: str, process: PlotProcess | None = None
@@ -337,11 +344,27 @@ class _PlotSink(OutcomeSink):
         self.columns = columns
         self.title = title
         self.process = process.use() if process is not None else None
+        self._sent = False
 
     def open(self, signals: list[Signal]) -> None:
         """The run starts: so does the plot process, which imports matplotlib meanwhile."""
         if self.process is not None:
             self.process.start()
+
+    def prepare(self, outcome: Outcome) -> bool:
+        """The outcome is known: hand the plot to the plot process, which draws it while the
+        outputs before this one close. True when sent (then :meth:`close` waits for it, even
+        if a stop comes in between); False when it is left to :meth:`close` (no process, one
+        plot in its hands already, or nothing to draw)."""
+        try:
+            job = self._job(outcome)
+        except KeyError:  # raised again by close, in its turn: the files before it are written
+            return False
+        if job is None or self.process is None:
+            return False
+        table, columns, names = job
+        self._sent = self._send(table, columns, names)
+        return self._sent
 
     def close(self, outcome: Outcome) -> None:
         try:
@@ -350,24 +373,46 @@ class _PlotSink(OutcomeSink):
             self._release()
 
     def fail(self, error: BaseException) -> None:
-        """Nothing was drawn before the outcome; the plot process is let go."""
+        """Nothing was drawn before the outcome; the plot process is let go (a plot it has in
+        hand is finished: it is a whole plot of the outcome)."""
         self._release()
+
+    def write_outcome(self, outcome: Outcome) -> None:
+        if self._sent:
+            self._sent = False
+            assert self.process is not None
+            if self.process.answer():
+                return
+        job = self._job(outcome)
+        if job is None:
+            return
+        table, columns, names = job
+        if not self._send(table, columns, names) or not self.process or not self.process.answer():
+            self._draw_here(table, columns)
+
+    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
+        """The table, the columns and the names of the columns the plot draws; None when the
+        outcome has nothing for it. Raises ``KeyError`` naming a column the table lacks."""
+        raise NotImplementedError
+
+    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
+        """Draw the plot in this process."""
+        raise NotImplementedError
 
     def _release(self) -> None:
         process, self.process = self.process, None
+        self._sent = False
         if process is not None:
             process.release()
 
-    def _drawn_by_process(
-        self, kind: str, table: SignalTable, columns: BudgetColumns, names: list[str]
-    ) -> bool:
-        """Whether the plot process drew it (False: draw it here)."""
+    def _send(self, table: SignalTable, columns: BudgetColumns, names: list[str]) -> bool:
+        """Whether the plot process took it (False: draw it here)."""
         if self.process is None or not self.process.running:
             return False
         from twin.outputs.plot_process import columns_json, thinned
 
-        return self.process.draw(
-            kind, self.path, thinned(table, names, _MAX_POINTS), columns_json(columns), self.title
+        return self.process.send(
+            self.kind, self.path, thinned(table, names, _MAX_POINTS), columns_json(columns), self.title
         )
 
 
@@ -378,10 +423,12 @@ class ErrorBudgetSink(_PlotSink):
     lacks are left out rather than failing the plot.
     """
 
-    def write_outcome(self, outcome: Outcome) -> None:
+    kind = "budget"
+
+    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
         table = outcome.table
         if table is None:
-            return
+            return None
         present = {k: v for k, v in self.columns.temperature_columns().items() if v in table}
         columns = dataclasses.replace(self.columns, temperatures=present)
         if columns.compensated and columns.compensated not in table:
@@ -389,21 +436,26 @@ class ErrorBudgetSink(_PlotSink):
         _checked(table, columns)
         names = [columns.reading, columns.predicted, *columns.parts.values(), *present.values()]
         names += [columns.compensated] if columns.compensated else []
-        if not self._drawn_by_process("budget", table, columns, list(dict.fromkeys(names))):
-            save_png(budget_figure(table, columns, self.title), self.path)
+        return table, columns, list(dict.fromkeys(names))
+
+    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
+        save_png(budget_figure(table, columns, self.title), self.path)
 
 
 class WearPlotSink(_PlotSink):
     """``wear.png``: wear against swing cycles with the wear limit (only for a run whose table
     has the true wear, the compensated wear and the cycles)."""
 
-    def write_outcome(self, outcome: Outcome) -> None:
+    kind = "wear"
+
+    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
         table = outcome.table
         wear = self.columns.wear_columns()
         if table is None or wear is None or any(c not in table for c in (*wear, self.columns.reading)):
-            return
-        names = list(dict.fromkeys([*wear, self.columns.reading]))
-        if not self._drawn_by_process("wear", table, self.columns, names):
-            fig = wear_figure(table, self.columns, self.title)
-            if fig is not None:
-                save_png(fig, self.path)
+            return None
+        return table, self.columns, list(dict.fromkeys([*wear, self.columns.reading]))
+
+    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
+        fig = wear_figure(table, columns, self.title)
+        if fig is not None:
+            save_png(fig, self.path)

@@ -16,7 +16,10 @@ cut to what a file needs):
     the run broke with an exception nothing else handled: keep what is written, release the
     file, write nothing new.
 
-A run with no rows to stream (``twin compensate`` on a CSV) goes straight to ``close``. A sink
+A sink whose file another process makes (the plots) may also have ``prepare(outcome) ->
+bool``, asked before any sink closes: True when it has started its file, to be finished by
+its ``close``. A run with no rows to stream (``twin compensate`` on a CSV) goes straight to
+``close``. A sink
 that can continue its file after a resumed run also has ``checkpoint() -> dict``: where its
 file stands, saved in the run's checkpoint.
 

@@ -240,10 +240,25 @@ def write_outputs(
     answers a signal's name, the sinks that only draw what the others hold (``skippable``:
     the plot, 0.6 s of the paper's 1 s after its co-simulation) are left out and their
     files' names added to ``skipped``: an interrupted run keeps its data, not its pictures.
+    A sink with ``prepare(outcome) -> bool`` is asked first whether it starts its file now
+    (the plots, drawn by their own process while the files before them are written).
     """
     outcome = Outcome(evaluated.table, evaluated.columns, summary)
+
+    def stopped() -> bool:
+        return stop is not None and stop() is not None
+
+    # a sink whose file another process makes (the plots) starts it now, to be made while the
+    # files before it are written; once started it is waited for, stop or not
+    started = {
+        id(sink)
+        for sink in sinks
+        if (prepare := getattr(sink, "prepare", None)) is not None
+        and not (getattr(sink, "skippable", False) and stopped())
+        and prepare(outcome)
+    }
     for sink in sinks:
-        if getattr(sink, "skippable", False) and stop is not None and stop() is not None:
+        if getattr(sink, "skippable", False) and id(sink) not in started and stopped():
             if skipped is not None:
                 skipped.append(Path(getattr(sink, "path", type(sink).__name__)).name)
             continue
