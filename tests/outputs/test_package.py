@@ -1,8 +1,9 @@
 """The package exports its public functions; rerun and matplotlib load only when used, and
-pandas not at all in a `twin run`."""
+pandas not at all in a `twin run`, which settles its process for the run."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -21,12 +22,19 @@ def test_importing_the_package_does_not_import_rerun_or_matplotlib() -> None:
     assert out.split() == ["False", "False"]
 
 
-def test_twin_run_does_not_import_pandas(tmp_path: Path) -> None:
-    """pyarrow would import it (0.17 s, 43 MB) only to ask whether rerun's lists are pandas
-    objects (twin.outputs.rerun_rec.arrow_without_pandas_lookup)."""
+def test_twin_run_settles_its_process_for_the_run(tmp_path: Path) -> None:
+    """What twin.cli._settle_the_run_process sets (each measured in benchmarks/bench_phases.py):
+    pyarrow does not import pandas to ask whether rerun's lists are pandas objects (0.17 s,
+    43 MB), its buffers come from the system allocator, and the imports are frozen for the GC."""
     args = ["run", "li2017-thermal-experiment", "--uncertainty", "0", "--quiet", "--out", str(tmp_path / "r")]
-    code = f"import sys; from twin.cli import main; rc = main({args!r}); print(rc, 'pandas' in sys.modules)"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    code = (
+        "import gc, sys; from twin.cli import main; rc = main(" + repr(args) + "); import pyarrow; "
+        "print(rc, 'pandas' in sys.modules, pyarrow.default_memory_pool().backend_name, gc.get_freeze_count() > 0)"
+    )
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("ARROW_DEFAULT_MEMORY_POOL", "MIMALLOC_PURGE_DELAY")
+    }
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["0", "False"]
+    assert done.stdout.split() == ["0", "False", "system", "True"]
     assert (tmp_path / "r" / "recording.rrd").stat().st_size > 0
