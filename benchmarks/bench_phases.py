@@ -94,13 +94,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{k:24}" + "".join(f"{r.get(k, 0.0):16.3f}" for r in rows.values()))
     for name, r in rows.items():
         wall_goal, mem_goal = GOALS[name]
-        verdict = (
-            "met"
-            if r["wall"] <= wall_goal and (mem_goal is None or r["peak MB, all"] <= mem_goal)
-            else "NOT met"
-        )
-        mem = f", <= {mem_goal:g} MB" if mem_goal else ""
-        print(f"goal {name}: <= {wall_goal:g} s{mem}: {verdict}")
+        verdicts = [f"<= {wall_goal:g} s: {'met' if r['wall'] <= wall_goal else 'NOT met'}"]
+        if mem_goal is not None:
+            # the goal was set for one process; a run now has two (its plots draw in their own),
+            # so both readings are judged: the run's own process, and all of them together
+            for key, what in (("peak MB, largest", "its largest process"), ("peak MB, all", "all together")):
+                verdicts.append(f"<= {mem_goal:g} MB, {what}: {'met' if r[key] <= mem_goal else 'NOT met'}")
+        print(f"goal {name}: " + "; ".join(verdicts))
     return 0
 
 
