@@ -12,8 +12,11 @@ followed by raw little-endian float64. Nothing it reads executes code: no pickle
 each job with one JSON line. The same drawing code on the same samples gives the same bytes as
 drawing in the run's own process (tests/outputs/test_plot_process.py).
 
-The run waits for each PNG before it goes on, so every file summary.json lists exists, and for
-the helper to end (it leaves at once, without the interpreter's teardown). If the
+A plot is sent as soon as the run's outcome is known (:meth:`PlotProcess.send`, from the plot
+sink's ``prepare``) and drawn while the run finishes its other files; one at a time, as a
+second job would fill the pipe and block the run until the first is drawn. The run waits for
+each PNG (:meth:`PlotProcess.answer`) before summary.json, so every file it lists exists, and
+for the helper to end (it leaves at once, without the interpreter's teardown). If the
 process cannot be started, or dies, the plot is drawn in the run's own process instead: a
 missing second core or a killed helper costs time, never a plot. A plot that fails to draw
 raises :class:`~twin.errors.RunError` with the helper's message. The helper ends when its

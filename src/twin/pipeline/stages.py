@@ -238,7 +238,7 @@ def write_outputs(
     ``summary`` is called once, when the first sink asks for it (the summary sink, last),
     so the summary's total time counts the writing of every other file. Once ``stop``
     answers a signal's name, the sinks that only draw what the others hold (``skippable``:
-    the plot, 0.6 s of the paper's 1 s after its co-simulation) are left out and their
+    the plots, most of what comes after the co-simulation) are left out and their
     files' names added to ``skipped``: an interrupted run keeps its data, not its pictures.
     A sink with ``prepare(outcome) -> bool`` is asked first whether it starts its file now
     (the plots, drawn by their own process while the files before them are written).
