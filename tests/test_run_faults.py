@@ -238,6 +238,9 @@ def test_a_full_disk_while_the_recording_is_written_says_so_in_one_line(tmp_path
     assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
     assert len(read_signals_csv(out / "signals.csv")) == 2881  # every row
     assert 0 < (out / "recording.rrd").stat().st_size <= 3_000_000
+    # the plot, sent to its process before the recording failed, is abandoned: a failed run
+    # writes nothing new after its failure (and no cut PNG: it is written whole or not at all)
+    assert not (out / "error_budget.png").exists() and not list(out.glob(".*.tmp"))
 
 
 def test_a_disk_too_full_for_the_summary_says_that_too(tmp_path: Path) -> None:

@@ -186,8 +186,9 @@ def _checkpoint_every(text: str | None, step_ns: int) -> int | None:
 
 
 def _settle_the_run_process() -> None:
-    """Settings for a process that runs the twin alone, made before rerun and pyarrow load (a
-    setting the user has made in the environment stays theirs). Each measured with
+    """Settings for a process that runs the twin alone (``twin run`` from the console script or
+    ``python -m twin``, not a program calling :func:`main`), made before rerun and pyarrow load
+    (a setting the user has made in the environment stays theirs). Each measured with
     ``python benchmarks/bench_phases.py``; the run's outputs do not change.
 
     * pyarrow's buffers from the system allocator (``ARROW_DEFAULT_MEMORY_POOL=system``), and
@@ -243,7 +244,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
         try:
             _refuse_an_earlier_run(out, args.force)
-            _settle_the_run_process()  # after the checks: bad input is refused before rerun loads
+            if args.own_process:  # after the checks: bad input is refused before rerun loads
+                _settle_the_run_process()
             stage = functools.partial(
                 run,
                 scenario,
@@ -522,13 +524,19 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, *, own_process: bool = False) -> int:
+    """The ``twin`` command on ``argv`` (default: ``sys.argv[1:]``); its exit code.
+
+    ``own_process`` says the process is the command's alone (the console script and
+    ``python -m twin``): ``twin run`` then settles it for the run (:func:`_settle_the_run_process`).
+    A program that calls this function itself keeps its process as it was."""
     parser = make_parser()
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "func", None):
             parser.print_help()
             return 2
+        args.own_process = own_process
         return int(args.func(args))
     except BrokenPipeError:
         # the reader went away (`twin inspect X | head`): nothing left to say, and no traceback
@@ -561,4 +569,4 @@ def _os_error(exc: OSError) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(own_process=True))

@@ -15,7 +15,7 @@ def main() -> int:
     try:
         from twin.cli import main as cli_main
 
-        return cli_main()
+        return cli_main(own_process=True)  # the process is the command's alone
     except KeyboardInterrupt:
         print("twin: interrupted", file=sys.stderr)
         return 130

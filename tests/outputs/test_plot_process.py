@@ -139,6 +139,26 @@ def test_a_stop_after_a_plot_was_sent_waits_for_it_and_skips_the_plots_not_sent(
     assert not process.running
 
 
+@pytest.mark.parametrize("when", ["while it draws", "once it is drawn"])
+def test_a_run_that_fails_after_sending_its_plot_abandons_it(tmp_path: Path, when: str) -> None:
+    import time
+
+    out = tmp_path / "failed"
+    out.mkdir()
+    process = PlotProcess()
+    process.start()
+    budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
+    assert budget.prepare(_outcome(_table()))
+    if when == "once it is drawn":
+        deadline = time.monotonic() + 60
+        while not (out / "error_budget.png").exists():
+            assert time.monotonic() < deadline, "the helper never drew the plot"
+            time.sleep(0.02)
+    budget.fail(OSError(28, "No space left on device"))  # say recording.rrd failed to close
+    assert not process.running
+    assert list(out.iterdir()) == []  # neither the PNG nor a temporary file of it
+
+
 def test_a_sent_plot_whose_helper_dies_is_drawn_in_the_run(here: dict[str, bytes], tmp_path: Path) -> None:
     out = tmp_path / "died"
     out.mkdir()
@@ -238,7 +258,7 @@ def test_the_helper_ends_with_its_last_user() -> None:
     assert not process.running
 
 
-def test_a_ctrl_c_is_the_runs_to_handle_not_the_helpers() -> None:
+def test_a_ctrl_c_or_sigterm_is_the_runs_to_handle_not_the_helpers() -> None:
     import os
     import signal
     import time
@@ -246,8 +266,9 @@ def test_a_ctrl_c_is_the_runs_to_handle_not_the_helpers() -> None:
     process = PlotProcess()
     process.start()
     assert process._proc is not None
-    time.sleep(1.0)  # past its start, where it ignores SIGINT
+    time.sleep(1.0)  # past its start, where it ignores SIGINT and SIGTERM
     os.kill(process._proc.pid, signal.SIGINT)
+    os.kill(process._proc.pid, signal.SIGTERM)  # a batch system stops the whole process group
     time.sleep(0.3)
     assert process.running
     process.close()

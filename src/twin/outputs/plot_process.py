@@ -164,6 +164,13 @@ class PlotProcess:
             raise RunError(f"{path.name}: the plot failed: {answer.get('error', 'no reason given')}")
         return True
 
+    def abandon(self) -> None:
+        """The run broke while a plot was in hand: stop the helper at once (SIGKILL, as it
+        ignores the run's signals) instead of waiting for the plot."""
+        if self._pending is not None and self._proc is not None:
+            self._proc.kill()
+        self._end()
+
     def release(self) -> None:
         """One sink is done; the last one ends the helper."""
         self._users -= 1
@@ -243,9 +250,11 @@ def _draw(header: Mapping[str, Any], table: SignalTable) -> None:
 
 def main() -> int:
     """The helper: import matplotlib, then draw each job from standard input until it ends."""
-    # a Ctrl-C on the terminal reaches the whole process group: the run handles it (its plots
-    # are skipped, or drawn, as it decides) and then closes this helper's input
+    # a Ctrl-C on the terminal, or a batch system's SIGTERM, reaches the whole process group:
+    # the run handles it (its plots are skipped, or drawn, as it decides) and then closes this
+    # helper's input; a helper that died of it would leave its plot to the run's process
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     from twin.outputs import plots
 
     plots.warm_up()

@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import os
+import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -301,9 +302,20 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
 
 
 def save_png(fig: Figure, path: Path) -> Path:
-    """Write ``fig`` to the PNG ``path``; returns ``path``."""
-    # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
-    fig.savefig(path, format="png", dpi=DPI, metadata={"Software": None})
+    """Write ``fig`` to the PNG ``path``, whole or not at all (a hidden temporary file renamed,
+    as summary.json is written: a full disk or a killed plot leaves no cut PNG); returns
+    ``path``."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
+        fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):  # name the file (a full disk's error names none)
+            exc.filename = exc.filename or str(path)
+        raise
     return path
 
 
@@ -331,8 +343,9 @@ class _PlotSink(OutcomeSink):
     they draw (:meth:`_job`) and how (:meth:`_draw_here`).
     """
 
-    #: a run interrupted after its co-simulation leaves the plots out (they only draw what
-    #: the CSV files hold, and importing matplotlib alone takes a third of a second)
+    #: a run interrupted after its co-simulation leaves out the plots not already sent to the
+    #: plot process (they only draw what the CSV files hold, and drawing in the run's process
+    #: means importing matplotlib, a third of a second)
     skippable = True
     #: the plot process's name for this plot (twin.outputs.plot_process.KINDS)
     kind = ""
@@ -373,8 +386,14 @@ class _PlotSink(OutcomeSink):
             self._release()
 
     def fail(self, error: BaseException) -> None:
-        """Nothing was drawn before the outcome; the plot process is let go (a plot it has in
-        hand is finished: it is a whole plot of the outcome)."""
+        """The run broke: nothing new is written. A plot already handed to the plot process
+        (:meth:`prepare`) is abandoned: the process is stopped at once and what it wrote of the
+        plot removed (the run removed any earlier run's file when it started)."""
+        if self._sent and self.process is not None:
+            self.process.abandon()
+            self.path.unlink(missing_ok=True)
+            for tmp in self.path.parent.glob(f".{self.path.name}.*.tmp"):
+                tmp.unlink(missing_ok=True)
         self._release()
 
     def write_outcome(self, outcome: Outcome) -> None:

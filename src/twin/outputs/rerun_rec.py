@@ -77,8 +77,8 @@ CHUNK_ROWS = 65536
 
 def arrow_without_pandas_lookup() -> None:
     """Have pyarrow take this process for one without pandas until pandas is asked for by
-    name: for a process that runs only the twin (``twin run`` calls it), not for a library
-    caller's.
+    name: for a process that is the ``twin run`` command's alone
+    (:func:`twin.cli._settle_the_run_process`), not a program's that calls the twin.
 
     rerun hands pyarrow a Python list for every string it records (names, the blueprint's
     views), and pyarrow's ``pa.array`` then imports pandas, once, only to ask whether the list
@@ -89,7 +89,8 @@ def arrow_without_pandas_lookup() -> None:
     ``import pandas`` works as before, and pyarrow imports pandas as soon as it is asked for
     pandas by name (``to_pandas``, ``Table.from_pandas``, which pandas' ``to_parquet`` calls).
     What differs until then: ``pa.array`` of a pandas object converts it as a plain sequence
-    (a NaN stays a NaN, not a null), which is why a library caller's process is left alone.
+    (a NaN stays a NaN, not a null; a categorical loses its dictionary; some pandas string
+    arrays are refused), which is why a calling program's process is left alone.
     Where pandas is already imported, there is nothing to save and nothing is done.
     """
     if "pandas" in sys.modules:

@@ -116,10 +116,11 @@ def open_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
                 threads_per_worker=1,
                 processes=True,
                 scheduler_kwargs={"allowed_failures": 1},
-                # a point's error reaches the client as its task's (the point's record); what a
-                # worker logs on its own, even at ERROR, is the cluster's noise: when a run's
-                # Ctrl-C ends its Monte Carlo, a worker's heartbeat can find the scheduler gone
-                # and print a traceback under the command's one line
+                # a point's error reaches the client as its task's (the point's record), and a
+                # lost worker as KilledWorker; what the workers, their nannies and the scheduler
+                # (in this process) log on their own, even at ERROR, is the cluster's noise:
+                # when a run's Ctrl-C ends its Monte Carlo, a worker's heartbeat can find the
+                # scheduler gone and print a traceback under the command's one line
                 silence_logs=logging.CRITICAL,
             )
         client = Client(cluster, set_as_default=False)
