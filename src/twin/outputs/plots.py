@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import os
-import uuid
+from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from twin.outputs.atomic import write_atomic
 from twin.outputs.sink import OutcomeSink
 from twin.signals.table import SignalTable
 
@@ -302,21 +303,12 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
 
 
 def save_png(fig: Figure, path: Path) -> Path:
-    """Write ``fig`` to the PNG ``path``, whole or not at all (a hidden temporary file renamed,
-    as summary.json is written: a full disk or a killed plot leaves no cut PNG); returns
-    ``path``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
-        fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError):  # name the file (a full disk's error names none)
-            exc.filename = exc.filename or str(path)
-        raise
-    return path
+    """Write ``fig`` to the PNG ``path``, whole or not at all (:func:`twin.outputs.atomic.write_atomic`:
+    a full disk or a killed plot leaves no cut PNG); returns ``path``."""
+    # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
+    return write_atomic(
+        path, lambda tmp: fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
+    )
 
 
 def warm_up() -> None:
@@ -409,14 +401,14 @@ class _PlotSink(OutcomeSink):
         if not self._send(table, columns, names) or not self.process or not self.process.answer():
             self._draw_here(table, columns)
 
+    @abstractmethod
     def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
         """The table, the columns and the names of the columns the plot draws; None when the
         outcome has nothing for it. Raises ``KeyError`` naming a column the table lacks."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
         """Draw the plot in this process."""
-        raise NotImplementedError
 
     def _release(self) -> None:
         process, self.process = self.process, None

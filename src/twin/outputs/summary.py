@@ -16,13 +16,13 @@ import functools
 import json
 import math
 import os
-import uuid
 from collections.abc import Mapping
 from pathlib import Path, PurePath
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from twin.outputs.atomic import write_atomic
 from twin.outputs.sink import OutcomeSink
 
 if TYPE_CHECKING:
@@ -117,24 +117,19 @@ def _numpy_scalar(obj: np.generic, where: str) -> Any:
 
 
 def write_json_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` atomically; returns the path."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    # os.open with mode 0o666 honours the umask, unlike tempfile's private 0o600 files,
-    # so the summary gets the same permissions as the other outputs of the run.
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
+    """Write ``text`` to ``path`` atomically (:func:`twin.outputs.atomic.write_atomic`), its
+    data on disk before the rename makes it visible; returns the path."""
+
+    def write(tmp: Path) -> None:
+        # os.open with mode 0o666 honours the umask, unlike tempfile's private 0o600 files,
+        # so the summary gets the same permissions as the other outputs of the run.
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
             f.write(text)
             f.flush()
-            os.fsync(f.fileno())  # data on disk before the rename makes it visible
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError):  # name the file (a full disk's error names none)
-            exc.filename = exc.filename or str(path)
-        raise
-    return path
+            os.fsync(f.fileno())
+
+    return write_atomic(path, write)
 
 
 def summary_text(data: Mapping[str, Any]) -> str:
