@@ -210,12 +210,14 @@ def test_a_plot_the_helper_cannot_draw_is_one_run_error(tmp_path: Path) -> None:
         with pytest.raises(
             RunError, match=r"budget\.png: the plot failed: KeyError: .*errormodel\.not_there"
         ):
-            process.draw("budget", tmp_path / "budget.png", table, columns_json(bad), TITLE)
+            process.send("budget", tmp_path / "budget.png", table, columns_json(bad), TITLE)
+            process.answer()
         assert not (tmp_path / "budget.png").exists()
         assert process.running  # a failed plot does not end the helper: the next one is drawn
         good = thinned(_table(), ["probe.reading", "mechanics.wear_depth_true", "errormodel.wear_compensated",
                                   "oscillation.cycles"], 2000)  # fmt: skip
-        assert process.draw("wear", tmp_path / "wear.png", good, columns_json(_columns()), "wear")
+        assert process.send("wear", tmp_path / "wear.png", good, columns_json(_columns()), "wear")
+        assert process.answer()
         assert (tmp_path / "wear.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     finally:
         process.close()

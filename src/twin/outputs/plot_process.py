@@ -108,11 +108,6 @@ class PlotProcess:
         """Whether the helper is up (started and not ended)."""
         return self._proc is not None and self._proc.poll() is None
 
-    def draw(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
-        """Have the helper draw ``kind`` of ``table`` (already thinned, see :func:`thinned`)
-        into ``path`` and wait for it: :meth:`send` and :meth:`answer`."""
-        return self.send(kind, path, table, columns, title) and self.answer()
-
     def send(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
         """Hand the helper a plot to draw and return while it draws (:meth:`answer` waits for
         it). False when the helper is not there, died, or has a plot in hand already (one at

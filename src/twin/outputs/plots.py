@@ -349,7 +349,6 @@ class _PlotSink(OutcomeSink):
         self.columns = columns
         self.title = title
         self.process = process.use() if process is not None else None
-        self._sent = False
 
     def open(self, signals: list[Signal]) -> None:
         """The run starts: so does the plot process, which imports matplotlib meanwhile."""
@@ -368,8 +367,7 @@ class _PlotSink(OutcomeSink):
         if job is None or self.process is None:
             return False
         table, columns, names = job
-        self._sent = self._send(table, columns, names)
-        return self._sent
+        return self._send(table, columns, names)
 
     def close(self, outcome: Outcome) -> None:
         try:
@@ -381,7 +379,8 @@ class _PlotSink(OutcomeSink):
         """The run broke: nothing new is written. A plot already handed to the plot process
         (:meth:`prepare`) is abandoned: the process is stopped at once and what it wrote of the
         plot removed (the run removed any earlier run's file when it started)."""
-        if self._sent and self.process is not None:
+        if self._in_hand():
+            assert self.process is not None
             self.process.abandon()
             self.path.unlink(missing_ok=True)
             for tmp in self.path.parent.glob(f".{self.path.name}.*.tmp"):
@@ -389,8 +388,7 @@ class _PlotSink(OutcomeSink):
         self._release()
 
     def write_outcome(self, outcome: Outcome) -> None:
-        if self._sent:
-            self._sent = False
+        if self._in_hand():
             assert self.process is not None
             if self.process.answer():
                 return
@@ -410,9 +408,12 @@ class _PlotSink(OutcomeSink):
     def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
         """Draw the plot in this process."""
 
+    def _in_hand(self) -> bool:
+        """Whether the plot process has this plot in hand (sent, not yet answered)."""
+        return self.process is not None and self.process.pending == self.path
+
     def _release(self) -> None:
         process, self.process = self.process, None
-        self._sent = False
         if process is not None:
             process.release()
 
