@@ -148,3 +148,59 @@ print(pa.Table.from_pandas(pd.DataFrame({{"a": [1.0, None]}})).column("a").null_
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "1"]
     assert _verify(tmp_path / "r.rrd").returncode == 0
+
+
+# rerun-sdk 0.41 can leave a flush unanswered for ever when its file writer stops on a full
+# disk just after the flush was queued (tests/test_run_faults.py fills a disk under a real run,
+# where it happened in about half the runs); these stand-ins for the stream give its two
+# answers for certain: "timed out" from a writer that stopped, and from one still writing.
+TIMED_OUT = "Flush timed out - not all log messages were sent"
+
+
+class _Stream:
+    """Answers each flush with "timed out", writing ``grow`` bytes to ``path`` first, until
+    ``answered_after`` flushes."""
+
+    def __init__(self, path: Path, grow: int, answered_after: int | None = None) -> None:
+        self.path, self.grow, self.answered_after, self.flushes = path, grow, answered_after, 0
+
+    def flush(self, *, timeout_sec: float) -> None:
+        self.flushes += 1
+        if self.answered_after is not None and self.flushes > self.answered_after:
+            return
+        with open(self.path, "ab") as f:
+            f.write(b"x" * self.grow)
+        raise RuntimeError(TIMED_OUT)
+
+
+def test_a_flush_left_unanswered_by_a_stopped_writer_ends_in_an_os_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    from twin.outputs import rerun_rec
+
+    monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
+    path = tmp_path / "r.rrd"
+    path.write_bytes(b"RRF2")
+    stream = _Stream(path, grow=0)
+    with pytest.raises(rerun_rec._Stuck) as stuck:
+        rerun_rec._flush(stream, path)  # type: ignore[arg-type]
+    assert stream.flushes == 1  # not asked again: a second flush could wait for ever to be queued
+    # the disk has room here, so the error says rerun stopped writing, naming the file
+    assert stuck.value.error.errno == errno.EIO and stuck.value.error.filename == str(path)
+    assert "rerun stopped writing" in str(stuck.value.error)
+    assert path.read_bytes() == b"RRF2"  # the byte written to find the error is cut off again
+
+
+def test_a_slow_flush_is_waited_for_while_the_file_grows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from twin.outputs import rerun_rec
+
+    monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
+    path = tmp_path / "r.rrd"
+    path.write_bytes(b"RRF2")
+    stream = _Stream(path, grow=100, answered_after=3)
+    rerun_rec._flush(stream, path)  # type: ignore[arg-type]
+    assert stream.flushes == 4

@@ -282,7 +282,10 @@ class RecordingWriter(ClosesOnExit):
             try:
                 if self.scene is not None:
                     self.scene.send(rec, TIMELINE)
-                rec.flush()
+                _flush(rec, self.path)
+            except _Stuck as stuck:
+                _abandon(rec)
+                raise stuck.error from None
             except RuntimeError as exc:
                 # rerun writes from its own thread and reports a failed write only as
                 # "File-writer thread shut down prematurely"
@@ -293,10 +296,62 @@ class RecordingWriter(ClosesOnExit):
             rec.disconnect()
 
 
-def _write_error(path: Path, exc: RuntimeError) -> OSError:
-    """The OS error behind rerun's failed write: found by appending one byte to the file
-    ourselves (cut off again), since rerun's message does not carry it. A full disk or a
-    file-size limit fails that byte too; anything else is reported with rerun's words."""
+#: seconds one flush of a recording waits before the file is looked at: a healthy flush of a
+#: run's last rows takes hundredths of a second, and a file that did not grow in this time
+#: while a flush was on its way is one rerun stopped writing
+FLUSH_CHECK_S = 2.0
+
+
+class _Stuck(Exception):
+    """rerun stopped writing a recording and will not say so; ``error`` names why."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+def _flush(rec: rr.RecordingStream, path: Path) -> None:
+    """``rec.flush()`` that cannot wait forever.
+
+    rerun-sdk 0.41 waits forever when its file writer stops on a failed write (a full disk)
+    just after a flush was queued to it: that flush is never answered. Found with gdb on runs
+    whose disk filled while the recording's last rows were written (about half of them hung
+    at some disk sizes, whatever the order the twin wrote in). So a flush waits :data:`FLUSH_CHECK_S`
+    at a time; a file that did not grow meanwhile is one rerun stopped writing, and
+    :class:`_Stuck` says why (a full disk, found by writing a byte ourselves, now that nothing
+    else writes the file). A file still growing is waited for again.
+    """
+    while True:
+        size = path.stat().st_size
+        try:
+            rec.flush(timeout_sec=FLUSH_CHECK_S)
+            return
+        except RuntimeError as exc:
+            if "timed out" not in str(exc):
+                raise
+            if path.stat().st_size != size:
+                continue  # still writing: a slow disk
+            why = _probe(path) or OSError(
+                errno.EIO, f"rerun stopped writing the recording ({exc})", str(path)
+            )
+            raise _Stuck(why) from None
+
+
+def _abandon(rec: rr.RecordingStream) -> None:
+    """Never flush the stuck ``rec`` again (see :func:`_flush`): each flush would wait forever.
+    Its finalizer flushes it, and rerun's exit handler flushes every stream, so ``rec`` is
+    kept alive to the end of the process (one reference that is never given back) and the
+    exit handler is taken off (the process's other rerun streams are not flushed at exit
+    either: better than an exit that never comes)."""
+    import ctypes
+
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))
+    rr.unregister_shutdown()
+
+
+def _probe(path: Path) -> OSError | None:
+    """The error of a write to ``path`` now: one byte appended and cut off again (None when it
+    could be written). Only where rerun does not write the file meanwhile."""
     try:
         size = path.stat().st_size
         with open(path, "ab") as f:
@@ -306,7 +361,14 @@ def _write_error(path: Path, exc: RuntimeError) -> OSError:
     except OSError as found:
         found.filename = str(path)
         return found
-    return OSError(errno.EIO, f"rerun could not write the recording ({exc})", str(path))
+    return None
+
+
+def _write_error(path: Path, exc: RuntimeError) -> OSError:
+    """The OS error behind rerun's failed write (:func:`_probe`, its writer having stopped),
+    since rerun's message does not carry it. A full disk or a file-size limit fails that byte
+    too; anything else is reported with rerun's words."""
+    return _probe(path) or OSError(errno.EIO, f"rerun could not write the recording ({exc})", str(path))
 
 
 class RecordingSink:
