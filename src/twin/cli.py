@@ -197,19 +197,20 @@ def _settle_the_run_process() -> None:
       freed for a while, and the next flush comes before they are given back. Peak of the MIL
       endurance run 166 -> 147 MB; its writing takes 0.04 s longer, the replay no longer.
     * pyarrow does not import pandas to ask whether rerun's lists are pandas objects
-      (:func:`twin.outputs.rerun_rec.arrow_without_pandas_lookup`): 0.17 s and 43 MB.
-    * What is imported by now (rerun's hundreds of modules) lives as long as the process: it
-      is frozen, so the garbage collector does not walk it in every full collection and at
-      exit (0.04 s of the paper replay's 0.84 s).
+      (:func:`twin.outputs.rerun_rec.arrow_without_pandas_lookup`, made when the recording
+      loads rerun: :func:`twin.outputs.recording_sink.settle_when_rerun_loads`): 0.17 s and 43 MB.
+    * What is imported by now, and rerun's hundreds of modules when they load, lives as long as
+      the process: it is frozen, so the garbage collector does not walk it in every full
+      collection and at exit (0.04 s of the paper replay's 0.84 s).
     """
     import gc
     import os
 
     os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
     os.environ.setdefault("MIMALLOC_PURGE_DELAY", "0")
-    from twin.outputs.rerun_rec import arrow_without_pandas_lookup
+    from twin.outputs.recording_sink import settle_when_rerun_loads
 
-    arrow_without_pandas_lookup()
+    settle_when_rerun_loads()
     gc.freeze()
 
 
@@ -244,7 +245,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
         try:
             _refuse_an_earlier_run(out, args.force)
-            if args.own_process:  # after the checks: bad input is refused before rerun loads
+            if args.own_process:
                 _settle_the_run_process()
             stage = functools.partial(
                 run,

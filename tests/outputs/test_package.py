@@ -24,6 +24,23 @@ def test_importing_the_package_does_not_import_rerun_or_matplotlib() -> None:
     assert out.split() == ["False", "False"]
 
 
+def test_a_runs_recording_loads_rerun_with_its_first_rows() -> None:
+    # not when the run opens its outputs: a run that fails its checks or its set-up never pays it
+    code = (
+        "import sys, numpy as np, tempfile, pathlib\n"
+        "from twin.outputs.recording_sink import RecordingSink\n"
+        "from twin.signals.table import Block, Signal\n"
+        "sink = RecordingSink(pathlib.Path(tempfile.mkdtemp()) / 'r.rrd', recording_name='r')\n"
+        "sink.open([Signal('probe.reading', 'm', 'probe')])\n"
+        "opened = 'rerun' in sys.modules\n"
+        "sink.write(Block(np.arange(3.0), {'probe.reading': np.zeros(3)}))\n"
+        "print(opened, 'rerun' in sys.modules)\n"
+        "sink.fail(RuntimeError('done'))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "True"]
+
+
 @pytest.mark.parametrize(
     ("call", "settled"),
     [("from twin.entry import main; rc = main()", True), ("from twin.cli import main; rc = main()", False)],

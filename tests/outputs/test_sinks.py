@@ -16,7 +16,8 @@ import pytest
 import twin.signals.recorder as recorder_module
 from twin.outputs.csv import DerivedCsvSink, SignalsCsvSink, read_signals_csv, write_signals_csv
 from twin.outputs.plots import BudgetColumns, ErrorBudgetSink
-from twin.outputs.rerun_rec import RecordingSink, entity_path, read_recording
+from twin.outputs.recording_sink import RecordingSink
+from twin.outputs.rerun_rec import entity_path, read_recording
 from twin.outputs.sink import Outcome
 from twin.outputs.summary import SummarySink
 from twin.signals.recorder import TeeRecorder
@@ -182,6 +183,17 @@ def test_without_an_error_model_only_the_rows_and_the_summary_are_written(tmp_pa
     ]
     series = read_recording(tmp_path / "recording.rrd")
     assert entity_path(table.meta["probe.reading"]) in series
+
+
+def test_the_recording_is_made_with_its_first_rows_or_when_the_run_ends_without_any(tmp_path: Path) -> None:
+    signals, _ = recorded(make_table())
+    sink = RecordingSink(tmp_path / "recording.rrd", recording_name="r", budget_columns=["probe.reading"])
+    sink.open(signals)
+    assert not (tmp_path / "recording.rrd").exists()  # rerun loads with the first rows
+    sink.fail(RuntimeError("the run broke before its first rows"))
+    assert read_recording(tmp_path / "recording.rrd") == {}  # a whole (footed) recording, empty
+    with pytest.raises(ValueError, match="budget columns"):  # checked at open, not with the rows
+        RecordingSink(tmp_path / "b.rrd", recording_name="r", budget_columns=["no.such"]).open(signals)
 
 
 def test_fail_keeps_what_was_written_and_writes_nothing_new(tmp_path: Path) -> None:

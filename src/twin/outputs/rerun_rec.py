@@ -1,4 +1,6 @@
-"""``recording.rrd``: the run as a rerun recording (the only module of the twin importing rerun).
+"""``recording.rrd``: the run as a rerun recording (the module of the twin that writes with rerun;
+a run's sink for it, which loads this module with its first rows, is
+:mod:`twin.outputs.recording_sink`).
 
 Layout of the recording:
 
@@ -47,17 +49,15 @@ import rerun as rr  # after RUST_LOG is set
 import rerun.blueprint as rrb
 
 from twin.outputs.sink import ClosesOnExit
-from twin.signals.table import Block, Signal, SignalTable
+from twin.signals.table import Signal, SignalTable
 
 if TYPE_CHECKING:
     from twin.outputs.scene3d import TesterScene
-    from twin.outputs.sink import Outcome
 
 __all__ = [
     "BUDGET_VIEW_NAME",
     "SCENE_VIEW_NAME",
     "TIMELINE",
-    "RecordingSink",
     "RecordingWriter",
     "entity_path",
     "read_recording",
@@ -369,76 +369,6 @@ def _write_error(path: Path, exc: RuntimeError) -> OSError:
     since rerun's message does not carry it. A full disk or a file-size limit fails that byte
     too; anything else is reported with rerun's words."""
     return _probe(path) or OSError(errno.EIO, f"rerun could not write the recording ({exc})", str(path))
-
-
-class RecordingSink:
-    """``recording.rrd`` as a sink: the recorded rows streamed as the run goes, then the
-    columns derived after it (the error model's) on the same timeline.
-
-    ``late_signals`` are those derived columns, declared up front because the blueprint
-    needs every entity when the file is created; ``budget_columns`` go to the error-budget
-    view. ``replay`` (a resumed run's signals.csv, already cut back to its checkpoint) is
-    sent first: a killed run never wrote its recording's footer, so the recording is
-    written anew from the rows the CSV kept.
-    """
-
-    def __init__(
-        self,
-        path: Path,
-        *,
-        recording_name: str,
-        late_signals: Sequence[Signal] = (),
-        budget_columns: Sequence[str] | None = None,
-        replay: Path | None = None,
-        scene: TesterScene | None = None,
-    ) -> None:
-        self.path = path
-        self.scene = scene
-        self.recording_name = recording_name
-        self.late_signals = list(late_signals)
-        self.budget_columns = budget_columns
-        self.replay = replay
-        self._writer: RecordingWriter | None = None
-
-    def open(self, signals: list[Signal]) -> None:
-        self._writer = RecordingWriter(
-            self.path,
-            [*signals, *self.late_signals],
-            recording_name=self.recording_name,
-            budget_columns=self.budget_columns,
-            scene=self.scene,
-        )
-        if self.replay is not None:
-            from twin.outputs.csv import read_signals_csv
-
-            before = read_signals_csv(self.replay)
-            columns = {s.name: before[s.name] for s in signals}
-            self._writer.append(before.time, columns, partial=True)
-            if self.scene is not None:
-                self.scene.collect(before.time, columns)
-
-    def write(self, block: Block) -> None:
-        assert self._writer is not None, "write before open"
-        self._writer.append(block.time, block.columns, partial=True)
-        if self.scene is not None:
-            self.scene.collect(block.time, block.columns)
-
-    def close(self, outcome: Outcome) -> None:
-        if self._writer is None:
-            return
-        if outcome.table is not None:
-            table = outcome.table
-            self._writer.append(table.time, {n: table[n] for n in outcome.columns}, partial=True)
-        self._release()
-
-    def fail(self, error: BaseException) -> None:
-        self._release()
-
-    def _release(self) -> None:
-        # closing writes the footer: what was sent stays a valid recording
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
 
 
 def write_recording(

@@ -326,7 +326,7 @@ class RunFolder:
         recording is written anew from the rows the CSV kept.
         """
         from twin.outputs.csv import SignalsCsvSink
-        from twin.outputs.rerun_rec import RecordingSink
+        from twin.outputs.recording_sink import RecordingSink
 
         csv_path = self.file(SIGNALS_CSV)
         position = None

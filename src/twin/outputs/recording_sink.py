@@ -1,0 +1,147 @@
+"""``recording.rrd`` as a run's sink; the file is written by :mod:`twin.outputs.rerun_rec`.
+
+Importing rerun takes a quarter of a second (its hundreds of modules), a third of the paper
+replay's whole run. This module does not import it: :class:`RecordingSink` loads
+:mod:`twin.outputs.rerun_rec`, and with it rerun, when the first rows reach it (or the run
+ends without any). ``twin run`` hands a short run's rows on only after the error model has
+run and the plots are sent (:func:`twin.pipeline.stages.simulate`'s ``hold_last_rows``), so
+rerun loads while the plots' own process draws (:mod:`twin.outputs.plot_process`), not
+before; a long run's first rows come while it runs, and rerun loads then, as before.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+from twin.signals.table import Block, Signal
+
+if TYPE_CHECKING:
+    from twin.outputs.rerun_rec import RecordingWriter
+    from twin.outputs.scene3d import TesterScene
+    from twin.outputs.sink import Outcome
+
+__all__ = ["RecordingSink", "settle_when_rerun_loads"]
+
+#: whether loading rerun also settles the process (:func:`settle_when_rerun_loads`); reset
+#: once done
+_SETTLE_ON_LOAD = False
+
+
+def settle_when_rerun_loads() -> None:
+    """For a process that is the ``twin run`` command's own (:func:`twin.cli._settle_the_run_process`):
+    when the first recording loads rerun, pyarrow's one lookup of pandas is made with pandas out
+    of reach (:func:`twin.outputs.rerun_rec.arrow_without_pandas_lookup`), and the modules
+    imported by then are frozen out of the garbage collector's walks, as those before it were."""
+    global _SETTLE_ON_LOAD
+    _SETTLE_ON_LOAD = True
+
+
+def _rerun_rec() -> ModuleType:
+    """:mod:`twin.outputs.rerun_rec`, imported (rerun and pyarrow with it) on the first call."""
+    global _SETTLE_ON_LOAD
+    from twin.outputs import rerun_rec
+
+    if _SETTLE_ON_LOAD:
+        _SETTLE_ON_LOAD = False
+        import gc
+
+        rerun_rec.arrow_without_pandas_lookup()
+        gc.freeze()
+    return rerun_rec
+
+
+class RecordingSink:
+    """``recording.rrd`` as a sink: the recorded rows streamed as the run goes, then the
+    columns derived after it (the error model's) on the same timeline.
+
+    The file is created, and rerun loaded, with the first rows written (or when the run
+    closes or fails before any: a run always leaves a recording). ``late_signals`` are the
+    derived columns, declared up front because the blueprint needs every entity when the file
+    is created; ``budget_columns`` go to the error-budget view. ``replay`` (a resumed run's
+    signals.csv, already cut back to its checkpoint) is sent first: a killed run never wrote
+    its recording's footer, so the recording is written anew from the rows the CSV kept.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        recording_name: str,
+        late_signals: Sequence[Signal] = (),
+        budget_columns: Sequence[str] | None = None,
+        replay: Path | None = None,
+        scene: TesterScene | None = None,
+    ) -> None:
+        self.path = path
+        self.scene = scene
+        self.recording_name = recording_name
+        self.late_signals = list(late_signals)
+        self.budget_columns = budget_columns
+        self.replay = replay
+        self._signals: list[Signal] | None = None
+        self._writer: RecordingWriter | None = None
+        self._closed = False
+
+    def open(self, signals: list[Signal]) -> None:
+        names = {s.name for s in [*signals, *self.late_signals]}
+        unknown = [n for n in self.budget_columns or () if n not in names]
+        if unknown:  # checked now, not when the first rows come
+            raise ValueError(f"budget columns {unknown} are not among the signals")
+        self._signals = list(signals)
+
+    def _started(self) -> RecordingWriter:
+        """The writer, made (file, blueprint, a resumed run's rows) on the first call."""
+        if self._writer is not None:
+            return self._writer
+        if self._signals is None or self._closed:
+            raise ValueError(f"{self.path}: written before open or after close")
+        signals = self._signals
+        self._writer = _rerun_rec().RecordingWriter(
+            self.path,
+            [*signals, *self.late_signals],
+            recording_name=self.recording_name,
+            budget_columns=self.budget_columns,
+            scene=self.scene,
+        )
+        if self.replay is not None:
+            from twin.outputs.csv import read_signals_csv
+
+            before = read_signals_csv(self.replay)
+            columns = {s.name: before[s.name] for s in signals}
+            self._writer.append(before.time, columns, partial=True)
+            if self.scene is not None:
+                self.scene.collect(before.time, columns)
+        return self._writer
+
+    def write(self, block: Block) -> None:
+        self._started().append(block.time, block.columns, partial=True)
+        if self.scene is not None:
+            self.scene.collect(block.time, block.columns)
+
+    def close(self, outcome: Outcome) -> None:
+        if self._signals is None or self._closed:
+            return
+        writer = self._started()
+        if outcome.table is not None:
+            table = outcome.table
+            writer.append(table.time, {n: table[n] for n in outcome.columns}, partial=True)
+        self._release()
+
+    def fail(self, error: BaseException) -> None:
+        if self._signals is not None and not self._closed and self._writer is None:
+            try:
+                self._started()  # a run that broke before its first rows still leaves its recording
+            finally:
+                self._release()
+            return
+        self._release()
+
+    def _release(self) -> None:
+        # closing writes the footer: what was sent stays a valid recording
+        self._closed = True
+        if self._writer is not None:
+            writer, self._writer = self._writer, None
+            writer.close()
