@@ -21,6 +21,7 @@ from twin.outputs.csv import read_signals_csv
 from twin.outputs.sink import Outcome
 from twin.paper import TEMPERATURE_RISE_K
 from twin.pipeline import RunSummary, evaluate_run, run, run_point, simulate, summarize, write_outputs
+from twin.signals.recorder import FLUSH_ROWS
 from twin.signals.table import Block, Signal
 
 pytestmark = pytest.mark.slow
@@ -134,6 +135,8 @@ def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_writes_no_summary
     monkeypatch.setattr(stages, "evaluate_run", broken)
     with pytest.raises(RuntimeError, match="the error model broke"):
         run(short_scenario(), tmp_path)
+    # every row, though the run held them all back for after its plots (fewer than FLUSH_ROWS)
+    assert len(read_signals_csv(tmp_path / "signals.csv")) < FLUSH_ROWS
     assert (tmp_path / "signals.csv").read_bytes() == (out / "signals.csv").read_bytes()
     assert not (tmp_path / "summary.json").exists() and not (tmp_path / "errormodel.csv").exists()
     from twin.outputs.rerun_rec import read_recording

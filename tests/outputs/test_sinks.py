@@ -97,6 +97,73 @@ def test_tee_flushes_after_flush_seconds_even_with_few_rows(monkeypatch: pytest.
     assert [len(e[2]) for e in log.events if e[1] == "write"] == [40, 40, 40]
 
 
+def test_tee_holding_the_last_rows_gives_a_short_runs_rows_when_asked() -> None:
+    # every row within FLUSH_ROWS and FLUSH_SECONDS: twin run writes them once the plots are sent
+    _, table = recorded(make_table())
+    log = Log()
+    rec = TeeRecorder([log], hold_last=True)
+    stream(rec, table)
+    assert [e[1] for e in log.events] == ["open"]
+    rec.flush()
+    writes = [e for e in log.events if e[1] == "write"]
+    assert [len(e[2]) for e in writes] == [len(table)]
+    np.testing.assert_array_equal(writes[0][2], table.time)
+    rec.flush()  # nothing left: nothing written twice
+    assert len([e for e in log.events if e[1] == "write"]) == 1
+
+
+def test_tee_holds_nothing_of_a_run_whose_rows_went_to_the_files_already(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a long run's files are open by its end: its last rows go at once, not beside the error model
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 200)
+    _, table = recorded(make_table())
+    log = Log()
+    stream(TeeRecorder([log], hold_last=True), table)
+    assert [len(e[2]) for e in log.events if e[1] == "write"] == [200, 200, 200, 121]
+
+
+def test_tee_hands_a_failing_block_to_no_sink_twice() -> None:
+    _, table = recorded(make_table(rows=30))
+
+    class Full(Log):
+        def write(self, block: Block) -> None:
+            super().write(block)
+            raise OSError(28, "No space left on device")
+
+    first, full = Log(name="csv"), Full(name="rrd")
+    rec = TeeRecorder([first, full])
+    with pytest.raises(OSError):
+        stream(rec, table)
+    rec.flush()  # as the run's failure path does: the block is not handed to the CSV again
+    assert [e[0] for e in first.events + full.events if e[1] == "write"] == ["csv", "rrd"]
+
+
+def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file_closes() -> None:
+    from twin.pipeline.stages import Evaluated, write_outputs
+
+    _, table = recorded(make_table(rows=30))
+    events: list[tuple[str, Any]] = []
+
+    class Plot(Log):
+        def prepare(self, outcome: Outcome) -> bool:
+            self.events.append((self.name, "prepare"))
+            return True
+
+    rec = TeeRecorder([Log(events, "csv"), Plot(events, "png")], hold_last=True)
+    stream(rec, table)
+    write_outputs(rec.sinks, Evaluated(None), lambda: {}, held=rec)
+    assert [e[:2] for e in events] == [
+        ("csv", "open"),
+        ("png", "open"),
+        ("png", "prepare"),
+        ("csv", "write"),
+        ("png", "write"),
+        ("csv", "close"),
+        ("png", "close"),
+    ]
+
+
 def test_tee_without_sinks_keeps_only_the_kept_columns() -> None:
     _, table = recorded(make_table())
     rec = TeeRecorder(keep={"thermal.t_base", "probe.reading"}.__contains__)

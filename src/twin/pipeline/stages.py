@@ -63,6 +63,7 @@ class Simulation:
     result: RunResult
     table: SignalTable
     write_s: float = 0.0
+    recorder: TeeRecorder | None = None
 
 
 @dataclass
@@ -93,10 +94,16 @@ def simulate(
     on_checkpoint: Callable[[Checkpoint], None] | None = None,
     resume: Checkpoint | None = None,
     pool: SlotPool | None = None,
+    hold_last_rows: bool = False,
 ) -> Simulation:
     """Co-simulate ``scenario``: rows stream to ``sinks`` (opened here, closed by
     :func:`write_outputs`), the ``keep`` columns stay in memory (default: those the
     scenario's error model reads).
+
+    With ``hold_last_rows`` the rows not yet handed to the sinks when the run ends are held
+    for the caller (``simulation.recorder.flush()``, which :func:`write_outputs` makes once
+    the plots are sent; see :class:`~twin.signals.recorder.TeeRecorder`); a run that raises
+    hands them on before it does.
 
     ``stop`` is polled between batches (a signal name ends the run as "interrupted").
     With ``checkpoint_every_ns``, ``on_checkpoint`` receives the whole twin at that
@@ -107,7 +114,10 @@ def simulate(
     if keep is None:
         keep = set(input_columns(evaluation_config(scenario))) | truth_columns(scenario)
     recorder = TeeRecorder(
-        sinks, keep=frozenset(keep).__contains__, resume=resume.recorder if resume else None
+        sinks,
+        keep=frozenset(keep).__contains__,
+        resume=resume.recorder if resume else None,
+        hold_last=hold_last_rows,
     )
 
     def save(snapshot: dict[str, Any]) -> None:
@@ -127,8 +137,12 @@ def simulate(
         resume=resume.master if resume else None,
         pool=pool,
     )
-    result = master.run()
-    return Simulation(scenario, result, recorder.table(), recorder.write_s)
+    try:
+        result = master.run()
+    except BaseException:
+        recorder.flush()  # everything recorded before the error is kept
+        raise
+    return Simulation(scenario, result, recorder.table(), recorder.write_s, recorder)
 
 
 def evaluate_run(simulation: Simulation, cfg: EvaluationConfig) -> Evaluated:
@@ -231,6 +245,7 @@ def write_outputs(
     stop: Callable[[], str | None] | None = None,
     skipped: list[str] | None = None,
     timings: dict[str, float] | None = None,
+    held: TeeRecorder | None = None,
 ) -> None:
     """Close every sink, in order, with the run's outcome (each one's time into ``timings``,
     by its file's name, when given).
@@ -241,7 +256,10 @@ def write_outputs(
     the plots, most of what comes after the co-simulation) are left out and their
     files' names added to ``skipped``: an interrupted run keeps its data, not its pictures.
     A sink with ``prepare(outcome) -> bool`` is asked first whether it starts its file now
-    (the plots, drawn by their own process while the files before them are written).
+    (the plots, drawn by their own process while the files before them are written). The
+    rows ``held`` back at the end of the run (:func:`simulate`'s ``hold_last_rows``) are
+    handed to the sinks after that, before any closes (their time into ``timings`` as
+    ``last_rows``).
     """
     outcome = Outcome(evaluated.table, evaluated.columns, summary)
 
@@ -257,6 +275,11 @@ def write_outputs(
         and not (getattr(sink, "skippable", False) and stopped())
         and prepare(outcome)
     }
+    if held is not None:
+        t0 = time.perf_counter()
+        held.flush()
+        if timings is not None:
+            timings["last_rows"] = time.perf_counter() - t0
     for sink in sinks:
         if getattr(sink, "skippable", False) and id(sink) not in started and stopped():
             if skipped is not None:
@@ -347,6 +370,7 @@ def _run_locked(
 ) -> RunSummary:
     out_dir = folder.path
     sinks: list[Sink] = []
+    simulation: Simulation | None = None
     try:
         if resume is None:
             meta = RunMeta(
@@ -373,6 +397,8 @@ def _run_locked(
             checkpoint_every_ns=checkpoint_every_ns,
             on_checkpoint=folder.save_checkpoint,
             resume=resume,
+            # the last rows are written once the plots are sent: see write_outputs
+            hold_last_rows=True,
         )
         t0 = time.perf_counter()
         evaluated = evaluate_run(simulation, cfg)
@@ -384,15 +410,21 @@ def _run_locked(
             )
         )
         write_outputs(
-            sinks, evaluated, lambda: summary().to_dict(), stop=stop, skipped=skipped, timings=phases
+            sinks,
+            evaluated,
+            lambda: summary().to_dict(),
+            stop=stop,
+            skipped=skipped,
+            timings=phases,
+            held=simulation.recorder,
         )
     except OSError as exc:
-        _fail(sinks, exc)
+        _fail(sinks, exc, simulation)
         if exc.errno in DISK_FULL_ERRNOS:
             raise _disk_full(folder, scenario, exc) from None
         raise
     except BaseException as exc:
-        _fail(sinks, exc)
+        _fail(sinks, exc, simulation)
         raise
     if simulation.result.error is not None:
         raise RunError(f"{simulation.result.error} (everything recorded up to it is in {out_dir})")
@@ -442,7 +474,12 @@ def _disk_full(folder: RunFolder, scenario: Scenario, exc: OSError) -> RunError:
     )
 
 
-def _fail(sinks: Sequence[Sink], error: BaseException) -> None:
+def _fail(sinks: Sequence[Sink], error: BaseException, simulation: Simulation | None = None) -> None:
+    if simulation is not None and simulation.recorder is not None:
+        try:  # the rows held back at the end of the run (none once handed on)
+            simulation.recorder.flush()
+        except Exception as other:
+            error.add_note(f"the run's last rows could not be written either: {other}")
     for sink in sinks:
         try:
             sink.fail(error)
