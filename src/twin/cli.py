@@ -19,6 +19,7 @@ from twin.validation import cli as heldout_cli  # cheap: dask loads only when it
 
 if TYPE_CHECKING:
     from twin.config.spec import Scenario
+    from twin.outputs.plot_process import PlotProcess
     from twin.pipeline import RunSummary
     from twin.validation.replay import RunUncertainty
 
@@ -215,11 +216,23 @@ def _settle_the_run_process() -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from twin.outputs.plot_process import PlotProcess
+
+    # the plots' own process, started first: it imports matplotlib while this one checks,
+    # builds, sets up and runs (twin.outputs.plot_process); stopped at once on bad input
+    plots = PlotProcess.started()
+    try:
+        return _run(args, plots)
+    finally:
+        if plots is not None:
+            plots.close()
+
+
+def _run(args: argparse.Namespace, plots: PlotProcess | None) -> int:
     import functools
     import time
 
     from twin.errormodel.config import evaluation_config
-    from twin.outputs.plot_process import PlotProcess
     from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import run
     from twin.validation.replay import for_run
@@ -236,37 +249,30 @@ def _cmd_run(args: argparse.Namespace) -> int:
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs
     every = _checkpoint_every(args.checkpoint_every, scenario.step_ns)
-    # the plots' own process, started now: it imports matplotlib while this one builds, sets
-    # up and runs (twin.outputs.plot_process)
-    plots = PlotProcess.started()
+    _build_fmus(scenario, stop)
+    folder = RunFolder(out)
+    folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
     try:
-        _build_fmus(scenario, stop)
-        folder = RunFolder(out)
-        folder.lock()  # for the command's whole life, Monte Carlo included: one process per folder
-        try:
-            _refuse_an_earlier_run(out, args.force)
-            if args.own_process:
-                _settle_the_run_process()
-            stage = functools.partial(
-                run,
-                scenario,
-                out,
-                process_start=args.process_start or start,
-                overrides=args.set or [],
-                checkpoint_every_ns=every,
-                plot_process=plots,
-            )
-            summary = _supervised(args.quiet, stage, stop)
-            if plots is not None:
-                plots.close()
-            if uncertainty is not None and summary.status == "completed" and stop() is None:
-                summary = _uncertainty(uncertainty, out, summary, args.quiet, stop)
-            return _finish(summary, out, args.quiet, stop())
-        finally:
-            folder.unlock()
-    finally:
+        _refuse_an_earlier_run(out, args.force)
+        if args.own_process:
+            _settle_the_run_process()
+        stage = functools.partial(
+            run,
+            scenario,
+            out,
+            process_start=args.process_start or start,
+            overrides=args.set or [],
+            checkpoint_every_ns=every,
+            plot_process=plots,
+        )
+        summary = _supervised(args.quiet, stage, stop)
         if plots is not None:
-            plots.close()
+            plots.close()  # the plots are drawn: the helper ends before the Monte Carlo's workers start
+        if uncertainty is not None and summary.status == "completed" and stop() is None:
+            summary = _uncertainty(uncertainty, out, summary, args.quiet, stop)
+        return _finish(summary, out, args.quiet, stop())
+    finally:
+        folder.unlock()
 
 
 def _build_fmus(scenario: Scenario, stop: Callable[[], str | None]) -> None:

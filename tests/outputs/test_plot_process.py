@@ -248,6 +248,48 @@ def test_the_helper_refuses_a_malformed_job_in_one_line_and_ends(job: bytes) -> 
     assert answer["ok"] is False and answer["error"].startswith("unreadable job")
 
 
+def _stand_in(code: str) -> PlotProcess:
+    """A PlotProcess whose helper is ``python -c code`` (what the real helper does before it
+    reads its input, imports matplotlib, made to last)."""
+    process = PlotProcess()
+    process._started = True
+    process._proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE
+    )
+    return process
+
+
+def test_a_plot_is_sent_without_waiting_for_the_helper_to_read_it() -> None:
+    import threading
+
+    # a helper still importing matplotlib reads nothing; the job is bigger than the pipe
+    process = _stand_in("import time; time.sleep(60)")
+    helper = process._proc
+    assert helper is not None
+    sent: list[bool] = []
+    sender = threading.Thread(
+        target=lambda: sent.append(
+            process.send("budget", Path("b.png"), thinned(_table(), ["probe.reading"], 2000), {}, TITLE)
+        )
+    )
+    sender.start()
+    sender.join(timeout=30)
+    assert not sender.is_alive() and sent == [True], "send waited for the helper to read the job"
+    process.abandon()  # the run failed: the helper is stopped, its job's writer ends
+    assert helper.poll() is not None and not process.running
+
+
+def test_a_helper_never_sent_a_plot_is_stopped_at_close_not_waited_for() -> None:
+    # bad input, or a run that failed before its plots: closing the input of a helper still
+    # importing matplotlib would wait for that import; a stand-in that would leave cleanly
+    # (exit 0) once its input closes shows which way it went
+    process = _stand_in("import sys; sys.stdin.buffer.read()")
+    helper = process._proc
+    assert helper is not None
+    process.close()
+    assert helper.returncode == -9  # SIGKILL, not the clean exit on a closed input
+
+
 def test_the_helper_ends_with_its_last_user() -> None:
     process = PlotProcess()
     process.use()

@@ -2,9 +2,10 @@
 
 Importing matplotlib takes about a third of a second, as long as the paper replay's whole
 co-simulation and error model together, and drawing the error budget another 0.15 s. A
-:class:`PlotProcess` starts ``python -m twin.outputs.plot_process`` when the run opens its
-outputs; that process imports matplotlib (and draws a throw-away figure, which loads the fonts)
-on the machine's other core while the run goes, then draws each plot it is sent.
+:class:`PlotProcess` starts ``python -m twin.outputs.plot_process`` when the run starts
+(``twin run`` starts it before anything else); that process imports matplotlib (and draws a
+throw-away figure, which loads the fonts) on the machine's other core while the run goes, then
+draws each plot it is sent.
 
 What it is sent is only what a plot draws: the plot's columns thinned as the plot thins them
 (at most about 2 x 2000 samples each), as one JSON line (the job: kind, file, title, columns)
@@ -13,14 +14,15 @@ each job with one JSON line. The same drawing code on the same samples gives the
 drawing in the run's own process (tests/outputs/test_plot_process.py).
 
 A plot is sent as soon as the run's outcome is known (:meth:`PlotProcess.send`, from the plot
-sink's ``prepare``) and drawn while the run finishes its other files; one at a time, as a
-second job would fill the pipe and block the run until the first is drawn. The run waits for
-each PNG (:meth:`PlotProcess.answer`) before summary.json, so every file it lists exists, and
-for the helper to end (it leaves at once, without the interpreter's teardown). If the
+sink's ``prepare``; written to the helper by a thread, so a helper still importing matplotlib
+does not hold the run) and drawn while the run finishes its other files; one at a time. The
+run waits for each PNG (:meth:`PlotProcess.answer`) before summary.json, so every file it
+lists exists, and for the helper to end (it leaves at once, without the interpreter's teardown). If the
 process cannot be started, or dies, the plot is drawn in the run's own process instead: a
 missing second core or a killed helper costs time, never a plot. A plot that fails to draw
 raises :class:`~twin.errors.RunError` with the helper's message. The helper ends when its
-input closes: when the run closes it, and when the run's process dies.
+input closes: when the run closes it, and when the run's process dies; a helper never sent a
+plot (bad input, a failed run) is killed at once.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Mapping
 from dataclasses import asdict
 from pathlib import Path
@@ -68,7 +71,9 @@ class PlotProcess:
         self._proc: subprocess.Popen[bytes] | None = None
         self._users = 0
         self._started = False
+        self._sent = False
         self._pending: Path | None = None
+        self._feeder: threading.Thread | None = None
 
     @classmethod
     def started(cls) -> PlotProcess | None:
@@ -111,8 +116,13 @@ class PlotProcess:
     def send(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
         """Hand the helper a plot to draw and return while it draws (:meth:`answer` waits for
         it). False when the helper is not there, died, or has a plot in hand already (one at
-        a time: a second job would fill the pipe and block this process until the first is
-        drawn); the caller then draws in process, or sends again once answered."""
+        a time); the caller then draws in process, or sends again once answered.
+
+        The job is written to the helper's input by a thread: a helper still importing
+        matplotlib does not read it yet, and the pipe holds only 64 KiB of the job's few
+        hundred, so writing it here would hold this process until the helper is ready. A
+        helper that dies meanwhile is found by :meth:`answer` (no answer: drawn in process).
+        """
         proc = self._proc
         if self._pending or proc is None or proc.stdin is None or not self.running:
             return False
@@ -120,13 +130,10 @@ class PlotProcess:
         header = {"kind": kind, "path": str(path), "title": title, "columns": dict(columns)}
         header |= {"n": len(table.time), "names": names}
         data = np.stack([table.time, *(table[n] for n in names)]).astype("<f8", copy=False)
-        try:
-            proc.stdin.write(json.dumps(header).encode("utf-8") + b"\n")
-            proc.stdin.write(np.ascontiguousarray(data).tobytes())
-            proc.stdin.flush()
-        except OSError:  # BrokenPipeError: it died
-            self._end()
-            return False
+        job = json.dumps(header).encode("utf-8") + b"\n" + np.ascontiguousarray(data).tobytes()
+        self._feeder = threading.Thread(target=_feed, args=(proc.stdin, job), name="plot job", daemon=True)
+        self._feeder.start()
+        self._sent = True
         self._pending = path
         return True
 
@@ -140,6 +147,7 @@ class PlotProcess:
         answering (the caller draws in process). A plot the helper could not draw raises
         :class:`RunError` with its message."""
         path, self._pending = self._pending, None
+        self._fed()
         proc = self._proc
         if path is None or proc is None or proc.stdout is None:
             return False
@@ -176,11 +184,23 @@ class PlotProcess:
         """End the helper whoever still uses it (idempotent): the run is over."""
         self._end()
 
+    def _fed(self) -> None:
+        """Wait for the job's writing thread (it ends once the job is in the pipe, or the
+        helper is gone)."""
+        feeder, self._feeder = self._feeder, None
+        if feeder is not None:
+            feeder.join()
+
     def _end(self) -> None:
         self._pending = None
         proc, self._proc = self._proc, None
         if proc is None:
             return
+        if not self._sent:
+            # never given a plot (bad input, a failed run): the helper has nothing to finish,
+            # and closing its input would wait for its import of matplotlib
+            proc.kill()
+        self._fed()
         try:
             if proc.stdin is not None:
                 proc.stdin.close()
@@ -193,6 +213,15 @@ class PlotProcess:
             proc.wait()
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+def _feed(stdin: IO[bytes], job: bytes) -> None:
+    """Write one job to the helper's input (the thread of :meth:`PlotProcess.send`)."""
+    try:
+        stdin.write(job)
+        stdin.flush()
+    except (OSError, ValueError):  # the helper died (BrokenPipeError), or its input was closed
+        pass
 
 
 # ----------------------------------------------------------------------------- the helper
