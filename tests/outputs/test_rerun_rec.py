@@ -173,34 +173,35 @@ class _Stream:
         raise RuntimeError(TIMED_OUT)
 
 
-def test_a_flush_left_unanswered_by_a_stopped_writer_ends_in_an_os_error(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+@pytest.fixture
+def rrd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A recording's file (its first bytes), and flushes that wait 10 ms at a time."""
+    from twin.outputs import rerun_rec
+
+    monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
+    path = tmp_path / "r.rrd"
+    path.write_bytes(b"RRF2")
+    return path
+
+
+def test_a_flush_left_unanswered_by_a_stopped_writer_ends_in_an_os_error(rrd: Path) -> None:
     import errno
 
     from twin.outputs import rerun_rec
 
-    monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
-    path = tmp_path / "r.rrd"
-    path.write_bytes(b"RRF2")
-    stream = _Stream(path, grow=0)
+    stream = _Stream(rrd, grow=0)
     with pytest.raises(rerun_rec._Stuck) as stuck:
-        rerun_rec._flush(stream, path)  # type: ignore[arg-type]
+        rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
     assert stream.flushes == 1  # not asked again: a second flush could wait for ever to be queued
     # the disk has room here, so the error says rerun stopped writing, naming the file
-    assert stuck.value.error.errno == errno.EIO and stuck.value.error.filename == str(path)
+    assert stuck.value.error.errno == errno.EIO and stuck.value.error.filename == str(rrd)
     assert "rerun stopped writing" in str(stuck.value.error)
-    assert path.read_bytes() == b"RRF2"  # the byte written to find the error is cut off again
+    assert rrd.read_bytes() == b"RRF2"  # the byte written to find the error is cut off again
 
 
-def test_a_slow_flush_is_waited_for_while_the_file_grows(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_a_slow_flush_is_waited_for_while_the_file_grows(rrd: Path) -> None:
     from twin.outputs import rerun_rec
 
-    monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
-    path = tmp_path / "r.rrd"
-    path.write_bytes(b"RRF2")
-    stream = _Stream(path, grow=100, answered_after=3)
-    rerun_rec._flush(stream, path)  # type: ignore[arg-type]
+    stream = _Stream(rrd, grow=100, answered_after=3)
+    rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
     assert stream.flushes == 4
