@@ -32,7 +32,8 @@ class Timing:
     fmu_steps: int
     realtime_factor: float | None  # simulated seconds per second of cosim_s
     #: the run's phases, s: FMU set-up, opening the outputs, stepping, writing while it ran, the
-    #: error model, then each output file as it is closed (benchmarks/bench_phases.py reads it)
+    #: error model, a short run's rows written after it (``last_rows``: twin.signals.recorder's
+    #: hold_last), then each output file as it is closed (benchmarks/bench_phases.py reads it)
     phases_s: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
 
