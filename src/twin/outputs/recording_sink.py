@@ -61,8 +61,9 @@ class RecordingSink:
     closes or fails before any: a run always leaves a recording). ``late_signals`` are the
     derived columns, declared up front because the blueprint needs every entity when the file
     is created; ``budget_columns`` go to the error-budget view. ``replay`` (a resumed run's
-    signals.csv, already cut back to its checkpoint) is sent first: a killed run never wrote
-    its recording's footer, so the recording is written anew from the rows the CSV kept.
+    signals.csv, already cut back to its checkpoint) is sent first, at :meth:`open`: a killed
+    run never wrote its recording's footer, so the recording is written anew from the rows the
+    CSV kept (a resumed run loads rerun when it opens its outputs).
     """
 
     def __init__(
@@ -91,6 +92,10 @@ class RecordingSink:
         if unknown:  # checked now, not when the first rows come
             raise ValueError(f"budget columns {unknown} are not among the signals")
         self._signals = list(signals)
+        if self.replay is not None:
+            # now, while signals.csv holds just the rows up to the checkpoint: the CSV's sink
+            # comes first and would have added the first new block by the first write
+            self._started()
 
     def _started(self) -> RecordingWriter:
         """The writer, made (file, blueprint, a resumed run's rows) on the first call."""
