@@ -152,21 +152,24 @@ print(pa.Table.from_pandas(pd.DataFrame({{"a": [1.0, None]}})).column("a").null_
 
 # rerun-sdk 0.41 can leave a flush unanswered for ever when its file writer stops on a full
 # disk just after the flush was queued (tests/test_run_faults.py fills a disk under a real run,
-# where it happened in about half the runs); these stand-ins for the stream give its two
-# answers for certain: "timed out" from a writer that stopped, and from one still writing.
+# where it happened in about half the runs); these stand-ins for the stream give its answers
+# for certain: "timed out" from a writer that stopped, or from one still writing.
 TIMED_OUT = "Flush timed out - not all log messages were sent"
 
 
 class _Stream:
-    """Answers each flush with "timed out", writing ``grow`` bytes to ``path`` first, until
-    ``answered_after`` flushes."""
+    """Answers each flush with a limit by "timed out", writing ``grow`` bytes to ``path``
+    first; a flush without a limit (as rerun's default) is answered."""
 
     def __init__(self, path: Path, grow: int, answered_after: int | None = None) -> None:
-        self.path, self.grow, self.answered_after, self.flushes = path, grow, answered_after, 0
+        self.path, self.grow, self.answered_after = path, grow, answered_after
+        self.flushes: list[float | None] = []
 
-    def flush(self, *, timeout_sec: float) -> None:
-        self.flushes += 1
-        if self.answered_after is not None and self.flushes > self.answered_after:
+    def flush(self, *, timeout_sec: float | None = None) -> None:
+        self.flushes.append(timeout_sec)
+        if timeout_sec is None or (
+            self.answered_after is not None and len(self.flushes) > self.answered_after
+        ):
             return
         with open(self.path, "ab") as f:
             f.write(b"x" * self.grow)
@@ -179,24 +182,38 @@ def rrd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     from twin.outputs import rerun_rec
 
     monkeypatch.setattr(rerun_rec, "FLUSH_CHECK_S", 0.01)
+    monkeypatch.setattr(rerun_rec, "STALL_S", 0.01)
     path = tmp_path / "r.rrd"
     path.write_bytes(b"RRF2")
     return path
 
 
-def test_a_flush_left_unanswered_by_a_stopped_writer_ends_in_an_os_error(rrd: Path) -> None:
+def test_a_flush_left_unanswered_on_a_full_disk_ends_in_its_os_error(rrd: Path) -> None:
     import errno
+    import resource
 
     from twin.outputs import rerun_rec
 
     stream = _Stream(rrd, grow=0)
-    with pytest.raises(rerun_rec._Stuck) as stuck:
-        rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
-    assert stream.flushes == 1  # not asked again: a second flush could wait for ever to be queued
-    # the disk has room here, so the error says rerun stopped writing, naming the file
-    assert stuck.value.error.errno == errno.EIO and stuck.value.error.filename == str(rrd)
-    assert "rerun stopped writing" in str(stuck.value.error)
-    assert rrd.read_bytes() == b"RRF2"  # the byte written to find the error is cut off again
+    limits = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (rrd.stat().st_size, limits[1]))  # the file is full
+    try:
+        with pytest.raises(rerun_rec._Stuck) as stuck:
+            rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, limits)
+    assert stream.flushes == [0.01]  # not asked again: a second flush may never be queued
+    assert stuck.value.error.errno == errno.EFBIG and stuck.value.error.filename == str(rrd)
+    assert rrd.read_bytes() == b"RRF2"
+
+
+def test_an_unanswered_flush_on_a_disk_with_room_is_waited_for_as_before(rrd: Path) -> None:
+    from twin.outputs import rerun_rec
+
+    stream = _Stream(rrd, grow=0)
+    rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
+    assert stream.flushes == [0.01, None]  # not this bug: waited for without a limit
+    assert rrd.read_bytes() == b"RRF2"  # the byte written to find out is cut off again
 
 
 def test_a_slow_flush_is_waited_for_while_the_file_grows(rrd: Path) -> None:
@@ -204,4 +221,23 @@ def test_a_slow_flush_is_waited_for_while_the_file_grows(rrd: Path) -> None:
 
     stream = _Stream(rrd, grow=100, answered_after=3)
     rerun_rec._flush(stream, rrd)  # type: ignore[arg-type]
-    assert stream.flushes == 4
+    assert stream.flushes == [0.01] * 4
+
+
+def test_a_long_chunk_goes_in_slices(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from twin.outputs import rerun_rec
+
+    monkeypatch.setattr(rerun_rec, "CHUNK_ROWS", 100)
+    table = SignalTable(np.arange(250.0))
+    signal = Signal("thermal.t_base", "K", "thermal")
+    table.add(signal, np.linspace(293.0, 300.0, 250))
+    write_recording(table, tmp_path / "r.rrd")
+    sizes = [
+        chunk.num_rows
+        for chunk in RrdReader(tmp_path / "r.rrd").stream().to_chunks()
+        if not chunk.is_static and chunk.entity_path == entity_path(signal)
+    ]
+    assert sorted(sizes) == [50, 100, 100]
+    t, v = read_recording(tmp_path / "r.rrd")[entity_path(signal)]
+    np.testing.assert_array_equal(t, table.time)
+    np.testing.assert_allclose(v, table["thermal.t_base"])

@@ -70,8 +70,7 @@ BUDGET_VIEW_NAME = "Error budget"
 SCENE_VIEW_NAME = "Tester (3D)"
 #: units recorded in another unit: SI unit -> (recorded unit, factor from SI)
 _DISPLAY_UNITS = {"m": ("µm", 1e6)}
-# write_recording sends a long table in slices of this many rows, so the arrow copies rerun
-# makes stay bounded whatever the run length.
+#: a long chunk is sent in slices of this many rows (RecordingWriter.append)
 CHUNK_ROWS = 65536
 
 
@@ -241,7 +240,10 @@ class RecordingWriter(ClosesOnExit):
         """Send one chunk: ``time_chunk`` (s) and one array per signal name.
 
         With ``partial``, the chunk may carry only some of the signals (e.g. the error model's
-        columns, computed after the run, sent on the same timeline).
+        columns, computed after the run, sent on the same timeline). A chunk longer than
+        :data:`CHUNK_ROWS` goes in slices of that many rows: the arrow copies rerun makes stay
+        bounded, and so does the time rerun's writer spends on one slice without writing
+        (:func:`_flush` reads a file that stops growing as a writer that stopped).
         """
         if self._rec is None:
             raise ValueError(f"{self.path} is closed")
@@ -264,14 +266,16 @@ class RecordingWriter(ClosesOnExit):
         for name, values in arrays.items():
             if values.shape != t.shape:
                 raise ValueError(f"column '{name}' has shape {values.shape}, time has {t.shape}")
-        # One time column shared by every entity of the chunk.
-        index = [rr.TimeColumn(TIMELINE, duration=_to_duration(t))]
-        for name, path_ in self.paths.items():
-            if name not in arrays:
-                continue
-            self._rec.send_columns(
-                path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name]), strict=True
-            )
+        for start in range(0, t.size, CHUNK_ROWS):
+            part = slice(start, start + CHUNK_ROWS)
+            # One time column shared by every entity of the slice.
+            index = [rr.TimeColumn(TIMELINE, duration=_to_duration(t[part]))]
+            for name, path_ in self.paths.items():
+                if name not in arrays:
+                    continue
+                self._rec.send_columns(
+                    path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name][part]), strict=True
+                )
         self.rows += t.size
 
     def close(self) -> None:
@@ -296,10 +300,12 @@ class RecordingWriter(ClosesOnExit):
             rec.disconnect()
 
 
-#: seconds one flush of a recording waits before the file is looked at: a healthy flush of a
-#: run's last rows takes hundredths of a second, and a file that did not grow in this time
-#: while a flush was on its way is one rerun stopped writing
+#: seconds one flush of a recording waits before the file is looked at (a healthy flush of a
+#: run's last rows takes hundredths of a second) ...
 FLUSH_CHECK_S = 2.0
+#: ... and seconds the file may then go without growing before rerun's writer is taken for
+#: one that stopped (it writes a slice of CHUNK_ROWS rows in milliseconds)
+STALL_S = 8.0
 
 
 class _Stuck(Exception):
@@ -311,30 +317,54 @@ class _Stuck(Exception):
 
 
 def _flush(rec: rr.RecordingStream, path: Path) -> None:
-    """``rec.flush()`` that cannot wait forever.
+    """``rec.flush()`` that does not wait forever on a full disk.
 
     rerun-sdk 0.41 waits forever when its file writer stops on a failed write (a full disk)
-    just after a flush was queued to it: that flush is never answered. Found with gdb on runs
-    whose disk filled while the recording's last rows were written (about half of them hung
-    at some disk sizes, whatever the order the twin wrote in). So a flush waits :data:`FLUSH_CHECK_S`
-    at a time; a file that did not grow meanwhile is one rerun stopped writing, and
-    :class:`_Stuck` says why (a full disk, found by writing a byte ourselves, now that nothing
-    else writes the file). A file still growing is waited for again.
+    just after a flush was queued to it: that flush is never answered, and a second one may
+    not even be queued. Found with gdb on runs whose disk filled while the recording's last
+    rows were written (about half of them hung at some disk sizes, whatever the order the twin
+    wrote in). So the flush waits :data:`FLUSH_CHECK_S`; unanswered, it is waited for again
+    while the file grows. A file that did not grow for :data:`STALL_S` more is one nothing
+    writes now, and one byte appended to it ourselves (cut off again) tells whether the disk
+    is full: then :class:`_Stuck` says so. A disk that takes the byte is not that case (a
+    process stopped and continued, a writer slow for another reason): the flush is waited for
+    as rerun's always was, without a limit.
     """
     while True:
-        size = path.stat().st_size
+        try:
+            size = path.stat().st_size
+        except OSError:  # the file is gone (its folder moved): nothing to look at
+            rec.flush()
+            return
         try:
             rec.flush(timeout_sec=FLUSH_CHECK_S)
             return
         except RuntimeError as exc:
             if "timed out" not in str(exc):
                 raise
+        if _grows(path, size, STALL_S):
+            continue
+        full = _probe(path)
+        if full is None:
+            rec.flush()
+            return
+        raise _Stuck(full)
+
+
+def _grows(path: Path, size: int, within_s: float) -> bool:
+    """Whether ``path`` is (or becomes, within ``within_s``) larger or smaller than ``size``."""
+    import time
+
+    deadline = time.monotonic() + within_s
+    while True:
+        try:
             if path.stat().st_size != size:
-                continue  # still writing: a slow disk
-            why = _probe(path) or OSError(
-                errno.EIO, f"rerun stopped writing the recording ({exc})", str(path)
-            )
-            raise _Stuck(why) from None
+                return True
+        except OSError:
+            return True  # gone: not a writer stuck on a full disk
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.05)
 
 
 def _abandon(rec: rr.RecordingStream) -> None:
@@ -384,9 +414,7 @@ def write_recording(
     with RecordingWriter(
         path, signals, app_id=app_id, recording_name=recording_name, budget_columns=budget_columns
     ) as writer:
-        for start in range(0, len(table), CHUNK_ROWS):
-            stop = start + CHUNK_ROWS
-            writer.append(table.time[start:stop], {n: v[start:stop] for n, v in table.columns.items()})
+        writer.append(table.time, dict(table.columns))  # in slices of CHUNK_ROWS
     return Path(path)
 
 
