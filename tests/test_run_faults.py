@@ -309,11 +309,16 @@ def test_ctrl_c_on_a_terminal_while_the_fmus_build_exits_130_and_writes_nothing(
 
 def test_ctrl_c_while_the_error_model_runs_exits_130_and_keeps_the_data(tmp_path: Path) -> None:
     # signals.csv's last row (t = 28800 s) is written when the co-simulation ends; then come
-    # the error model (0.3 s), errormodel.csv and the plot (0.6 s), before the Monte Carlo
+    # the error model, errormodel.csv and the plot, before the Monte Carlo. Rows every 5 s
+    # (5761, more than FLUSH_ROWS): the run writes them as it goes, not after its plots as it
+    # does a run whose rows all come at once (the replay's 2881 at 10 s)
     out = tmp_path / "run"
     csv = out / "signals.csv"
+    every_5_s = ["--set", 'scenario.output_interval="5 s"']
     p = subprocess.Popen(
-        [*TWIN, "run", str(PAPER), "--out", str(out), "--quiet"], stderr=subprocess.PIPE, text=True
+        [*TWIN, "run", str(PAPER), "--out", str(out), "--quiet", *every_5_s],
+        stderr=subprocess.PIPE,
+        text=True,
     )
 
     def last_row_written() -> bool:
@@ -334,8 +339,8 @@ def test_ctrl_c_while_the_error_model_runs_exits_130_and_keeps_the_data(tmp_path
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "interrupted" and "after the co-simulation" in summary["error"]
     assert "interval_90" not in summary["drift_mm"] and not (out / "uncertainty.csv").exists()
-    assert len(read_signals_csv(csv)) == 2881  # every row, and the error model's on them
-    assert len(read_signals_csv(out / "errormodel.csv")) == 2881
+    assert len(read_signals_csv(csv)) == 5761  # every row, and the error model's on them
+    assert len(read_signals_csv(out / "errormodel.csv")) == 5761
     assert "predicted" in summary["drift_mm"]
     # the plot only draws errormodel.csv: left out once the signal came (then named in the summary)
     assert (out / "error_budget.png").exists() != ("error_budget.png" in summary["error"])

@@ -145,16 +145,19 @@ class PlotProcess:
     def answer(self) -> bool:
         """Wait for the plot sent last. True when drawn; False when the helper died before
         answering (the caller draws in process). A plot the helper could not draw raises
-        :class:`RunError` with its message."""
-        path, self._pending = self._pending, None
+        :class:`RunError` with its message. The plot stays in hand while this waits: an
+        interrupt meanwhile leaves it to :meth:`abandon`."""
+        path = self._pending
         self._fed()
         proc = self._proc
         if path is None or proc is None or proc.stdout is None:
+            self._pending = None
             return False
         try:
             line = proc.stdout.readline()
         except OSError:
             line = b""
+        self._pending = None
         if not line:
             self._end()
             return False

@@ -139,8 +139,11 @@ def simulate(
     )
     try:
         result = master.run()
-    except BaseException:
-        recorder.flush()  # everything recorded before the error is kept
+    except BaseException as exc:
+        try:
+            recorder.flush()  # everything recorded before the error is kept
+        except Exception as other:  # the run's own error is the one to report
+            exc.add_note(f"the run's last rows could not be written either: {other}")
         raise
     return Simulation(scenario, result, recorder.table(), recorder.write_s, recorder)
 
@@ -214,7 +217,9 @@ def summarize(
     cosim_s = result.cosim_s - simulation.write_s
     # the recorder's write_s counts its sinks' opening (the recording's blueprint) and writing
     own = {"fmu_setup": result.setup_s, "stepping": cosim_s - result.setup_s}
-    own |= {"outputs_open": result.open_s, "outputs_write": simulation.write_s - result.open_s}
+    # the recorder times its own opening a little inside the master's timing of it: a run that
+    # wrote nothing while it ran (its rows held for after the plots) would show -1e-5 s
+    own |= {"outputs_open": result.open_s, "outputs_write": max(0.0, simulation.write_s - result.open_s)}
     timing = Timing(
         cosim_s=cosim_s,
         write_s=simulation.write_s,

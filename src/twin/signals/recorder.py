@@ -140,9 +140,11 @@ class TeeRecorder:
         return part
 
     def table(self) -> SignalTable:
-        """The kept columns of every row recorded so far."""
+        """The kept columns of every row recorded so far (views of the recorder's own copy,
+        which is kept as one piece from now: the run's kept rows are in memory once)."""
         times = np.concatenate(self._times) if self._times else np.zeros(0)
         rows = np.concatenate(self._rows) if self._rows else np.zeros((0, len(self._kept)))
+        self._times, self._rows = [times], [rows]
         table = SignalTable(times)
         for j, c in enumerate(self._kept):
             table.add(self.signals[c], rows[:, j])
