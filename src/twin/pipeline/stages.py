@@ -57,7 +57,8 @@ if TYPE_CHECKING:
 @dataclass
 class Simulation:
     """What the co-simulation hands on: the master's result, the kept columns of every
-    recorded row, and the wall time the sinks took while it ran."""
+    recorded row, the wall time the sinks took while it ran, and its recorder (which holds a
+    short run's rows for after the plots: :func:`simulate`'s ``hold_last_rows``)."""
 
     scenario: Scenario
     result: RunResult
@@ -140,10 +141,7 @@ def simulate(
     try:
         result = master.run()
     except BaseException as exc:
-        try:
-            recorder.flush()  # everything recorded before the error is kept
-        except Exception as other:  # the run's own error is the one to report
-            exc.add_note(f"the run's last rows could not be written either: {other}")
+        _hand_on(recorder, exc)
         raise
     return Simulation(scenario, result, recorder.table(), recorder.write_s, recorder)
 
@@ -479,12 +477,19 @@ def _disk_full(folder: RunFolder, scenario: Scenario, exc: OSError) -> RunError:
     )
 
 
+def _hand_on(recorder: TeeRecorder, error: BaseException) -> None:
+    """The rows ``recorder`` still holds to its sinks before the run raises ``error``: everything
+    recorded before an error is kept (a failure to write them is noted on ``error``, the run's
+    own error being the one to report)."""
+    try:
+        recorder.flush()
+    except Exception as other:
+        error.add_note(f"the run's last rows could not be written either: {other}")
+
+
 def _fail(sinks: Sequence[Sink], error: BaseException, simulation: Simulation | None = None) -> None:
     if simulation is not None and simulation.recorder is not None:
-        try:  # the rows held back at the end of the run (none once handed on)
-            simulation.recorder.flush()
-        except Exception as other:
-            error.add_note(f"the run's last rows could not be written either: {other}")
+        _hand_on(simulation.recorder, error)  # the rows held for after the plots, if still held
     for sink in sinks:
         try:
             sink.fail(error)
