@@ -17,9 +17,9 @@ A plot is sent as soon as the run's outcome is known (:meth:`PlotProcess.send`, 
 sink's ``prepare``; written to the helper by a thread, so a helper still importing matplotlib
 does not hold the run) and drawn while the run finishes its other files; one at a time. The
 run waits for each PNG (:meth:`PlotProcess.answer`) before summary.json, so every file it
-lists exists, and for the helper to end (it leaves at once, without the interpreter's teardown). If the
-process cannot be started, or dies, the plot is drawn in the run's own process instead: a
-missing second core or a killed helper costs time, never a plot. A plot that fails to draw
+lists exists, and for the helper to end (it leaves at once, without the interpreter's
+teardown). If the process cannot be started, or dies, the plot is drawn in the run's own
+process instead: a missing second core or a killed helper costs time, never a plot. A plot that fails to draw
 raises :class:`~twin.errors.RunError` with the helper's message. The helper ends when its
 input closes: when the run closes it, and when the run's process dies; a helper never sent a
 plot (bad input, a failed run) is killed at once.
