@@ -241,3 +241,40 @@ def test_a_long_chunk_goes_in_slices(tmp_path: Path, monkeypatch: pytest.MonkeyP
     t, v = read_recording(tmp_path / "r.rrd")[entity_path(signal)]
     np.testing.assert_array_equal(t, table.time)
     np.testing.assert_allclose(v, table["thermal.t_base"])
+
+
+_BACKLOG = """
+import sys
+import numpy as np
+from twin.outputs.rerun_rec import RecordingWriter
+from twin.signals.table import Signal
+
+def status_mb(key):  # VmHWM, not ru_maxrss: that keeps the forking parent's peak
+    for line in open("/proc/self/status"):
+        if line.startswith(key + ":"):
+            return int(line.split()[1]) / 1024
+
+signals = [Signal(f"thermal.t_{i}", "K", "thermal") for i in range(40)]
+columns = {s.name: np.random.default_rng(i).random(8192) for i, s in enumerate(signals)}
+with RecordingWriter(sys.argv[1], signals) as writer:
+    writer.append(np.arange(8192) * 10.0, columns)
+    settled = status_mb("VmRSS")
+    for k in range(1, 16):
+        writer.append((np.arange(8192) + 8192 * k) * 10.0, columns)
+    grown = status_mb("VmHWM") - settled
+print(f"{grown:.1f}")
+"""
+
+
+def test_rows_sent_faster_than_rerun_writes_them_are_not_held_in_memory(tmp_path: Path) -> None:
+    """16 blocks of 8192 rows x 40 columns (2.6 MB each) sent back to back: rerun queues what
+    it is sent without a bound, and each block waited for there would keep about 6 MB until
+    written (about 90 MB in all); the writer waits for the rows before, so memory stays flat."""
+    rrd = tmp_path / "r.rrd"
+    done = subprocess.run(
+        [sys.executable, "-c", _BACKLOG, str(rrd)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout) < 30.0  # MB above the first block's; without the wait: 90 MB and more
+    t, _ = read_recording(rrd)[entity_path(Signal("thermal.t_0", "K", "thermal"))]
+    np.testing.assert_array_equal(t, np.arange(16 * 8192) * 10.0)
