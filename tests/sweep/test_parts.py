@@ -200,3 +200,21 @@ def test_install_checks_every_file_before_writing(tmp_path: Path, monkeypatch: p
         shipping.install((_artifact("../escape.so", b"x"),))
     with pytest.raises(RunError, match="differs from the client's"):
         shipping.install(real[1:])  # a worker whose twin expects a binary the client did not send
+
+
+def test_a_workers_peak_memory_is_its_own_not_its_starters() -> None:
+    """A process started by one holding 300 MB reports its own peak: ru_maxrss would report
+    the starter's, and a worker's growth would not show under it."""
+    import subprocess
+    import sys
+
+    child = "from twin.sweep.execute import peak_rss_mb; print(peak_rss_mb())"
+    parent = (
+        "import subprocess, sys\n"
+        "held = bytearray(300 * 2**20)\n"
+        "held[::4096] = b'x' * len(held[::4096])\n"
+        f"print(subprocess.run([sys.executable, '-c', {child!r}], capture_output=True, text=True, check=True).stdout)"
+    )
+    done = subprocess.run([sys.executable, "-c", parent], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert 5.0 < float(done.stdout) < 150.0  # twin.sweep.execute and its imports: about 60 MB
