@@ -47,7 +47,8 @@ def run_env() -> dict[str, str]:
 
 def one_run(args: list[str], sets: list[str], out: Path) -> dict[str, float]:
     """One fresh process: wall s; peak MB of the largest process (wait4: the run's own, or its
-    plot helper's) and of all of them together (sampled); the run's phases."""
+    plot helper's; never below this script's own 20 MB, since ru_maxrss starts from the peak of
+    the starting process) and of all of them together (sampled); the run's phases."""
     cmd = [sys.executable, "-m", "twin", "run", *args, "--out", str(out), "--quiet", "--force"]
     for s in sets:
         cmd += ["--set", s]
