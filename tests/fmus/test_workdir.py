@@ -96,3 +96,26 @@ def test_instances_of_one_fmu_file_share_one_unpacked_folder(tmp_path: Path) -> 
         a.close()
         b.close()
     assert Path(a.unzipdir).is_dir()  # kept for the next instance; removed with the process
+
+
+def test_only_what_an_instance_loads_is_unpacked() -> None:
+    """The library for this platform (and resources, had the FMU any), not the sources and
+    documentation: each file and folder written costs a fresh process's set-up time."""
+    import zipfile
+
+    from fmpy import platform
+
+    from twin.fmu.slot import FMUSlot
+
+    fmu = ensure_fmu("ThermalNetwork")
+    slot = FMUSlot(fmu, "t")
+    try:
+        root = Path(slot.unzipdir)
+        unpacked = sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
+        assert unpacked == [f"binaries/{platform}/ThermalNetwork.so"]
+        assert any(n.startswith("sources/") for n in zipfile.ZipFile(fmu).namelist())  # there, not unpacked
+        slot.setup(0.0)  # and the instance runs
+        slot.enter_initialization()
+        slot.exit_initialization()
+    finally:
+        slot.close()
