@@ -102,6 +102,9 @@ def test_killed_run_resumes_to_the_same_signals_byte_for_byte(tmp_path: Path) ->
     a = json.loads((full / "summary.json").read_text())
     b = json.loads((part / "summary.json").read_text())
     assert a["compensation"] == b["compensation"] and a["wear_mm"] == b["wear_mm"]
+    # continued from a checkpoint (whole hours), not run again from the start
+    resumed = b["timing"]["resumed_from_s"]
+    assert a["timing"]["resumed_from_s"] == 0 and 0 < resumed < 36_000 and resumed % 3600 == 0
     proc = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(part / "recording.rrd")],
                           capture_output=True, check=False)  # fmt: skip
     assert proc.returncode == 0

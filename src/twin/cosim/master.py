@@ -66,6 +66,7 @@ class RunResult:
     macro_steps: int = 0
     fmu_steps: int = 0
     end_ns: int = 0
+    start_ns: int = 0  # where this run started: a resumed run's checkpoint, else 0
     info: dict[str, Any] = field(default_factory=dict)
 
 
@@ -139,6 +140,7 @@ class Master:
         start = wallclock.perf_counter()
         stepping, tick = self._start()
         plan = self.plan
+        self._start_ns = tick * plan.step_ns
         self._setup_s = wallclock.perf_counter() - start
         self.recorder.open([c.meta for c in plan.columns])
         self._open_s = wallclock.perf_counter() - start - self._setup_s
@@ -207,6 +209,7 @@ class Master:
             fmu_steps=int(c.fmu_steps),
             # every tick before the end, the failure or the interruption was done
             end_ns=int(c.macro_steps) * self.plan.step_ns,
+            start_ns=getattr(self, "_start_ns", 0),
         )
 
     def close(self, *, reuse: bool = False) -> None:

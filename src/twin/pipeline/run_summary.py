@@ -30,7 +30,9 @@ class Timing:
     total_s: float  # from the process's start until the summary was made
     macro_steps: int
     fmu_steps: int
-    realtime_factor: float | None  # simulated seconds per second of cosim_s
+    realtime_factor: float | None  # seconds simulated by this process per second of cosim_s
+    #: simulated time the process started from: a resumed run's checkpoint (``twin resume``), else 0
+    resumed_from_s: float = 0.0
     #: the run's phases, s: FMU set-up, opening the outputs, stepping, writing while it ran, the
     #: error model, a short run's rows written after it (``last_rows``: twin.signals.recorder's
     #: hold_last), then each output file as it is closed (benchmarks/bench_phases.py reads it)

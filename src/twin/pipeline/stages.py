@@ -211,7 +211,7 @@ def summarize(
     error = str(result.error) if result.error is not None else None
     if result.status == "interrupted":
         error = f"interrupted by {result.info.get('interrupted_by')}"
-    end_s = result.end_ns / NS_PER_S
+    end_s, start_s = result.end_ns / NS_PER_S, result.start_ns / NS_PER_S
     cosim_s = result.cosim_s - simulation.write_s
     # the recorder's write_s counts its sinks' opening (the recording's blueprint) and writing
     own = {"fmu_setup": result.setup_s, "stepping": cosim_s - result.setup_s}
@@ -224,7 +224,8 @@ def summarize(
         total_s=time.perf_counter() - process_start,
         macro_steps=result.macro_steps,
         fmu_steps=result.fmu_steps,
-        realtime_factor=end_s / cosim_s if cosim_s > 0 else None,
+        realtime_factor=(end_s - start_s) / cosim_s if cosim_s > 0 else None,
+        resumed_from_s=start_s,
         phases_s={k: round(v, 6) for k, v in {**own, **(phases or {})}.items()},
     )
     return RunSummary(
