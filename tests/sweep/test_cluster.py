@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import os
 import signal
 import subprocess
@@ -126,6 +127,8 @@ def test_sigkill_halfway_then_resume_gives_the_uninterrupted_table(
     resumed = run_sweep_cli(spec, out, "--resume")
     assert resumed.returncode == 0, resumed.stderr
     pd.testing.assert_frame_equal(_table(out), reference)
+    # the kept points were not run again (the table would be the same if they had been)
+    assert json.loads((out / "summary.json").read_text())["timing"]["points_run"] == N_POINTS - kept
 
 
 def _crashing(payload: dict, *, log: str, always: bool) -> dict:
