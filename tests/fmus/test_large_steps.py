@@ -45,10 +45,16 @@ EXACT = [
 ]
 
 
+#: both runs: the cylinder starts unloaded, so the servo's step map is compared through the
+#: load's rise to its command (a run that starts at the command holds the servo at its fixed
+#: point, where any step map gives the same constant), each 0.1 s exchange recorded
+BOTH = ["fmu.hydraulic.parameters.start_at_command=false", 'scenario.output_interval="0.1 s"']
+
+
 def _run(tmp_path: Path, name: str, sets: list[str]) -> dict[str, np.ndarray]:
     out = tmp_path / name
     args = ["run", str(TESTER), "--out", str(out), "--quiet", "--set", 'scenario.duration="20 min"']
-    for s in sets:
+    for s in [*BOTH, *sets]:
         args += ["--set", s]
     assert main(args) == 0
     table = read_signals_csv(out / "signals.csv")
@@ -66,6 +72,16 @@ def test_the_tester_steps_those_fmus_once_per_exchange() -> None:
     for name in ("hydraulic", "oscillation", "mechanics"):
         spec = scenario.fmu(name)
         assert spec.parameters["solver_step"].value * 1e9 == spec.period_ns
+
+
+def test_the_load_rises_through_the_servo_in_the_compared_runs(runs) -> None:
+    """What the comparison of the loader's columns stands on: the servo's load (the recorded
+    load without its ripple, a function of time) moves over the first exchanges before it
+    settles at the command (15 Hz: within a few tenths of a second)."""
+    fine = runs[1]
+    servo = fine["hydraulic.radial_load"] - fine["hydraulic.load_ripple"]
+    off = np.abs(servo - fine["hydraulic.load_command"])
+    assert servo[0] == 0.0 and np.count_nonzero(off[1:] > 0.1) >= 2 and off[-1] < 1e-6  # 362 N, 0.5 N
 
 
 @pytest.mark.parametrize("column", EXACT)
