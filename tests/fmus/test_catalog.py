@@ -169,3 +169,20 @@ def test_folder_files_reads_a_folder_sorted_without_hidden_files(tmp_path: Path)
         (tmp_path / name).write_text(name)
     (tmp_path / "sub").mkdir()
     assert toolchain.folder_files(tmp_path) == {"a.h": b"a.h", "b.c": b"b.c"}
+
+
+def test_a_description_is_parsed_once_per_content(tmp_path: Path) -> None:
+    """The source modelDescription.xml and the FMU built from it hold the same bytes: one
+    parse (fmpy's validation loads its schema for each); other bytes, another parse."""
+    from twin.fmu.build import ensure_fmu
+    from twin.fmu.catalog import describe
+
+    source = catalog.sources_dir() / "HydraulicLoader" / "modelDescription.xml"
+    fmu = ensure_fmu("HydraulicLoader")
+    assert describe(fmu) is describe(source)
+    edited = tmp_path / "modelDescription.xml"
+    text = source.read_text(encoding="utf-8")
+    edited.write_text(text.replace('name="servo_frequency"', 'name="servo_freq"', 1), encoding="utf-8")
+    other = describe(edited)
+    assert "servo_freq" in other.variables and "servo_frequency" not in other.variables
+    assert "servo_frequency" in describe(source).variables
