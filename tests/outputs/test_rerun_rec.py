@@ -278,3 +278,46 @@ def test_rows_sent_faster_than_rerun_writes_them_are_not_held_in_memory(tmp_path
     assert float(done.stdout) < 30.0  # MB above the first block's; without the wait: 90 MB and more
     t, _ = read_recording(rrd)[entity_path(Signal("thermal.t_0", "K", "thermal"))]
     np.testing.assert_array_equal(t, np.arange(16 * 8192) * 10.0)
+
+
+_FULL_DISK = """
+import errno, os, sys
+from pathlib import Path
+from twin.outputs import rerun_rec
+
+folder = Path(sys.argv[1])
+rrd = folder / "r.rrd"
+rrd.write_bytes(b"RRF2")
+with open(folder / "filler", "wb", buffering=0) as filler:  # the disk filled up
+    try:
+        while True:
+            filler.write(b"x" * 4096)
+    except OSError as exc:
+        assert exc.errno == errno.ENOSPC, exc
+full = rerun_rec._full(rrd)
+os.remove(folder / "filler")
+print(full.errno == errno.ENOSPC, full.filename == str(rrd), rrd.read_bytes() == b"RRF2",
+      sorted(p.name for p in folder.iterdir()), rerun_rec._full(rrd))
+"""
+
+
+def test_a_full_disk_is_found_without_writing_into_the_recording(tmp_path: Path) -> None:
+    """On a full disk (a 64 kB tmpfs in a private mount namespace), one byte to a new file beside
+    the recording fails with ENOSPC: a flush rerun will never answer is known at its first
+    timeout, not after the recording stalled for 8 s; the recording is not touched (rerun may
+    be writing it) and the probe's file is gone; with room again, nothing is found."""
+    import shutil
+
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    prefix = ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c"]
+    script = 'mount -t tmpfs -o size=64k tmpfs "$0" && exec "$@"'
+    probe = subprocess.run([*prefix, script, str(folder), "true"], capture_output=True, check=False)
+    if shutil.which("unshare") is None or probe.returncode != 0:
+        pytest.skip(f"no private tmpfs here (unshare: {probe.stderr.decode(errors='replace').strip()})")
+    done = subprocess.run(
+        [*prefix, script, str(folder), sys.executable, "-c", _FULL_DISK, str(folder)],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True", "True", "['r.rrd']", "None"]

@@ -327,9 +327,9 @@ class RecordingWriter(ClosesOnExit):
         self._unwritten = False
 
 
-#: seconds one flush of a recording waits before the file is looked at (a healthy flush of a
-#: run's last rows takes hundredths of a second) ...
-FLUSH_CHECK_S = 2.0
+#: seconds one flush of a recording waits before the disk is looked at (a healthy flush of a
+#: slice takes hundredths of a second; a longer one only costs a look) ...
+FLUSH_CHECK_S = 1.0
 #: ... and seconds the file may then go without growing before rerun's writer is taken for
 #: one that stopped (it writes a slice of CHUNK_ROWS rows in milliseconds)
 STALL_S = 8.0
@@ -348,14 +348,17 @@ def _flush(rec: rr.RecordingStream, path: Path) -> None:
 
     rerun-sdk 0.41 waits forever when its file writer stops on a failed write (a full disk)
     just after a flush was queued to it: that flush is never answered, and a second one may
-    not even be queued. Found with gdb on runs whose disk filled while the recording's last
-    rows were written (about half of them hung at some disk sizes, whatever the order the twin
-    wrote in). So the flush waits :data:`FLUSH_CHECK_S`; unanswered, it is waited for again
-    while the file grows. A file that did not grow for :data:`STALL_S` more is one nothing
-    writes now, and one byte appended to it ourselves (cut off again) tells whether the disk
-    is full: then :class:`_Stuck` says so. A disk that takes the byte is not that case (a
-    process stopped and continued, a writer slow for another reason): the flush is waited for
-    as rerun's always was, without a limit.
+    not even be queued. Found with gdb on runs whose disk filled while the recording's rows
+    were written (about half of them hung at some disk sizes, whatever the order the twin
+    wrote in). So the flush waits :data:`FLUSH_CHECK_S`; unanswered, the disk is asked
+    without touching the recording (:func:`_full`: a file at the process's size limit, or a
+    disk that refuses one byte of a new file beside it): a disk that can take nothing more
+    means the flush can never be answered, and :class:`_Stuck` says why. Otherwise the flush
+    is waited for again while the file grows. A file that did not grow for :data:`STALL_S`
+    more is one nothing writes now, and one byte appended to it ourselves (cut off again)
+    tells whether it can grow: if not, :class:`_Stuck`. A file that takes the byte is not that
+    case (a process stopped and continued, a writer slow for another reason): the flush is
+    waited for as rerun's always was, without a limit.
     """
     while True:
         try:
@@ -369,6 +372,9 @@ def _flush(rec: rr.RecordingStream, path: Path) -> None:
         except RuntimeError as exc:
             if "timed out" not in str(exc):
                 raise
+        full = _full(path)
+        if full is not None:
+            raise _Stuck(full)
         if _grows(path, size, STALL_S):
             continue
         full = _probe(path)
@@ -404,6 +410,38 @@ def _abandon(rec: rr.RecordingStream) -> None:
 
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(rec))
     rr.unregister_shutdown()
+
+
+def _full(path: Path) -> OSError | None:
+    """The error a write to ``path`` would end in now, found without writing into it (rerun
+    may still be writing it): EFBIG for a file at the process's file-size limit, or the error
+    of one byte written to a new file beside it and synced (ENOSPC, EDQUOT: a full disk); None
+    when neither says the disk is full."""
+    import resource
+
+    limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    try:
+        if limit != resource.RLIM_INFINITY and path.stat().st_size >= limit:
+            return _probe(path)  # a file at the limit cannot take the byte: nothing is written
+    except OSError:
+        return None
+    beside = path.with_name(f".{path.name}.probe-{os.getpid()}")
+    try:
+        fd = os.open(beside, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        try:
+            os.write(fd, b"\0")
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+    except OSError as found:
+        if found.errno in (errno.ENOSPC, errno.EDQUOT):
+            found.filename = str(path)
+            return found
+        return None
+    finally:
+        with contextlib.suppress(OSError):
+            beside.unlink()
+    return None
 
 
 def _probe(path: Path) -> OSError | None:
