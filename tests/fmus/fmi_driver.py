@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +17,7 @@ class Driver:
 
     def __init__(self, fmu: Path, name: str = "inst", unzipdir: str | None = None) -> None:
         self.md = read_model_description(str(fmu))
-        self.unzipdir = unzipdir or extract(str(fmu))
+        self.unzipdir = unzipdir or _extracted(fmu)
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.slave = FMU2Slave(
             guid=self.md.guid,
@@ -73,3 +76,11 @@ class Driver:
     def close(self) -> None:
         self.slave.terminate()
         self.slave.freeInstance()
+
+
+def _extracted(fmu: Path) -> str:
+    """``fmu`` unpacked into a new temporary folder, removed when the test process ends (fmpy's
+    own ``extract`` leaves its folder behind: thousands of them had piled up in /tmp)."""
+    folder = tempfile.mkdtemp(prefix="twin-test-fmu-")
+    atexit.register(shutil.rmtree, folder, True)
+    return extract(str(fmu), unzipdir=folder)
