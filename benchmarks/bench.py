@@ -549,14 +549,23 @@ class LibcosimFailed(RuntimeError):
     pass
 
 
+def _worker(flag: str, spec: dict[str, Any]) -> subprocess.CompletedProcess[str]:
+    """This script as a worker in a fresh process, with a temporary directory of its own,
+    removed after it: a worker leaves by ``os._exit`` (its teardown is not timed), so what it
+    unpacked stays, and the next twin process would clean it up within its timed set-up."""
+    with tempfile.TemporaryDirectory(prefix="twin-bench-worker-") as tmp:
+        return subprocess.run(
+            [sys.executable, str(Path(__file__).resolve()), flag],
+            input=json.dumps(spec),
+            capture_output=True,
+            text=True,
+            env={**os.environ, "TMPDIR": tmp},
+        )
+
+
 def libcosim_child(spec: dict[str, Any]) -> dict[str, Any]:
     """One libcosim run in a fresh process (a libcosim error aborts the whole process)."""
-    proc = subprocess.run(
-        [sys.executable, str(Path(__file__).resolve()), "--libcosim-worker"],
-        input=json.dumps(spec),
-        capture_output=True,
-        text=True,
-    )
+    proc = _worker("--libcosim-worker", spec)
     if proc.returncode != 0:
         lines = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
         what = [ln for ln in lines if ln.startswith("what():")]
@@ -579,12 +588,7 @@ def libcosim_worker() -> int:
 def twin_child(spec: dict[str, Any]) -> dict[str, Any]:
     """One run of our master in a fresh process, its first there, as libcosim's are timed: the
     FMU files read and unpacked, their libraries loaded (process start and imports not counted)."""
-    proc = subprocess.run(
-        [sys.executable, str(Path(__file__).resolve()), "--twin-worker"],
-        input=json.dumps(spec),
-        capture_output=True,
-        text=True,
-    )
+    proc = _worker("--twin-worker", spec)
     if proc.returncode != 0:
         raise RuntimeError(f"twin worker exited {proc.returncode}: {proc.stderr.strip()[-2000:]}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
