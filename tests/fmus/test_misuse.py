@@ -5,8 +5,10 @@ Each misuse runs in a child process: a segfault or abort would show up as a fail
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -39,14 +41,18 @@ MISUSES = {
 
 
 def probe(fmu: Path, case: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "tests.fmus.misuse_probe", str(fmu), case],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    # a temporary directory of its own, removed after it: the probe unpacks the FMU with fmpy,
+    # which leaves its folder there (and a probe that crashes would leave it anyway)
+    with tempfile.TemporaryDirectory(prefix="twin-misuse-") as tmp:
+        return subprocess.run(
+            [sys.executable, "-m", "tests.fmus.misuse_probe", str(fmu), case],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+            env={**os.environ, "TMPDIR": tmp},
+        )
 
 
 @pytest.mark.parametrize("model", model_names())
