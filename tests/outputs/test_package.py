@@ -24,13 +24,13 @@ def test_importing_the_package_does_not_import_rerun_or_matplotlib() -> None:
     assert out.split() == ["False", "False"]
 
 
-def test_a_runs_recording_loads_rerun_with_its_first_rows() -> None:
+def test_a_runs_recording_loads_rerun_with_its_first_rows(tmp_path: Path) -> None:
     # not when the run opens its outputs: a run that fails its checks or its set-up never pays it
     code = (
-        "import sys, numpy as np, tempfile, pathlib\n"
+        "import sys, numpy as np, pathlib\n"
         "from twin.outputs.recording_sink import RecordingSink\n"
         "from twin.signals.table import Block, Signal\n"
-        "sink = RecordingSink(pathlib.Path(tempfile.mkdtemp()) / 'r.rrd', recording_name='r')\n"
+        f"sink = RecordingSink(pathlib.Path({str(tmp_path / 'r.rrd')!r}), recording_name='r')\n"
         "sink.open([Signal('probe.reading', 'm', 'probe')])\n"
         "opened = 'rerun' in sys.modules\n"
         "sink.write(Block(np.arange(3.0), {'probe.reading': np.zeros(3)}))\n"
