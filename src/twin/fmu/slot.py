@@ -125,7 +125,8 @@ def _loaded_part(name: str) -> bool:
 
 def _extract(fmu_path: Path, instance_name: str) -> str:
     """Unpack what an instance loads of the FMU (:data:`_LOADED_PARTS`: 1 file of the twin's
-    12, so a fresh process sets up in a third of the time) into a new private folder; a write
+    12: a fresh process's set-up of the tester's five took half the time, 0.084 -> 0.041 s under
+    cProfile) into a new private folder; a write
     that fails there (a full disk) names that folder, since zipfile's error names no file."""
     folder = extraction_dir(f"{instance_name}-")
     try:
