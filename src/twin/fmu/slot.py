@@ -125,9 +125,9 @@ def _loaded_part(name: str) -> bool:
 
 def _extract(fmu_path: Path, instance_name: str) -> str:
     """Unpack what an instance loads of the FMU (:data:`_LOADED_PARTS`: 1 file of the twin's
-    12: a fresh process's set-up of the tester's five took half the time, 0.084 -> 0.041 s under
-    cProfile) into a new private folder; a write
-    that fails there (a full disk) names that folder, since zipfile's error names no file."""
+    12; a fresh process's set-up of the tester's five took half the time, 0.084 -> 0.041 s
+    under cProfile) into a new private folder; a write that fails there (a full disk) names
+    that folder, since zipfile's error names no file."""
     folder = extraction_dir(f"{instance_name}-")
     try:
         return extract(str(fmu_path), unzipdir=folder, include=_loaded_part)
