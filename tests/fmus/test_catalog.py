@@ -90,6 +90,36 @@ def test_native_handles_are_the_functions_the_slot_calls(fmu_paths: dict[str, Pa
         slot.close()
 
 
+
+def test_later_instances_get_the_prototypes_fmpy_gives(fmu_paths: dict[str, Path]) -> None:
+    """FMU2SlaveTyped reuses the first instance's typing of the FMI functions: every function
+    of a later instance's library is typed exactly as fmpy's own loader types it."""
+    from fmpy.fmi2 import FMU2Slave
+
+    from twin.fmu.slot import FMU2SlaveTyped
+
+    first = FMUSlot(fmu_paths["ThermalNetwork"], "typed-first")
+    later = FMUSlot(fmu_paths["SensorsDAQ"], "typed-later")
+    try:
+        assert FMU2SlaveTyped._prototypes, "the first instance left no prototypes to reuse"
+        ours = later._slave
+        theirs = FMU2Slave(
+            guid=later.description.guid,
+            unzipDirectory=later.unzipdir,
+            modelIdentifier=later.description.model_identifier,
+            instanceName="fmpy-itself",
+        )
+        assert sorted(ours._functions) == sorted(theirs._functions)
+        assert len(ours._functions) > 30
+        for name, f in theirs._functions.items():
+            mine = ours._functions[name]
+            assert (mine.argtypes, mine.restype, mine.argnames) == (f.argtypes, f.restype, f.argnames), name
+            assert ctypes.cast(mine, ctypes.c_void_p).value == ctypes.cast(f, ctypes.c_void_p).value
+    finally:
+        later.close()
+        first.close()
+
+
 # ---------------------------------------------------------------------------- toolchain
 
 
