@@ -90,7 +90,6 @@ def test_native_handles_are_the_functions_the_slot_calls(fmu_paths: dict[str, Pa
         slot.close()
 
 
-
 def test_later_instances_get_the_prototypes_fmpy_gives(fmu_paths: dict[str, Path]) -> None:
     """FMU2SlaveTyped reuses the first instance's typing of the FMI functions: every function
     of a later instance's library is typed exactly as fmpy's own loader types it."""
