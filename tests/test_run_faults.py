@@ -202,13 +202,16 @@ def _file_size_limit(limit: int):
     return apply
 
 
-def _limited_run(out: Path, limit: int) -> tuple[subprocess.CompletedProcess[str], str]:
+def _limited_run(
+    out: Path, limit: int, env: dict[str, str] | None = None
+) -> tuple[subprocess.CompletedProcess[str], str]:
     r = subprocess.run(
         [*TWIN, "run", str(PAPER), "--uncertainty", "0", "--out", str(out), "--quiet"],
         capture_output=True,
         text=True,
         timeout=300,
         preexec_fn=_file_size_limit(limit),
+        env=env,
     )
     assert r.returncode == 1, r.stderr
     line = _one_line(r.stderr)
@@ -251,10 +254,20 @@ def test_a_disk_too_full_for_the_summary_says_that_too(tmp_path: Path) -> None:
     assert not (out / "summary.json").exists() and not list(out.glob(".*.tmp"))
 
 
-def test_a_full_disk_while_the_fmus_are_unpacked_names_their_folder(tmp_path: Path) -> None:
+def test_a_full_disk_while_the_fmus_libraries_are_cached_names_the_cache(tmp_path: Path) -> None:
+    # a new cache with the built FMUs and the stepper in it, but none of the FMUs' libraries
+    # taken out yet: the run's first write is one of them (larger than 12 kB)
+    from twin.fmu.toolchain import LIBRARY_SUFFIX, private_cache_dir
+
+    cache = tmp_path / "cache"
+    cache.mkdir(mode=0o700)
+    for f in private_cache_dir().iterdir():
+        if f.name.endswith((".fmu", ".fmu.sha256")) or f.name.startswith("twin_stepper-"):
+            shutil.copy(f, cache / f.name)
+    assert list(cache.glob("*.fmu")) and list(cache.glob(f"twin_stepper-*{LIBRARY_SUFFIX}"))
     out = tmp_path / "run"
-    _, line = _limited_run(out, 12_000)  # the FMUs' binaries are larger than 12 kB
-    assert "(the extracted " in line and ".fmu)" in line, line
+    _, line = _limited_run(out, 12_000, {**os.environ, "TWIN_CACHE_DIR": str(cache)})
+    assert f"while writing {cache} (the library of " in line and ".fmu)" in line, line
     assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
 
 

@@ -1,6 +1,6 @@
 """The cache of built binaries is trusted only as far as it is private and checked.
 
-A cached FMU or stepper is loaded into the twin's process, and a shared library runs its
+A cached FMU's library or the stepper is loaded into the twin's process, and a shared library runs its
 constructors when loaded: a library planted in the cache under the expected name must never
 be loaded, and a cache others may write into is refused.
 """
@@ -11,14 +11,15 @@ import ctypes
 import os
 import shutil
 import subprocess
+import zipfile
 from pathlib import Path
 
 import pytest
 
 from twin.cli import main
 from twin.cosim import native
-from twin.errors import UnsafeCacheError
-from twin.fmu.build import ensure_fmu
+from twin.errors import BuildError, UnsafeCacheError
+from twin.fmu.build import built_library, ensure_fmu
 from twin.fmu.toolchain import (
     LIBRARY_SUFFIX,
     content_hash,
@@ -102,3 +103,79 @@ def test_a_cache_that_is_a_file_is_refused(cache: Path) -> None:
     cache.write_text("not a folder")
     with pytest.raises(UnsafeCacheError, match="not a folder"):
         private_cache_dir()
+
+
+# -------------------------------------------------- the libraries of built FMUs (build.built_library)
+
+
+@pytest.fixture
+def seeded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A new private cache holding this session's built HydraulicLoader (no build needed), and
+    nothing else: no library taken out of it yet."""
+    fmu = ensure_fmu("HydraulicLoader")  # in the session's cache
+    folder = tmp_path / "cache"
+    folder.mkdir(mode=0o700)
+    for f in (fmu, digest_file(fmu)):
+        shutil.copy(f, folder / f.name)
+    monkeypatch.setenv("TWIN_CACHE_DIR", str(folder))
+    return folder / fmu.name
+
+
+def _member(fmu: Path) -> bytes:
+    from fmpy import platform
+
+    with zipfile.ZipFile(fmu) as zf:
+        return zf.read(f"binaries/{platform}/HydraulicLoader{LIBRARY_SUFFIX}")
+
+
+def test_a_built_fmus_library_is_its_own_taken_out_once(seeded: Path) -> None:
+    library = built_library(seeded)
+    assert library is not None and library.parent == seeded.parent and verified(library)
+    assert library.read_bytes() == _member(seeded)
+    stamp = library.stat().st_mtime_ns
+    assert built_library(seeded) == library and library.stat().st_mtime_ns == stamp  # not again
+
+
+@pytest.mark.parametrize("record", ["none", "wrong"])
+def test_a_planted_fmu_library_is_taken_out_anew_and_never_loaded(
+    seeded: Path, tmp_path: Path, record: str
+) -> None:
+    library = built_library(seeded)
+    assert library is not None
+    marker = tmp_path / "planted-ran"
+    digest_file(library).unlink()
+    planted = _plant(library, marker, tmp_path)
+    if record == "wrong":
+        digest_file(library).write_text("0" * 64 + "\n", encoding="ascii")
+    again = built_library(seeded)
+    assert again == library and again.read_bytes() == _member(seeded) != planted
+    ctypes.CDLL(str(again))
+    assert not marker.exists(), "the planted library's constructor ran"
+
+
+def test_no_library_is_taken_from_an_fmu_that_is_not_what_was_built(seeded: Path) -> None:
+    good = seeded.read_bytes()
+    seeded.write_bytes(good[:-10] + b"0123456789")  # the same size, other bytes
+    with pytest.raises(BuildError, match="do not match the SHA-256 recorded"):
+        built_library(seeded)
+    assert list(seeded.parent.glob(f"*{LIBRARY_SUFFIX}")) == []
+
+
+def test_an_fmu_from_elsewhere_has_no_cached_library(seeded: Path, tmp_path: Path) -> None:
+    elsewhere = tmp_path / "lab"
+    elsewhere.mkdir()
+    for f in (seeded, digest_file(seeded)):  # even with a record beside it
+        shutil.copy(f, elsewhere / f.name)
+    assert built_library(elsewhere / seeded.name) is None
+    assert list(seeded.parent.glob(f"*{LIBRARY_SUFFIX}")) == []
+
+
+def test_the_libraries_of_fmus_no_longer_cached_go_with_them(seeded: Path) -> None:
+    stale = seeded.parent / f"HydraulicLoader-{'1' * 16}-{'2' * 16}{LIBRARY_SUFFIX}"
+    stale.write_bytes(b"an older build's library")
+    digest_file(stale).write_text(file_sha256(stale) + "\n", encoding="ascii")
+    other = seeded.parent / f"OscillationDrive-{'3' * 16}-{'4' * 16}{LIBRARY_SUFFIX}"
+    other.write_bytes(b"another model's")
+    assert built_library(seeded) is not None
+    assert not stale.exists() and not digest_file(stale).exists()
+    assert other.exists()  # another model's: not this one's to prune

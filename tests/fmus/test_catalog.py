@@ -107,6 +107,7 @@ def test_later_instances_get_the_prototypes_fmpy_gives(fmu_paths: dict[str, Path
             unzipDirectory=later.unzipdir,
             modelIdentifier=later.description.model_identifier,
             instanceName="fmpy-itself",
+            libraryPath=later.library,
         )
         assert sorted(ours._functions) == sorted(theirs._functions)
         assert len(ours._functions) > 30

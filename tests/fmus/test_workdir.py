@@ -1,9 +1,11 @@
-"""FMUs are extracted into a private folder per process, removed at exit; the folders a killed
-process left are removed by the next twin process."""
+"""An FMU from elsewhere is extracted into a private folder per process, removed at exit; the
+folders a killed process left are removed by the next twin process. An FMU the twin built loads
+its library from the cache, where it was taken out once (:func:`twin.fmu.build.built_library`)."""
 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -37,8 +39,14 @@ def _env(tmp: Path) -> dict[str, str]:
     return {**os.environ, "TMPDIR": str(tmp)}
 
 
+def _foreign(folder: Path, model: str = "HydraulicLoader") -> Path:
+    """A copy of a built FMU outside the cache: an FMU from elsewhere, as a lab's would be."""
+    folder.mkdir(parents=True, exist_ok=True)
+    return Path(shutil.copy(ensure_fmu(model), folder / f"{model}.fmu"))
+
+
 def test_a_killed_process_leaves_no_extracted_fmu_behind_for_long(tmp_path: Path) -> None:
-    fmu = str(ensure_fmu("HydraulicLoader"))
+    fmu = str(_foreign(tmp_path / "lab"))
     held = subprocess.Popen(
         [sys.executable, "-c", HOLD, fmu], env=_env(tmp_path), stdout=subprocess.PIPE, text=True
     )
@@ -66,20 +74,25 @@ def test_a_shared_extraction_parent_is_refused(tmp_path: Path, mode: int) -> Non
     parent.mkdir()
     os.chmod(parent, mode)
     done = subprocess.run(
-        [sys.executable, "-c", EXTRACT, str(ensure_fmu("HydraulicLoader"))],
+        [sys.executable, "-c", EXTRACT, str(_foreign(tmp_path / "lab"))],
         env=_env(tmp_path), capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert done.returncode != 0 and "is not a private folder of this user" in done.stderr
 
 
-def test_instances_of_one_fmu_file_share_one_unpacked_folder(tmp_path: Path) -> None:
-    """A run's or a sweep worker's instances of one FMU load one folder, unpacked once."""
+@pytest.mark.parametrize("origin", ["built", "foreign"])
+def test_instances_of_one_fmu_file_share_one_library(tmp_path: Path, origin: str) -> None:
+    """A run's or a sweep worker's instances of one FMU load one library: a built FMU's from
+    the cache, a foreign one's from one folder, unpacked once."""
     from twin.fmu.slot import FMUSlot
+    from twin.fmu.toolchain import private_cache_dir
 
-    fmu = ensure_fmu("HydraulicLoader")
+    fmu = ensure_fmu("HydraulicLoader") if origin == "built" else _foreign(tmp_path / "lab")
     a, b = FMUSlot(fmu, "a"), FMUSlot(fmu, "b")
     try:
-        assert a.unzipdir == b.unzipdir and Path(a.unzipdir).is_dir()
+        assert a.library == b.library and Path(a.library).is_file()
+        in_cache = Path(a.library).parent == private_cache_dir()
+        assert in_cache == (origin == "built")
         # two instances, one library: each keeps its own state
         a.setup(0.0)
         b.setup(0.0)
@@ -95,10 +108,10 @@ def test_instances_of_one_fmu_file_share_one_unpacked_folder(tmp_path: Path) -> 
     finally:
         a.close()
         b.close()
-    assert Path(a.unzipdir).is_dir()  # kept for the next instance; removed with the process
+    assert Path(a.library).is_file()  # kept for the next instance (a foreign one's: until the process ends)
 
 
-def test_only_what_an_instance_loads_is_unpacked() -> None:
+def test_only_what_an_instance_loads_is_unpacked(tmp_path: Path) -> None:
     """The library for this platform (and resources, had the FMU any), not the sources and
     documentation: each file and folder written costs a fresh process's set-up time."""
     import zipfile
@@ -107,7 +120,7 @@ def test_only_what_an_instance_loads_is_unpacked() -> None:
 
     from twin.fmu.slot import FMUSlot
 
-    fmu = ensure_fmu("ThermalNetwork")
+    fmu = _foreign(tmp_path / "lab", "ThermalNetwork")
     slot = FMUSlot(fmu, "t")
     try:
         root = Path(slot.unzipdir)

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from fmpy import extract
+from fmpy import extract, sharedLibraryExtension
 from fmpy import platform as fmpy_platform
 from fmpy.fmi2 import FMU2Slave
 
@@ -142,16 +142,34 @@ def file_key(path: Path) -> tuple[str, int, int]:
     return str(Path(path).resolve()), st.st_size, st.st_mtime_ns
 
 
+class Loaded(NamedTuple):
+    """What the instances of one FMU file load: its description, the folder fmpy is given as
+    the unpacked FMU (its ``resources/`` are there, had it any) and its library."""
+
+    description: Description
+    unzipdir: str
+    library: str
+
+
 @functools.cache
-def _unpacked(key: tuple[str, int, int]) -> tuple[Description, str]:
-    """One FMU file's description and unpacked folder, once per process: every instance of it
-    (the five of a run, a sweep's points on a worker) loads the same folder instead of reading
-    and unpacking the zip again (about 6 ms an instance). The file is one
-    :func:`twin.fmu.catalog.fmu` has just verified; the folder is private to this process
-    (:func:`twin.fmu.workdir.process_dir`) and removed with it. A failed unpacking (a full disk)
-    is not remembered: the next instance tries again."""
+def _loaded(key: tuple[str, int, int]) -> Loaded:
+    """One FMU file's description and library, once per process: every instance of it (the
+    five of a run, a sweep's points on a worker) loads the same library instead of reading
+    the zip again (about 6 ms an instance). An FMU the twin built (:func:`twin.fmu.catalog.fmu`
+    has just verified it) loads its library from the cache, where it was taken out once
+    (:func:`twin.fmu.build.built_library`); any other FMU is unpacked into a folder private
+    to this process (:func:`twin.fmu.workdir.process_dir`) and removed with it. A failure (a
+    full disk) is not remembered: the next instance tries again."""
+    from twin.fmu.build import built_library
+
     path = Path(key[0])
-    return describe(path), _extract(path, path.stem)
+    description = describe(path)
+    library = built_library(path)
+    if library is not None:
+        return Loaded(description, str(library.parent), str(library))
+    unzipdir = _extract(path, path.stem)
+    name = f"{description.model_identifier}{sharedLibraryExtension}"
+    return Loaded(description, unzipdir, os.path.join(unzipdir, "binaries", fmpy_platform, name))
 
 
 class FMU2SlaveTyped(FMU2Slave):
@@ -191,13 +209,9 @@ class FMUSlot:
     ``messages`` collects what the FMU logged (its reasons for errors end up in FMUError).
     """
 
-    def __init__(self, fmu_path: Path, instance_name: str, *, unzipdir: str | None = None) -> None:
+    def __init__(self, fmu_path: Path, instance_name: str) -> None:
         self.name = instance_name
-        if unzipdir is None:
-            self.description, unzipdir = _unpacked(file_key(fmu_path))
-        else:
-            self.description = describe(fmu_path)
-        self.unzipdir = unzipdir
+        self.description, self.unzipdir, self.library = _loaded(file_key(fmu_path))
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self.time = 0.0
@@ -206,6 +220,7 @@ class FMUSlot:
             unzipDirectory=self.unzipdir,
             modelIdentifier=self.description.model_identifier,
             instanceName=instance_name,
+            libraryPath=self.library,
         )
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=False)
         dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
