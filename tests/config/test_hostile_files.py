@@ -463,3 +463,31 @@ def test_a_hostile_sweep_file_gets_one_line(
     if key:
         assert f": {key}: " in lines[0] or f": {key} " in lines[0], lines[0]
     assert word.lower() in lines[0].lower(), lines[0]
+
+
+def test_bytes_read_again_are_not_parsed_again_and_each_reader_gets_its_own_copy(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """read_toml keeps what it parsed by the bytes' SHA-256 (a sweep's client reads the same
+    parameter files for every point): same bytes, one parse; changed bytes, a new one; and a
+    reader that changes its data (as ``--set`` does) changes nobody else's."""
+    import tomllib
+
+    from twin.config import problems
+
+    parses: list[str] = []
+    real = tomllib.loads
+    monkeypatch.setattr(problems.tomllib, "loads", lambda text: parses.append(text) or real(text))
+    path = tmp_path / "parameters.toml"
+    path.write_text('[parameters]\nL = 0.125\nname = "a"\n')
+    first = read_toml(path, "first")
+    first["parameters"]["L"] = 99.0  # a reader's own change
+    second = read_toml(path, "second")
+    assert second == {"parameters": {"L": 0.125, "name": "a"}} and len(parses) == 1
+    path.write_text('[parameters]\nL = 0.25\nname = "a"\n')
+    assert read_toml(path, "changed")["parameters"]["L"] == 0.25 and len(parses) == 2
+    path.write_text("[parameters]\nL = \n")  # bad bytes: refused each time, never kept
+    for _ in range(2):
+        with pytest.raises(ConfigError, match="TOML syntax error"):
+            read_toml(path, "broken")
+    assert len(parses) == 4
