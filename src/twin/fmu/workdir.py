@@ -1,6 +1,8 @@
-"""Where FMUs are extracted: one private folder per process, gone when the process is.
+"""Where FMUs from elsewhere are extracted: one private folder per process, gone with it.
 
-fmpy loads an FMU from an extracted folder. Each twin process extracts into its own folder
+fmpy loads an FMU from an extracted folder. An FMU the twin built loads its library from the
+cache instead (:func:`twin.fmu.build.built_library`); any other (a scenario's own ``.fmu``, an
+SSP's) is extracted by each twin process into its own folder
 ``<tmp>/twin-<uid>/pid-<pid>/`` (the parent 0700, this user's only), removed at exit; a
 process killed with SIGKILL cannot remove its own, so the next twin process that extracts an
 FMU removes the folders of processes that no longer run. ``<tmp>`` is Python's temporary
