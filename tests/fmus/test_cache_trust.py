@@ -174,8 +174,53 @@ def test_the_libraries_of_fmus_no_longer_cached_go_with_them(seeded: Path) -> No
     stale = seeded.parent / f"HydraulicLoader-{'1' * 16}-{'2' * 16}{LIBRARY_SUFFIX}"
     stale.write_bytes(b"an older build's library")
     digest_file(stale).write_text(file_sha256(stale) + "\n", encoding="ascii")
+    # another checkout's build of the same model, sharing the cache: its FMU is there
+    shutil.copy(seeded, seeded.parent / f"HydraulicLoader-{'5' * 16}.fmu")
+    kept = seeded.parent / f"HydraulicLoader-{'5' * 16}-{'6' * 16}{LIBRARY_SUFFIX}"
+    kept.write_bytes(b"the other checkout's library")
     other = seeded.parent / f"OscillationDrive-{'3' * 16}-{'4' * 16}{LIBRARY_SUFFIX}"
     other.write_bytes(b"another model's")
     assert built_library(seeded) is not None
     assert not stale.exists() and not digest_file(stale).exists()
+    assert kept.exists(), "the library of an FMU still in the cache was pruned"
     assert other.exists()  # another model's: not this one's to prune
+
+
+def test_a_library_is_checked_again_for_every_instance(seeded: Path, tmp_path: Path) -> None:
+    """fmpy unloads a library when its last instance is freed: the next instance opens the
+    file again, so the file is checked again (a planted one is replaced, never run)."""
+    from twin.fmu.slot import FMUSlot
+
+    fmu = ensure_fmu("HydraulicLoader")
+    assert fmu == seeded
+    first = FMUSlot(fmu, "first")
+    library = Path(first.library)
+    first.close()  # its library unloaded
+    marker = tmp_path / "planted-ran"
+    record = digest_file(library).read_text(encoding="ascii")
+    _plant(library, marker, tmp_path)
+    digest_file(library).write_text(record, encoding="ascii")  # the record of the real one
+    second = FMUSlot(fmu, "second")
+    try:
+        assert not marker.exists(), "the planted library's constructor ran"
+        assert Path(second.library) == library and library.read_bytes() == _member(seeded)
+    finally:
+        second.close()
+
+
+def test_a_relative_cache_folder_works(seeded: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """fmpy changes the working directory while it loads a library: the cache's paths are
+    absolute, whatever TWIN_CACHE_DIR says."""
+    from twin.fmu.slot import FMUSlot
+
+    monkeypatch.chdir(seeded.parent.parent)
+    monkeypatch.setenv("TWIN_CACHE_DIR", seeded.parent.name)
+    assert private_cache_dir() == seeded.parent
+    slot = FMUSlot(ensure_fmu("HydraulicLoader"), "relative")
+    try:
+        assert Path(slot.library).is_absolute() and Path(slot.library).parent == seeded.parent
+        slot.setup(0.0)
+        slot.enter_initialization()
+        slot.exit_initialization()
+    finally:
+        slot.close()

@@ -12,6 +12,7 @@ import math
 import os
 import re
 import stat
+import threading
 import tomllib
 from collections import OrderedDict
 from collections.abc import Iterable, Mapping
@@ -184,6 +185,7 @@ def did_you_mean(word: str, known: Iterable[str]) -> str:
 #: Python: 0.2-0.5 ms a file, a deep copy a tenth of that). Small files only, a few of them.
 _PARSED: OrderedDict[bytes, dict[str, Any]] = OrderedDict()
 _PARSED_FILES, _PARSED_FILE_BYTES = 32, 64 * 1024
+_PARSED_LOCK = threading.Lock()
 
 
 def read_toml(path: Path, source: str) -> dict[str, Any]:
@@ -195,7 +197,10 @@ def read_toml(path: Path, source: str) -> dict[str, Any]:
     each caller gets its own copy of the data (scenario data is changed by ``--set``)."""
     raw = _read_regular_file(path, source)
     key = hashlib.sha256(raw).digest()
-    data = _PARSED.get(key)
+    with _PARSED_LOCK:  # a worker may run points in several threads
+        data = _PARSED.get(key)
+        if data is not None:
+            _PARSED.move_to_end(key)
     if data is None:
         try:
             text = raw.decode("utf-8")
@@ -204,11 +209,10 @@ def read_toml(path: Path, source: str) -> dict[str, Any]:
         data = parse_toml(text, source)
         if len(raw) > _PARSED_FILE_BYTES:
             return data
-        _PARSED[key] = data
-        while len(_PARSED) > _PARSED_FILES:
-            _PARSED.popitem(last=False)
-    else:
-        _PARSED.move_to_end(key)
+        with _PARSED_LOCK:
+            _PARSED[key] = data
+            while len(_PARSED) > _PARSED_FILES:
+                _PARSED.popitem(last=False)
     return copy.deepcopy(data)
 
 

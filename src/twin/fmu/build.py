@@ -20,6 +20,8 @@ changed, so a fresh clone or install just works.
 from __future__ import annotations
 
 import functools
+import hashlib
+import io
 import os
 import tempfile
 import zipfile
@@ -34,7 +36,6 @@ from twin.fmu.toolchain import (
     cached,
     content_hash,
     digest_file,
-    file_sha256,
     find_tools,
     private_cache_dir,
     run_cmake,
@@ -229,9 +230,10 @@ def built_library(fmu: Path) -> Path | None:
     model_name = fmu.stem.rsplit("-", 1)[0]
 
     def take_out(scratch: Path) -> Path:
-        if file_sha256(fmu) != recorded:
+        data = fmu.read_bytes()  # unzipped from the bytes that were hashed, not the file again
+        if hashlib.sha256(data).hexdigest() != recorded:
             raise BuildError(f"{fmu}: its bytes do not match the SHA-256 recorded at its build")
-        with zipfile.ZipFile(fmu) as zf:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
             names = zf.namelist()
             if any(n.startswith("resources/") for n in names):
                 raise BuildError(f"{fmu}: has resources/, which the FMUs built here never have")

@@ -44,12 +44,13 @@ LIBRARY_SUFFIX = {"win32": ".dll", "darwin": ".dylib"}.get(sys.platform, ".so")
 
 
 def cache_dir() -> Path:
-    """Where built files are kept: ``TWIN_CACHE_DIR`` or ``$XDG_CACHE_HOME/twin/fmus``."""
+    """Where built files are kept: ``TWIN_CACHE_DIR`` or ``$XDG_CACHE_HOME/twin/fmus``, as an
+    absolute path (fmpy changes the working directory while it loads a library)."""
     env = os.environ.get(CACHE_ENV)
     if env:
-        return Path(env)
+        return Path(env).absolute()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "twin" / "fmus"
+    return (Path(base) / "twin" / "fmus").absolute()
 
 
 def private_cache_dir() -> Path:
