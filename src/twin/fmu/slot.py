@@ -143,8 +143,8 @@ def file_key(path: Path) -> tuple[str, int, int]:
 
 
 class Loaded(NamedTuple):
-    """What the instances of one FMU file load: its description, the folder fmpy is given as
-    the unpacked FMU (its ``resources/`` are there, had it any) and its library."""
+    """What an instance of an FMU file loads: its description, the folder fmpy is given as the
+    unpacked FMU (its ``resources/`` are there, had it any) and its library."""
 
     description: Description
     unzipdir: str
