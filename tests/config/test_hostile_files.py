@@ -491,3 +491,35 @@ def test_bytes_read_again_are_not_parsed_again_and_each_reader_gets_its_own_copy
         with pytest.raises(ConfigError, match="TOML syntax error"):
             read_toml(path, "broken")
     assert len(parses) == 4
+
+
+def test_a_reader_of_parsed_bytes_shares_no_table_or_array_with_another(tmp_path: Path) -> None:
+    """The copy a reader gets of cached data is new at every level a reader can change: tables
+    in arrays of tables, arrays in arrays, inline tables; the scalars (immutable) may be shared."""
+    import datetime
+
+    text = (
+        'when = 2017-03-01T08:00:00Z\nv = [1, [2.5, "x"]]\n'
+        '[[profile]]\nat = "0 s"\nset = { load = 1.0 }\n[[profile]]\nat = "1 h"\n'
+    )
+    path = tmp_path / "profile.toml"
+    path.write_text(text)
+    first = read_toml(path, "first")
+    expected = {
+        "when": datetime.datetime(2017, 3, 1, 8, 0, tzinfo=datetime.UTC),
+        "v": [1, [2.5, "x"]],
+        "profile": [{"at": "0 s", "set": {"load": 1.0}}, {"at": "1 h"}],
+    }
+    assert first == expected
+    first["v"][1].append(3)  # a reader's own changes, at every depth
+    first["profile"][0]["set"]["load"] = 2.0
+    first["profile"][1]["at"] = "2 h"
+    first["profile"].append({})
+    assert read_toml(path, "second") == expected
+    # data a caller built (a sweep point's) may hold other types: those are deep-copied
+    from twin.config.problems import toml_copy
+
+    built = {"pair": ([1.0], "x")}
+    copied = toml_copy(built)
+    copied["pair"][0].append(2.0)
+    assert built == {"pair": ([1.0], "x")}

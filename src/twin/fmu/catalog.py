@@ -49,6 +49,11 @@ def shipped_folder(package: str, name: str, checkout_name: str) -> list[Path]:
     ``package``'s resource ``name`` in an installed wheel; ``checkout_name`` beside ``src/``
     when running from a source tree. Returns the candidates in that order (they may not exist).
     """
+    return list(_shipped_folder(package, name, checkout_name))
+
+
+@cache  # where the package is does not change in a process; a sweep's client asks every point
+def _shipped_folder(package: str, name: str, checkout_name: str) -> tuple[Path, ...]:
     candidates = []
     shipped = files(package) / name
     if isinstance(shipped, Path):  # a real folder (not inside a zip)
@@ -56,7 +61,7 @@ def shipped_folder(package: str, name: str, checkout_name: str) -> list[Path]:
     import twin  # the package's own location says which checkout it belongs to
 
     candidates.append(Path(twin.__file__).resolve().parents[2] / checkout_name)
-    return candidates
+    return tuple(candidates)
 
 
 def sources_dir() -> Path:

@@ -29,7 +29,6 @@ configuration are loaded, so an unknown key or a value no point could take is ex
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 from collections.abc import Mapping
@@ -38,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data
-from twin.config.problems import unsafe_name
+from twin.config.problems import toml_copy, unsafe_name
 from twin.config.spec import Scenario
 from twin.errors import ConfigError, ConfigErrors
 
@@ -345,7 +344,7 @@ def build_scenario(data: Mapping[str, Any], base: Path, overrides: tuple[str, ..
     and the error model's checks), named by the base file's name only (no client paths)."""
     from twin.errormodel.config import evaluation_config
 
-    point = copy.deepcopy(dict(data))
+    point = toml_copy(dict(data))  # every point changes its own copy
     apply_overrides(point, overrides, f"{base.name}: point")
     scenario = load_scenario_data(point, base.name, base.resolve().parent)
     evaluation_config(scenario)
