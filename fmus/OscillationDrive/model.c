@@ -27,6 +27,7 @@
  * std sigma_v truncated at 4 std. One normal is drawn every step, on or off, so the stream
  * depends only on the step count.
  */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -226,7 +227,9 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
     const double *r = comp->v.r;
     const double h = r[VR_solver_step], elapsed = (double)comp->v.steps_taken * h;
     const double f_max = fmax(fabs(real_var(VR_radial_load)->min), fabs(real_var(VR_radial_load)->max));
-    const double d_max = 0.5 * r[VR_d_k] * r[VR_amplitude] * 4.0 * (phase_of(comp, m->n_on) + 1.0) * (1.0 + 1e-6);
+    /* the bounds are products of the parameters, with 1e-6 for rounding and DBL_MIN for an
+     * underflow: a subnormal amplitude (5e-324 rad) gives a bound of 0 but a distance of 5e-324 m */
+    const double d_max = 0.5 * r[VR_d_k] * r[VR_amplitude] * 4.0 * (phase_of(comp, m->n_on) + 1.0) * (1.0 + 1e-6) + DBL_MIN;
     const double z_max = (r[VR_vibration_amplitude] + NOISE_CLIP * r[VR_vibration_noise]) * (1.0 + 1e-9);
     const char *why = rng_problem(&m->rng);
     if (why) {
@@ -234,8 +237,8 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
         return -1;
     }
     if (bad_counters(comp, c) || state_bad_real(c, "distance", m->distance, 0.0, d_max) ||
-        state_bad_real(c, "energy", m->energy, 0.0, r[VR_mu_max] * f_max * m->distance * (1.0 + 1e-6)) ||
-        state_bad_real(c, "e_block", m->e_block, 0.0, m->energy * (1.0 + 1e-6)) ||
+        state_bad_real(c, "energy", m->energy, 0.0, r[VR_mu_max] * f_max * m->distance * (1.0 + 1e-6) + DBL_MIN) ||
+        state_bad_real(c, "e_block", m->e_block, 0.0, m->energy * (1.0 + 1e-6) + DBL_MIN) ||
         state_bad_real(c, "q_avg", m->q_avg, 0.0, HUGE_VAL) ||
         state_bad_real(c, "t_since_rev", m->t_since_rev, -h, elapsed * (1.0 + 1e-6) + h) ||
         state_bad_real(c, "z_vib", m->z_vib, -z_max, z_max))

@@ -207,16 +207,12 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
         log_error(comp, "invalid parameters: %s", msg);
         return fmi2Error;
     }
-    if (model_initialize(comp) != fmi2OK) {
-        comp->state = ST_ERROR;
-        return fmi2Error;
-    }
+    /* what fails here comes from the parameters and inputs (model_initialize sets the states
+     * from them alone): the instance stays in initialization mode, where they can be corrected */
+    if (model_initialize(comp) != fmi2OK) return fmi2Error;
     model_outputs(comp);
+    if (!outputs_finite(comp)) return fmi2Error;
     comp->state = ST_STEP_COMPLETE;
-    if (!outputs_finite(comp)) {
-        comp->state = ST_ERROR;
-        return fmi2Error;
-    }
     return fmi2OK;
 }
 
@@ -345,6 +341,8 @@ static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
     }
     if (model_initialize(comp) != fmi2OK) return fmi2Error;
     model_outputs(comp);
+    /* parameters in their ranges can still combine into an overflow (a spring of 1e-307 N/m) */
+    if (!outputs_finite(comp)) return fmi2Error;
     return fmi2OK;
 }
 
@@ -450,14 +448,14 @@ int state_fail(StateCheck *c, const char *fmt, ...) {
 
 int state_bad_real(StateCheck *c, const char *what, double x, double lo, double hi) {
     if (isfinite(x) && x >= lo && x <= hi) return 0;
-    return state_fail(c, "%s = %.17g is not finite in [%g, %g]", what, x, lo, hi);
+    return state_fail(c, "%s = %.17g is not a finite value within [%.10g, %.10g]", what, x, lo, hi);
 }
 
 int state_bad_reals(StateCheck *c, const char *what, const double *x, size_t n, double lo, double hi) {
     size_t k;
     for (k = 0; k < n; k++) {
         if (!(isfinite(x[k]) && x[k] >= lo && x[k] <= hi))
-            return state_fail(c, "%s[%zu] = %.17g is not finite in [%g, %g]", what, k, x[k], lo, hi);
+            return state_fail(c, "%s[%zu] = %.17g is not a finite value within [%.10g, %.10g]", what, k, x[k], lo, hi);
     }
     return 0;
 }
@@ -542,6 +540,20 @@ static int same_output(double a, double b) {
     return isfinite(a) && isfinite(b) && fabs(a - b) <= 1e-9 * fmax(fabs(a), fabs(b));
 }
 
+/* The output fault_inject = 3 made NaN after a step (fmi2DoStep): the first output. A state saved
+ * then holds that NaN, and restoring it must give it back (the fault is the model's, on purpose). */
+static int injected_nan(const ModelValues *v, size_t k) {
+#ifdef VR_fault_inject
+    size_t j = 0;
+    if (!(v->r[VR_fault_inject] >= 2.5) || !isnan(v->r[k])) return 0;
+    while (j < N_REALS && VARS_REAL[j].causality != CAUS_OUTPUT) j++;
+    return j == k;
+#else
+    (void)v, (void)k;
+    return 0;
+#endif
+}
+
 /* 'Step complete' is the one state in which the model computes with its states: its parameters
  * pass model_check, its states model_check_state, and its outputs are model_outputs of them
  * (every step and every set of an input recompute them). */
@@ -553,7 +565,7 @@ static int bad_model(StateCheck *c, const ModelInstance *comp, const ModelValues
     if (model_check(&scratch, c->msg, c->size) != 0 || model_check_state(&scratch, c) != 0) return 1;
     model_outputs(&scratch);
     for (k = 0; k < N_REALS; k++) {
-        if (VARS_REAL[k].causality == CAUS_OUTPUT && !same_output(v->r[k], scratch.v.r[k]))
+        if (VARS_REAL[k].causality == CAUS_OUTPUT && !same_output(v->r[k], scratch.v.r[k]) && !injected_nan(v, k))
             return state_fail(c, "output '%s' = %.17g is not what the states give (%.17g)", VARS_REAL[k].name, v->r[k],
                               scratch.v.r[k]);
     }
@@ -737,7 +749,11 @@ static int outputs_finite(ModelInstance *comp) {
     size_t k;
     for (k = 0; k < N_REALS; k++) {
         if (VARS_REAL[k].causality == CAUS_OUTPUT && !isfinite(comp->v.r[k])) {
-            log_error(comp, "output '%s' is not finite at t = %.9g s", VARS_REAL[k].name, model_time(comp));
+            if (comp->state == ST_INIT_MODE)
+                log_error(comp, "output '%s' is not finite in initialization mode: the parameters give %g",
+                          VARS_REAL[k].name, comp->v.r[k]);
+            else
+                log_error(comp, "output '%s' is not finite at t = %.9g s", VARS_REAL[k].name, model_time(comp));
             return 0;
         }
     }
@@ -758,10 +774,17 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     }
     h_int = comp->v.r[INTERNAL_STEP_VR];
     t = model_time(comp);
-    tol = 1e-6 * h_int + 1e-12 * fabs(t);
-    if (fabs(currentCommunicationPoint - t) > tol) {
-        log_error(comp, "fmi2DoStep: currentCommunicationPoint %.12g s does not match the FMU's time %.12g s",
-                  currentCommunicationPoint, t);
+    /* The FMU keeps its own time exactly (a count of internal steps); the host's clock only has to
+     * name the same step. A host that sums its steps in floating point (tc += h, as the FMI 2.0
+     * standard's example master does) drifts from it by rounding: 2e-8 s after 10^5 steps of
+     * 0.1 s. Less than half an internal step off is that; half a step or more is a step skipped or
+     * repeated. */
+    tol = 0.5 * h_int;
+    if (!(fabs(currentCommunicationPoint - t) < tol)) {
+        log_error(comp,
+                  "fmi2DoStep: currentCommunicationPoint %.17g s does not match the FMU's time %.17g s (off by %.3g s, "
+                  "half an internal step or more: a step skipped or repeated)",
+                  currentCommunicationPoint, t, currentCommunicationPoint - t);
         return fmi2Error;
     }
     n_real = communicationStepSize / h_int;

@@ -19,12 +19,10 @@ static void matmul(size_t n, const double *a, const double *b, double *out) {
     }
 }
 
-int la_expm(size_t n, const double *a, double *out, double *work) {
-    double *scaled = work, *term = work + n * n, *tmp = work + 2 * n * n;
-    double norm = 0.0, scale;
-    int squarings = 0, k;
+int la_expm_squarings(size_t n, const double *a) {
+    double norm = 0.0;
+    int squarings = 0;
     size_t i, j;
-
     /* infinity norm decides how often to halve: Taylor converges fast for ||A|| <= 1/2 */
     for (i = 0; i < n; i++) {
         double row = 0.0;
@@ -34,10 +32,21 @@ int la_expm(size_t n, const double *a, double *out, double *work) {
         }
         if (row > norm) norm = row;
     }
+    if (!isfinite(norm)) return -1;
     while (norm > 0.5) {
         norm *= 0.5;
         squarings++;
     }
+    return squarings;
+}
+
+int la_expm(size_t n, const double *a, double *out, double *work) {
+    double *scaled = work, *term = work + n * n, *tmp = work + 2 * n * n;
+    double scale;
+    int squarings = la_expm_squarings(n, a), k;
+    size_t i;
+
+    if (squarings < 0) return -1;
     scale = ldexp(1.0, -squarings);
     for (i = 0; i < n * n; i++) scaled[i] = a[i] * scale;
 

@@ -10,6 +10,10 @@
  * not alias a; work must hold 3*n*n doubles. Returns 0, or -1 if a has NaN/Inf. */
 int la_expm(size_t n, const double *a, double *out, double *work);
 
+/* How many squarings la_expm takes for a (the halvings that bring its infinity norm to 1/2), or
+ * -1 if a has NaN/Inf. Each squaring doubles the rounding of the result: 2^s eps relative. */
+int la_expm_squarings(size_t n, const double *a);
+
 /* y = m x for an r x c matrix m. */
 void la_matvec(size_t r, size_t c, const double *m, const double *x, double *y);
 
