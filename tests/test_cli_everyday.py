@@ -52,6 +52,35 @@ def test_argument_errors_say_twin_once(capsys) -> None:
         assert line.startswith("twin: ") and not line.startswith("twin: twin"), line
 
 
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["run", ""], "scenario"),
+        (["validate", " "], "scenario"),
+        (["identify", "--out", ""], "--out"),
+        (["identify", "--priors", ""], "--priors"),
+        (["export-ssp", "", "--output", "x.ssp"], "scenario"),
+        (["calibrate", "--out", ""], "--out"),
+        (["geometry", "--scenarios", ""], "--scenarios"),
+        (["compensate", "m.csv", "--config", ""], "--config"),
+        (["sweep", ""], "spec"),
+        (["heldout", ""], "file"),
+        (["inspect", ""], "target"),
+        (["run", "--set", "scenario.seed=1", "--set", ""], "--set"),
+    ],
+)
+def test_an_empty_argument_is_refused_not_taken_for_the_default(
+    argv: list[str], named: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    # the commands read a missing argument as "the default": `identify --out ""` rewrote the
+    # committed coefficients file, `validate ""` checked the paper's scenario
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"twin: {argv[0]}: argument {named}: is empty"], err
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
 def test_the_papers_drift_is_shown_only_beside_the_papers_replay(tmp_path: Path, capsys) -> None:
     assert (
         main(["run", "constant-load", "--out", str(tmp_path / "a"), "--set", 'scenario.duration="2 min"'])

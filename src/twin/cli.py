@@ -10,7 +10,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from twin import __version__, identify_cli, inspect_cli, ssp_cli
 from twin.errors import ConfigError, TwinError
@@ -30,6 +30,20 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         # the line starts "twin: " already: name the subcommand, not "twin" a second time
         raise ConfigError(message, source=self.prog.removeprefix("twin").strip() or None)
+
+    def parse_known_args(
+        self, args: Any = None, namespace: Any = None
+    ) -> tuple[argparse.Namespace, list[str]]:  # type: ignore[override]
+        """As argparse, and an empty argument is refused: the commands read a missing one as
+        "the default", and ``--out ""`` once rewrote the committed coefficients file."""
+        parsed, extras = super().parse_known_args(args, namespace)
+        for action in self._actions:
+            value = getattr(parsed, action.dest, None)
+            values = value if isinstance(value, list) else [value]
+            if any(isinstance(v, str) and not v.strip() for v in values):
+                name = max(action.option_strings, key=len, default=action.metavar or action.dest)
+                self.error(f"argument {name}: is empty")
+        return parsed, extras
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
