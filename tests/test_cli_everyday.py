@@ -81,6 +81,16 @@ def test_an_empty_argument_is_refused_not_taken_for_the_default(
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+@pytest.mark.parametrize("count", ["-1", "100001", "99999999999999999999"])
+def test_a_monte_carlo_beyond_its_bound_is_refused_before_the_run(count: str, tmp_path: Path, capsys) -> None:
+    # 10^9 samples were taken at their word: the machine ran out of memory, summary.json said
+    # "completed" and the command was killed without a line
+    assert main(["run", "--uncertainty", count, "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"twin: --uncertainty: expected a number of samples in [0, 100000], got {count}"], err
+    assert not (tmp_path / "r").exists()
+
+
 def test_the_papers_drift_is_shown_only_beside_the_papers_replay(tmp_path: Path, capsys) -> None:
     assert (
         main(["run", "constant-load", "--out", str(tmp_path / "a"), "--set", 'scenario.duration="2 min"'])

@@ -249,7 +249,7 @@ def _run(args: argparse.Namespace, plots: PlotProcess | None) -> int:
     from twin.errormodel.config import evaluation_config
     from twin.outputs.run_folder import RunFolder, output_folder
     from twin.pipeline import run
-    from twin.validation.replay import for_run
+    from twin.validation.replay import MAX_SAMPLES, for_run
 
     start = time.perf_counter()
     # from here a Ctrl-C asks the command to stop; the run folder, once made, then holds
@@ -257,8 +257,11 @@ def _run(args: argparse.Namespace, plots: PlotProcess | None) -> int:
     stop = _stop_on_signals()
     scenario = _load(args)
     evaluation_config(scenario)  # the error model's checks, as twin validate makes them
-    if args.uncertainty is not None and args.uncertainty < 0:
-        raise ConfigError("expected a number of samples >= 0", source="--uncertainty")
+    if args.uncertainty is not None and not 0 <= args.uncertainty <= MAX_SAMPLES:
+        raise ConfigError(
+            f"expected a number of samples in [0, {MAX_SAMPLES}], got {args.uncertainty}",
+            source="--uncertainty",
+        )
     path = _scenario_path(args.scenario)
     uncertainty = for_run(path, args.set or [], args.uncertainty)  # checked before the run
     out = output_folder(args.out, Path("runs") / scenario.name)  # checked before anything runs

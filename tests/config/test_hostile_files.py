@@ -340,6 +340,13 @@ MORE_HOSTILE = [
         "uncertainty-negative-samples", "integer", _with_uncertainty("samples = -64"), "uncertainty.samples"
     ),
     Hostile("uncertainty-unknown-key", "unknown", _with_uncertainty("samplez = 64"), "uncertainty.samplez"),
+    # a mistyped count filled the machine's memory before the first sample ran
+    Hostile(
+        "uncertainty-billion-samples",
+        "100000",
+        _with_uncertainty("samples = 1_000_000_000"),
+        "uncertainty.samples",
+    ),
 ]
 HOSTILE += MORE_HOSTILE
 

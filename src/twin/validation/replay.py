@@ -46,6 +46,11 @@ from twin.errors import ConfigError, ConfigErrors
 __all__ = ["Uncertainty", "add_to_summary", "parse_uncertainty", "run_uncertainty"]
 
 _KEYS = {"samples", "seed", "spreads", "room", "room_shapes", "room_drift_K"}
+#: the most Monte Carlo samples a run takes: the 90 % interval's ends are then known to about
+#: 0.2 % of the spread (the 5 % quantile's standard error, sqrt(0.05 x 0.95 / n) / pdf), and
+#: every sample's row is kept until uncertainty.csv is written; a mistyped count (1e9) would
+#: otherwise fill the memory before the first sample ran
+MAX_SAMPLES = 100_000
 #: spawn keys of this Monte Carlo's draws (distinct from the held-out validation's)
 SAMPLE_KEY = 7
 
@@ -67,11 +72,13 @@ def _check(p: list[ConfigError], src: str, table: Mapping[str, Any]) -> None:
     from twin.validation.draws import ROOM_SHAPES
 
     p += [ConfigError("unknown key", source=src, key=f"uncertainty.{k}") for k in table if k not in _KEYS]
-    for k, lo in (("samples", 0), ("seed", 0)):
+    for k, lo, hi in (("samples", 0, MAX_SAMPLES), ("seed", 0, 2**63 - 1)):
         v = table.get(k, lo)
-        if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
             p.append(
-                ConfigError(f"expected an integer >= {lo}, got {v!r}", source=src, key=f"uncertainty.{k}")
+                ConfigError(
+                    f"expected an integer in [{lo}, {hi}], got {v!r}", source=src, key=f"uncertainty.{k}"
+                )
             )
     drift = table.get("room_drift_K", 1.0)
     if isinstance(drift, bool) or not isinstance(drift, int | float) or not 0 <= drift < math.inf:
