@@ -78,3 +78,31 @@ def test_grid_is_every_combination_in_order(tmp_path: Path) -> None:
     design = make_design(spec)
     assert design.rows == [(1.0, 0.0), (1.0, 1e-7), (2.0, 0.0), (2.0, 1e-7), (3.0, 0.0), (3.0, 1e-7)]
     assert len(set(design.seeds)) == 6
+
+
+@pytest.mark.parametrize(
+    ("design", "samples", "extra"),
+    [
+        ("lhs", 6, ""),
+        ("saltelli", 4, ""),
+        ("saltelli", 4, "second_order = true\n"),
+        ("morris", 3, ""),
+        ("saltelli", 4, "GROUPS"),
+        ("morris", 3, "GROUPS"),
+    ],
+)
+def test_the_point_count_checked_before_a_design_is_made_is_its_size(
+    design: str, samples: int, extra: str, tmp_path: Path
+) -> None:
+    # the limit on a sweep's points is checked from this count, before the design exists
+    from twin.sweep.design import point_count
+
+    groups = 'groups = ["a", "a", "b"]\n' if extra == "GROUPS" else ""
+    body = (
+        f'design = "{design}"\nsamples = {samples}\n{extra if extra != "GROUPS" else ""}'
+        '[problem]\nnames = ["input.thermal.t_room.rise", "fmu.thermal.parameters.g_base_room", '
+        '"fmu.thermal.parameters.g_oil_room"]\nbounds = [[0.0, 1.0], [10.0, 20.0], [10.0, 20.0]]\n' + groups
+    )
+    spec = load_spec(write_spec(tmp_path / "s.toml", body))
+    size = len(make_design(spec))
+    assert point_count(spec.design, spec.samples, spec.problem, spec.levels, spec.second_order) == size

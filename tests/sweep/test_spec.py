@@ -102,6 +102,17 @@ def test_toml_value_reads_back_the_same(value: object) -> None:
 # ------------------------------------------------------------------------------ bad input
 
 LHS = 'design = "lhs"\nsamples = 4\n'
+#: eight conductances of the thermal network, each in a grid of twenty levels
+GRID_KEYS = [
+    "g_base_room",
+    "g_heel_block_room",
+    "g_bearing_block_room",
+    "g_spindle_room",
+    "g_t_plate_room",
+    "g_detecting_frame_room",
+    "g_clamp_room",
+    "g_oil_room",
+]
 BAD = {
     "unknown key": (
         LHS + '[problem]\nnames = ["input.thermal.t_room.rize"]\nbounds = [[0.0, 9.0]]\n',
@@ -154,6 +165,19 @@ BAD = {
         + LHS
         + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',
         "sweep.name: '/tmp/x' cannot name a folder",
+    ),
+    # a 2.5 KB file once asked for 2.56e10 points and a Saltelli design for 5.9e7: the
+    # machine's memory filled before a point ran (a hostile review)
+    "grid of ten billion points": (
+        'design = "grid"\n[grid]\n'
+        + "".join(f'"fmu.thermal.parameters.{g}" = {[1.0 + i / 10 for i in range(20)]}\n' for g in GRID_KEYS),
+        "grid: 25600000000 points, more than the 1000000 a sweep may have",
+    ),
+    "saltelli of 59 million points": (
+        'design = "saltelli"\nsamples = 8388608\n[problem]\nnames = ["input.thermal.t_room.rise", '
+        '"fmu.thermal.parameters.g_base_room", "fmu.thermal.parameters.g_oil_room"]\n'
+        "bounds = [[0.0, 1.0], [10.0, 20.0], [10.0, 20.0]]\n",
+        "sweep.samples: 41943040 points, more than the 1000000 a sweep may have",
     ),
     "sobol not a power of two": (
         'design = "saltelli"\nsamples = 12\n[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',

@@ -364,7 +364,7 @@ def _sweep_table(p: _Problems, raw: Mapping[str, Any], path: Path) -> dict[str, 
     if why is not None:  # the name becomes the sweep's folder: sweeps/<name>
         p.add("sweep.name", why)
         name = "sweep"
-    samples = _int(p, sw, "samples", 0 if design == "grid" else 1, 0, 10**7)
+    samples = _int(p, sw, "samples", 0 if design == "grid" else 1, 0, 10**7)  # points: MAX_POINTS
     if design != "grid" and samples == 0:
         p.add("sweep.samples", "empty design: at least one sample")
     if design in _POWER_OF_TWO and samples & (samples - 1):
@@ -507,6 +507,16 @@ def spec_from_data(raw: Mapping[str, Any], path: Path, base: Path | None = None)
             problem["groups"] = groups
         centres = [[centre(r[1], r[2]), *ends(r[1], r[2])] for r in rows]
     p.check()
+    from twin.sweep.design import MAX_POINTS, point_count  # design imports this module
+
+    points = point_count(sw["design"], sw["samples"], problem, levels, sw["second_order"])
+    if points > MAX_POINTS:
+        p.add(
+            "grid" if sw["design"] == "grid" else "sweep.samples",
+            f"{points} points, more than the {MAX_POINTS} a sweep may have: split it, or take fewer "
+            + ("levels" if sw["design"] == "grid" else "samples"),
+        )
+        p.check()
     spec = Spec(path=path, base=base, problem=problem, levels=levels, base_data=data, **sw)
     _check_keys(p, spec, centres)
     p.check()
