@@ -77,7 +77,10 @@ def test_an_empty_argument_is_refused_not_taken_for_the_default(
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"twin: {argv[0]}: argument {named}: is empty"], err
+    expected = (
+        f"twin: {named}: is empty" if named.startswith("--") else f"twin: {argv[0]}: the {named} is empty"
+    )
+    assert err == [expected], err
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 

@@ -41,8 +41,10 @@ class _Parser(argparse.ArgumentParser):
             value = getattr(parsed, action.dest, None)
             values = value if isinstance(value, list) else [value]
             if any(isinstance(v, str) and not v.strip() for v in values):
-                name = max(action.option_strings, key=len, default=action.metavar or action.dest)
-                self.error(f"argument {name}: is empty")
+                if action.option_strings:  # as output_folder says it: "twin: --out: is empty"
+                    raise ConfigError("is empty", source=max(action.option_strings, key=len))
+                command = self.prog.removeprefix("twin").strip() or None
+                raise ConfigError(f"the {action.dest.replace('_', ' ')} is empty", source=command)
         return parsed, extras
 
 
