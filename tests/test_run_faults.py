@@ -369,3 +369,32 @@ def test_the_lock_file_names_the_holder_and_a_finished_run_releases_it(tmp_path:
         == 0
     )
     assert os.path.getsize(out / "summary.json") > 0
+
+
+def test_a_plot_that_fails_after_the_run_leaves_a_summary_saying_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a plot that could not be drawn (a coefficients file of 1e308 made its matrix singular)
+    # ended the run after its data was written, and the folder was left without summary.json
+    from twin.cli import main
+    from twin.outputs import plot_process, plots
+
+    def singular(*_args: object, **_kw: object) -> None:
+        raise ValueError("Singular matrix")
+
+    monkeypatch.setattr(plot_process.PlotProcess, "started", classmethod(lambda cls: None))  # drawn here
+    monkeypatch.setattr(plots, "budget_figure", singular)
+    out = tmp_path / "run"
+    argv = ["run", "constant-load", "--set", 'scenario.duration="2 min"', "--out", str(out), "--quiet"]
+    assert main(argv) == 1
+    line = _one_line(capsys.readouterr().err)
+    assert line.startswith("twin: error_budget.png: the plot failed: ValueError: Singular matrix;"), line
+    assert f"everything recorded is in {out}; summary.json says so" in line, line
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary == {
+        "scenario": "constant-load",
+        "status": "failed",
+        "error": "error_budget.png: the plot failed: ValueError: Singular matrix",
+    }
+    assert len(read_signals_csv(out / "signals.csv")) == 121  # every row of the 2 min
+    assert not (out / "error_budget.png").exists() and not list(out.glob(".*.tmp"))

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from twin.errors import RunError
 from twin.outputs.atomic import write_atomic
 from twin.outputs.sink import OutcomeSink
 from twin.signals.table import SignalTable
@@ -397,7 +398,12 @@ class _PlotSink(OutcomeSink):
             return
         table, columns, names = job
         if not self._send(table, columns, names) or not self.process or not self.process.answer():
-            self._draw_here(table, columns)
+            try:
+                self._draw_here(table, columns)
+            except OSError:
+                raise  # the file could not be written (a full disk): the run says which
+            except Exception as exc:  # as the plot process reports it (plot_process.main)
+                raise RunError(f"{self.path.name}: the plot failed: {type(exc).__name__}: {exc}") from exc
 
     @abstractmethod
     def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:

@@ -32,7 +32,7 @@ from twin.cosim.master import Loop, Master, RunResult
 from twin.errormodel.config import evaluation_config, input_columns
 from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_signals
 from twin.errormodel.factors import FACTORS
-from twin.errors import ConfigError, RunError
+from twin.errors import ConfigError, RunError, TwinError
 from twin.fmu.pool import SlotPool
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
@@ -426,9 +426,13 @@ def _run_locked(
         _fail(sinks, exc, simulation)
         if exc.errno in DISK_FULL_ERRNOS:
             raise _disk_full(folder, scenario, exc) from None
+        if simulation is not None:
+            raise _failed_writing(folder, scenario, exc) from exc
         raise
     except BaseException as exc:
         _fail(sinks, exc, simulation)
+        if simulation is not None and isinstance(exc, Exception):
+            raise _failed_writing(folder, scenario, exc) from exc
         raise
     if simulation.result.error is not None:
         raise RunError(f"{simulation.result.error} (everything recorded up to it is in {out_dir})")
@@ -476,6 +480,27 @@ def _disk_full(folder: RunFolder, scenario: Scenario, exc: OSError) -> RunError:
     return RunError(
         f"disk full ({exc.strerror}) while writing {where}; every whole row recorded so far is in {folder.path}; {note}"
     )
+
+
+def _failed_writing(folder: RunFolder, scenario: Scenario, exc: Exception) -> RunError:
+    """The error of a run whose co-simulation ended but whose error model or outputs failed
+    (a plot that cannot be drawn): what was written stays, and summary.json says the run
+    failed and why, as it does when an FMU fails, so the folder is never left without one."""
+    from twin.outputs.summary import write_summary
+
+    why = str(exc) if isinstance(exc, TwinError) else f"{type(exc).__name__}: {exc}"
+    if folder.file(SUMMARY_JSON).exists():  # written last: the failure came after it
+        return exc if isinstance(exc, TwinError) else RunError(why)
+    try:
+        write_summary(
+            folder.file(SUMMARY_JSON), {"scenario": scenario.name, "status": "failed", "error": why}
+        )
+        note = "summary.json says so"
+    except OSError as other:
+        note = f"summary.json could not be written either ({other.strerror})"
+    if isinstance(exc, ConfigError):  # bad input stays bad input (its exit code)
+        return exc
+    return RunError(f"{why}; everything recorded is in {folder.path}; {note}")
 
 
 def _hand_on(recorder: TeeRecorder, error: BaseException) -> None:
