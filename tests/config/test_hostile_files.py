@@ -226,6 +226,15 @@ def _parameter_file(target: str | Callable[[Path], Path]) -> Callable[[Path], Pa
     return make
 
 
+def _identified_with(old: str, new: str) -> str:
+    """The committed coefficients file with one line of it changed."""
+    from twin.errormodel.coefficients import default_path
+
+    text = default_path().read_text()
+    assert text.count(old) == 1, old
+    return text.replace(old, new)
+
+
 def _coefficients(target: str | Callable[[Path], Path]) -> Callable[[Path], Path]:
     def make(d: Path) -> Path:
         dest = target(d) if callable(target) else Path(target)
@@ -334,6 +343,26 @@ MORE_HOSTILE = [
         "nested",
         _coefficients(_file_with("deep.toml", "x = " + "[" * 5000 + "]" * 5000 + "\n")),
         file="deep.toml",
+    ),
+    # a value no tester has: it overflowed the error model, and the run ended on a plot
+    # that could not be drawn (a hostile review); refused with its key instead
+    Hostile(
+        "coefficient-1e308",
+        "beyond any tester",
+        _coefficients(
+            _file_with("k.toml", _identified_with("value = 1.1184919766595505e-06", "value = 1e308"))
+        ),
+        "coefficients.alpha_l_heel_block.value",
+        file="k.toml",
+    ),
+    Hostile(
+        "coefficient-std-error-unit-slip",
+        "beyond any tester",
+        _coefficients(
+            _file_with("k.toml", _identified_with("std_error = 3.329718681125006e-07", "std_error = 0.33"))
+        ),
+        "coefficients.alpha_l_heel_block.std_error",
+        file="k.toml",
     ),
     # [uncertainty]: twin run checks it before the run, so twin validate does too
     Hostile(

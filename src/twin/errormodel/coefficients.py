@@ -32,8 +32,8 @@ a lab's ``[errormodel]``), never from the FMUs' parameters. A file (TOML)::
     correlation = [[1.0, ...], ...]        # of the estimates, in the order of parameters
 
 A bad file is bad input: one :class:`~twin.errors.ConfigError` per problem, one line naming
-the file and the key (a missing coefficient, a value that is not a finite number, a unit that
-is not the declared one).
+the file and the key (a missing coefficient, a value that is not a finite number or is beyond
+any tester of this kind (:data:`PLAUSIBLE`), a unit that is not the declared one).
 """
 
 from __future__ import annotations
@@ -320,13 +320,37 @@ def _prior(raw: Any, unit: str, source: str, key: str) -> Prior:
     return Prior(_number(raw, "value", source, key), sigma, unit, _text(raw, "source", source, key, ""))
 
 
+#: the largest magnitude a coefficient (and its standard error) may have, by unit: far past any
+#: tester of this kind (an estimate, not a measurement), so that a typo (1e308, a unit slip of
+#: 10^6) is refused with its key instead of overflowing the error model into Inf and a plot
+#: that cannot be drawn. 1 mm per kelvin (the tester's longest path, the heel block's, is about
+#: 2e-6 m/K); 1 um per newton (0.2 m at the tester's 200 kN; the structure's is about 1e-10);
+#: 1 cm of runout; a phase of 1000 rad; a probe scale of 10; 1 rad per N m of clamp torque.
+PLAUSIBLE = {"m/K": 1e-3, "m/N": 1e-6, "m": 1e-2, "rad": 1e3, "1": 10.0, "rad/(N.m)": 1.0}
+
+
+def _plausible(value: float, unit: str, source: str, key: str) -> float:
+    bound = PLAUSIBLE.get(unit, math.inf)
+    if abs(value) > bound:
+        raise ConfigError(
+            f"{value!r} {unit} is beyond any tester of this kind (|value| <= {bound:g} {unit})".replace(
+                " 1 ", " "
+            ),
+            source=source,
+            key=key,
+        )
+    return value
+
+
 def _coefficient(raw: Any, unit: str, source: str, key: str) -> Coefficient:
     raw = _table(raw, source, key, {"value", "std_error", "unit", "experiment", "prior", "meaning"})
     if raw.get("unit") != unit:
         got = "no unit" if "unit" not in raw else repr(raw["unit"])
         raise ConfigError(f"unit must be {unit!r}, got {got}", source=source, key=f"{key}.unit")
-    value = _number(raw, "value", source, key)
-    std_error = _number(raw, "std_error", source, key, positive=True)
+    value = _plausible(_number(raw, "value", source, key), unit, source, f"{key}.value")
+    std_error = _plausible(
+        _number(raw, "std_error", source, key, positive=True), unit, source, f"{key}.std_error"
+    )
     prior = _prior(raw["prior"], unit, source, f"{key}.prior") if "prior" in raw else None
     return Coefficient(value, std_error, unit, _text(raw, "experiment", source, key), prior)
 
