@@ -125,3 +125,53 @@ def test_bad_heldout_file_is_one_line_per_problem(tmp_path: Path) -> None:
     assert "heldout.colour" in str(err.value)
     assert main(["heldout", str(path)]) == 2
     assert main(["heldout", str(write_heldout(tmp_path / "ok.toml")), "--testers", "0"]) == 2
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        # a file that is no scenario ran on every tester's worker, each failing, and the
+        # summary then ended in a KeyError traceback (a hostile review)
+        (
+            ("sine-load.toml", "notascenario.toml"),
+            "scenario[0].file: notascenario.toml: scenario.step: missing",
+        ),
+        (
+            ("scenario.duration = ", "scenario.durration = "),
+            "scenario[0].file: sine-load.toml: scenario.durration",
+        ),
+        (
+            (f'calibration = "{SCENARIOS / "calibration"}"', 'calibration = "/nonexistent"'),
+            "heldout.calibration",
+        ),
+    ],
+)
+def test_a_scenario_or_calibration_that_cannot_load_is_refused_before_any_tester_runs(
+    change: tuple[str, str], expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "notascenario.toml").write_text('[scenario]\nname = "x"\n')
+    path = write_heldout(tmp_path / "h.toml")
+    text = path.read_text()
+    old, new = change
+    if old == "sine-load.toml":  # relative to the held-out file
+        text = text.replace(f'"{SCENARIOS / "sine-load.toml"}"', '"notascenario.toml"')
+    else:
+        assert old in text
+        text = text.replace(old, new)
+    path.write_text(text)
+    assert main(["heldout", str(path), "--out", str(tmp_path / "out"), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {path}: ") and expected in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_summary_of_testers_that_all_failed_says_there_is_no_row(tmp_path: Path) -> None:
+    from twin.validation.heldout import MODELS, summarise
+
+    cfg = load_heldout(write_heldout(tmp_path / "h.toml"))
+    table = pd.DataFrame(
+        {"tester": [0], "scenario": ["sine-load-short"], "thermal_only": [False], "status": ["failed"]}
+    )
+    summary = summarise(cfg, table)
+    assert all(summary["models"][m]["all"] == {"rows": 0} for m in MODELS)
+    assert summary["testers_failed"] == [0]

@@ -78,6 +78,23 @@ def _number(p: list[ConfigError], src: str, key: str, v: Any, lo: float) -> floa
     return float(v)
 
 
+def _loads(src: str, key: str, path: Path, sets: Sequence[str]) -> list[ConfigError]:
+    """The problems of a scenario file the held-out file names, loaded with its overrides as
+    every tester's run will be: found before any tester runs, not by every tester's worker."""
+    from twin.config.load import read_scenario_data
+    from twin.sweep.spec import build_scenario
+
+    try:
+        build_scenario(read_scenario_data(path), path, list(sets))
+    except ConfigError as exc:
+        problems = getattr(exc, "problems", [exc])
+        first = problems[0]
+        where = ": ".join(x for x in (path.name, first.key) if x)
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        return [ConfigError(f"{where}: {first.message or first}{more}", source=src, key=key)]
+    return []
+
+
 def _scenarios(p: list[ConfigError], src: str, folder: Path, raw: Any) -> list[HeldOutScenario]:
     if not isinstance(raw, list) or not raw:
         p.append(ConfigError("expected at least one [[scenario]]", source=src, key="scenario"))
@@ -92,12 +109,14 @@ def _scenarios(p: list[ConfigError], src: str, folder: Path, raw: Any) -> list[H
             ConfigError("unknown key", source=src, key=f"{where}.{k}") for k in s if k not in _SCENARIO_KEYS
         ]
         path = (folder / s["file"]).resolve()
-        if not path.is_file():
-            p.append(ConfigError(f"no such file {s['file']!r}", source=src, key=f"{where}.file"))
         sets = s.get("set", [])
         if not isinstance(sets, list) or not all(isinstance(x, str) for x in sets):
             p.append(ConfigError("expected a list of KEY=VALUE strings", source=src, key=f"{where}.set"))
             sets = []
+        if not path.is_file():
+            p.append(ConfigError(f"no such file {s['file']!r}", source=src, key=f"{where}.file"))
+        else:
+            p += _loads(src, f"{where}.file", path, sets)
         name = s.get("name", path.stem)
         out.append(HeldOutScenario(str(name), path, tuple(sets), bool(s.get("thermal_only", False))))
     names = [s.name for s in out]
@@ -120,6 +139,17 @@ def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     if not spreads.is_file():
         p.append(ConfigError(f"no such file {spreads.name!r}", source=src, key="heldout.spreads"))
     calibration = (folder / str(h.get("calibration", "../calibration"))).resolve()
+    from twin.errormodel.identify import EXPERIMENTS  # the experiments every tester runs
+
+    missing = sorted({e.scenario for e in EXPERIMENTS if not (calibration / e.scenario).is_file()})
+    if missing:
+        p.append(
+            ConfigError(
+                f"{calibration} lacks the calibration experiments {', '.join(missing)}",
+                source=src,
+                key="heldout.calibration",
+            )
+        )
     n = testers if testers is not None else h.get("testers", 50)
     goals_raw = raw.get("goals", {}) if isinstance(raw.get("goals"), dict) else {}
     p += [ConfigError("unknown goal", source=src, key=f"goals.{k}") for k in goals_raw if k not in GOAL_KEYS]
@@ -419,6 +449,8 @@ def _timing(
 
 
 def _stats(frame: Any, model: str) -> dict[str, Any]:
+    if f"{model}.removed_pct" not in frame.columns:  # no tester gave a row (every one failed)
+        return {"rows": 0}
     removed = frame[f"{model}.removed_pct"].to_numpy(dtype=float)
     largest = frame[f"{model}.max_residual_um"].to_numpy(dtype=float)
     if len(removed) == 0:
