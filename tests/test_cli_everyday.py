@@ -137,3 +137,32 @@ def test_the_progress_bar_names_its_phases_on_a_terminal(tmp_path: Path) -> None
     assert proc.returncode == 0, shown[-2000:]
     for phase in ("loading FMUs", "simulating", "writing outputs"):
         assert phase in shown, (phase, shown[-2000:])
+
+
+@pytest.mark.parametrize(
+    ("argv", "option", "expected"),
+    [
+        (["calibrate", "--out", "adir"], "--out", "expected a file name ending in .toml"),
+        # the parameter file went to z.json and was overwritten by its own report (z.json)
+        (["calibrate", "--out", "z.json"], "--out", "expected a file name ending in .toml"),
+        (["calibrate", "--out", "afile/x.toml"], "--out", "afile is a file"),
+        (["identify", "--out", "adir"], "--out", "expected a file name ending in .toml"),
+        (["identify", "--out", "afile/x.toml"], "--out", "afile is a file"),
+        (["identify", "--out", "/proc/x.toml"], "--out", "special file system (proc)"),
+        (["export-ssp", "constant-load", "-o", "/dev/x.ssp"], "-o", "special file system (dev)"),
+        (["export-ssp", "constant-load", "-o", "adir.ssp"], "-o", "exists and is not a file"),
+    ],
+)
+def test_an_output_file_no_command_can_write_is_refused_before_it_computes(
+    argv: list[str], option: str, expected: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    # they were found after seconds of fitting (exit 1), or not at all: /dev/x.ssp was written
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "adir.ssp").mkdir()
+    (tmp_path / "afile").write_text("x")
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {option}: ") and expected in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "adir.ssp", "afile"]
+    assert not any((tmp_path / "adir").iterdir()) and not Path("/dev/x.ssp").exists()

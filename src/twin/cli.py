@@ -441,10 +441,11 @@ def _cmd_geometry(args: argparse.Namespace) -> int:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from twin.calibrate import calibrate_file
+    from twin.outputs.run_folder import check_output_file
 
-    path = calibrate_file(
-        Path(args.scenario) if args.scenario else None, Path(args.out) if args.out else None, write=args.write
-    )
+    # checked before the fits (seconds): a parameter file .toml, its report beside it as .json
+    out = check_output_file(Path(args.out), "--out", ".toml") if args.out is not None else None
+    path = calibrate_file(Path(args.scenario) if args.scenario else None, out, write=args.write)
     print(f"calibrated thermal network written to {path}")
     return 0
 

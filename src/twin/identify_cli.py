@@ -50,10 +50,12 @@ def command(args: argparse.Namespace) -> int:
     """Run the experiments, fit, write the file; exit code 0."""
     from twin.errormodel.coefficients import default_path, load_priors
     from twin.errormodel.identify import identify
+    from twin.outputs.run_folder import check_output_file
 
+    # the file is checked before the experiments run (they take seconds, a sweep's minutes)
+    out = check_output_file(Path(args.out), "--out", ".toml") if args.out is not None else default_path()
     priors = load_priors(Path(args.priors)) if args.priors else None
     coefficients = identify(args.set or [], priors=priors)
-    out = Path(args.out) if args.out else default_path()
     out.parent.mkdir(parents=True, exist_ok=True)
     coefficients.write(out, header=HEADER)
     if not args.quiet:

@@ -13,12 +13,10 @@ __all__ = ["add_parser"]
 
 
 def _out_path(text: str) -> Path:
-    out = Path(text)
-    if out.suffix != ".ssp":
-        raise ConfigError("expected a file name ending in .ssp", source="-o")
-    if out.exists() and not out.is_file():
-        raise ConfigError(f"{out} exists and is not a file", source="-o")
-    if not out.resolve().parent.is_dir():
+    from twin.outputs.run_folder import check_output_file
+
+    out = check_output_file(Path(text), "-o", ".ssp")
+    if not out.resolve().parent.is_dir():  # the archive is written beside itself, then renamed
         raise ConfigError(f"no folder {out.resolve().parent}", source="-o")
     return out
 

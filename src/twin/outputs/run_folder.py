@@ -123,6 +123,30 @@ def check_output_folder(path: Path, option: str) -> None:
         raise ConfigError(f"{existing} is not writable", source=option)
 
 
+def check_output_file(path: Path, option: str, suffix: str) -> Path:
+    """Refuse an output file no command can write (before anything is computed): a name without
+    ``suffix``, something other than a regular file in its place, a place on /proc, /sys or
+    /dev, or a folder that cannot be made or written. Missing folders above it are allowed
+    (the command makes them)."""
+    if path.suffix != suffix:
+        raise ConfigError(f"expected a file name ending in {suffix}, got {path}", source=option)
+    resolved = path.resolve()
+    if any(root in resolved.parents for root in _SPECIAL_ROOTS):
+        raise ConfigError(
+            f"{path} is on a special file system ({resolved.parts[1]}), not a place for outputs",
+            source=option,
+        )
+    if resolved.exists() and not resolved.is_file():
+        raise ConfigError(f"{path} exists and is not a file", source=option)
+    existing = next(p for p in resolved.parents if p.exists())
+    if not existing.is_dir():
+        raise ConfigError(f"{existing} is a file, so {path} cannot be made", source=option)
+    read_only = (os.statvfs(existing).f_flag & os.ST_RDONLY) != 0
+    if read_only or not os.access(existing, os.W_OK | os.X_OK):
+        raise ConfigError(f"{existing} is not writable", source=option)
+    return path
+
+
 @dataclass(frozen=True)
 class RunMeta:
     """``run.json``: how a run was started, so that ``twin resume`` can start it the same way."""
