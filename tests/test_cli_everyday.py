@@ -166,3 +166,26 @@ def test_an_output_file_no_command_can_write_is_refused_before_it_computes(
     assert len(err) == 1 and err[0].startswith(f"twin: {option}: ") and expected in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "adir.ssp", "afile"]
     assert not any((tmp_path / "adir").iterdir()) and not Path("/dev/x.ssp").exists()
+
+
+@pytest.mark.parametrize(
+    ("sets", "reason"),
+    [
+        (["fmu.thermal.parameters.hyd_share_oil=0.5"], "the hyd_share_* parameters sum to 0.5"),
+        (
+            ["fmu.thermal.parameters.c_sensor=0.001", "fmu.thermal.parameters.g_sensor_room=1e5"],
+            "the network is too stiff for solver_step = 1 s",
+        ),
+    ],
+)
+def test_validate_refuses_parameters_the_fmus_themselves_refuse(sets: list[str], reason: str, capsys) -> None:
+    # each value in its range, together refused by the FMU's own check: validate said "ok",
+    # and twin run failed in the FMU's initialization after making its run folder
+    argv = ["validate", "li2017-thermal-experiment"]
+    for s in sets:
+        argv += ["--set", s]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fmu.thermal.parameters: the FMU refuses them" in err[0] and reason in err[0], (
+        err
+    )

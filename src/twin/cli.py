@@ -380,11 +380,30 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     scenario = _load(args)
     evaluation_config(scenario)
     for_run(_scenario_path(args.scenario), args.set or [], None)
+    _check_fmus_accept(scenario)
     print(
         f"{scenario.source_path}: ok ({scenario.name}: {len(scenario.fmus)} FMUs, "
         f"{len(scenario.connections)} connections, {len(scenario.profiles)} profiles, {len(scenario.events)} events)"
     )
     return 0
+
+
+def _check_fmus_accept(scenario: Scenario) -> None:
+    """The FMUs' own checks of their parameters, which twin run meets in their initialization
+    (exit 1 there, the run folder begun): each FMU instantiated and initialized, none stepped.
+    A refusal is bad input: one line naming the instance's parameters and the FMU's reason."""
+    from twin.cosim.instances import check_initialization
+    from twin.cosim.plan import make_plan
+    from twin.errors import FMUError
+
+    try:
+        check_initialization(make_plan(scenario))
+    except FMUError as exc:
+        raise ConfigError(
+            f"the FMU refuses them in {exc.call}: {exc.detail}",
+            source=scenario.source_path,
+            key=f"fmu.{exc.instance}.parameters",
+        ) from None
 
 
 def _cmd_compensate(args: argparse.Namespace) -> int:

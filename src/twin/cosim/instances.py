@@ -55,6 +55,20 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         buf.commit()
 
 
+def check_initialization(plan: Plan) -> None:
+    """Instantiate and initialize every instance of the plan, step none, free them: what the
+    FMUs themselves refuse of their parameters (a model's own checks: heat shares that do not
+    sum to one, a thermal network too stiff for its step) is found without running. Raises
+    :class:`~twin.errors.FMUError` naming the instance and the FMU's reason."""
+    from twin.cosim.state import make_state
+
+    slots = open_slots(plan)
+    try:
+        initialize(plan, make_state(plan), slots)
+    finally:
+        close_slots(slots)
+
+
 def close_slots(slots: Sequence[FMUSlot], pool: SlotPool | None = None) -> None:
     """Terminate and free every instance, or with a ``pool`` give them back to it for the
     next run (never raises)."""
@@ -65,4 +79,4 @@ def close_slots(slots: Sequence[FMUSlot], pool: SlotPool | None = None) -> None:
             pool.release(slot)
 
 
-__all__ = ["close_slots", "initialize", "open_slots"]
+__all__ = ["check_initialization", "close_slots", "initialize", "open_slots"]
