@@ -17,6 +17,7 @@ import twin.pipeline.stages as stages
 from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.config import evaluation_config, input_columns
 from twin.errormodel.evaluate import PARTS
+from twin.errors import RunError
 from twin.outputs.csv import read_signals_csv
 from twin.outputs.sink import Outcome
 from twin.paper import TEMPERATURE_RISE_K
@@ -124,7 +125,7 @@ def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummar
     assert tail.outcome.summary()["drift_mm"] == summary.to_dict()["drift_mm"]
 
 
-def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_writes_no_summary(
+def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_a_summary_saying_why(
     folder_run: tuple[Path, RunSummary], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out, _ = folder_run
@@ -133,12 +134,15 @@ def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_writes_no_summary
         raise RuntimeError("the error model broke")
 
     monkeypatch.setattr(stages, "evaluate_run", broken)
-    with pytest.raises(RuntimeError, match="the error model broke"):
+    with pytest.raises(RunError, match="RuntimeError: the error model broke; everything recorded is in"):
         run(short_scenario(), tmp_path)
     # every row, though the run held them all back for after its plots (fewer than FLUSH_ROWS)
     assert len(read_signals_csv(tmp_path / "signals.csv")) < FLUSH_ROWS
     assert (tmp_path / "signals.csv").read_bytes() == (out / "signals.csv").read_bytes()
-    assert not (tmp_path / "summary.json").exists() and not (tmp_path / "errormodel.csv").exists()
+    assert not (tmp_path / "errormodel.csv").exists()
+    # as when an FMU fails: the folder says the run failed, and why
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["error"] == "RuntimeError: the error model broke"
     from twin.outputs.rerun_rec import read_recording
 
     assert read_recording(tmp_path / "recording.rrd")  # closed, so readable

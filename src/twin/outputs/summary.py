@@ -147,7 +147,8 @@ class SummarySink(OutcomeSink):
 
     Put it last among a run's sinks: a reader takes the file's presence as "the run is over",
     and the summary's timings then count the writing of every other file. A run that broke
-    writes none (an old summary, or none, stays as it was).
+    while writing its outputs gets a short one saying so instead
+    (:func:`twin.pipeline.stages._failed_writing`).
     """
 
     def __init__(self, path: Path) -> None:
