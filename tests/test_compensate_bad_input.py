@@ -24,8 +24,10 @@ GOOD_TOML = (
 )
 
 
-def lab_csv(n: int = 400, *, bad: dict[int, str] | None = None, newline_at_end: bool = True) -> str:
-    t = np.arange(n) * 10.0
+def lab_csv(
+    n: int = 400, *, bad: dict[int, str] | None = None, newline_at_end: bool = True, dt: float = 10.0
+) -> str:
+    t = np.arange(n) * dt
     rise = 5.0 * (1 - np.exp(-t / 1800.0))
     lines = ["time," + ",".join(f"T{i}" for i in range(8)) + ",probe"]
     for k in range(n):
@@ -110,6 +112,10 @@ BAD: list[tuple[str, Callable[[], str | bytes | None], str | None, str]] = [
     ("csv-time-empty", lambda: lab_csv(bad={5: "0="}), GOOD_TOML, "time"),
     ("csv-time-a-date", lambda: lab_csv(bad={5: "0=2024-01-01T10:00"}), GOOD_TOML, "time"),
     ("csv-time-backwards-late", lambda: lab_csv(3000, bad={2500: "0=10.0"}), GOOD_TOML, "line 2502"),
+    # times closer than a logger's: not seconds (the drift lines' least squares fail on them)
+    ("csv-time-steps-of-1e-170-s", lambda: lab_csv(dt=1e-170), GOOD_TOML, "line 3: time 1e-170 s is less"),
+    ("csv-time-steps-of-1e-12-s", lambda: lab_csv(dt=1e-12), GOOD_TOML, "0.5 ns"),
+    ("csv-time-one-step-too-close", lambda: lab_csv(bad={5: "0=40.0000000001"}), GOOD_TOML, "line 7"),
     (
         "csv-every-row-flagged",
         lambda: lab_csv(3, bad={0: "9=nan", 1: "9=nan", 2: "9=nan"}),
@@ -314,3 +320,9 @@ def test_crlf_line_ends_and_a_byte_order_mark_are_a_lab_file_like_any_other(tmp_
     assert (tmp_path / "a" / "out" / "errormodel.csv").read_bytes() == (
         tmp_path / "b" / "out" / "errormodel.csv"
     ).read_bytes()
+
+
+def test_a_record_at_1_ghz_is_seconds_still(tmp_path: Path) -> None:
+    """The least time step refused is below a 1 GHz logger's, float rounding included."""
+    assert _compensate(tmp_path, lab_csv(dt=1e-9), GOOD_TOML) == 0
+    assert _summary(tmp_path)["input_rows"]["used"] == 400

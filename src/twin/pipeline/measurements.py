@@ -7,9 +7,9 @@ exit code 2) and what is flagged (the row is left out, the rest computed, the ro
 * the file: missing, not a regular file, empty, a header that is not ``time,<name>,...``
   (incomplete, an empty name, a name twice), a column the error model reads missing, fewer than
   two usable rows, bytes that are not UTF-8 text anywhere in the file: refused;
-* the time column: a value that is not a finite number, or a time not after the one before
-  (rows of the wrong length apart): refused, as the drift windows and the filter's order
-  depend on it;
+* the time column: a value that is not a finite number, or a time not at least
+  :data:`MIN_TIME_STEP_S` after the one before (rows of the wrong length apart): refused, as
+  the drift windows and the filter's order depend on it;
 * a row: the wrong number of values (a torn line, a logger's restart), or a column the error
   model reads holding anything but a finite number (``nan``, ``inf``, empty, ``NA``, a word):
   flagged. Columns the error model does not read are not looked at (a wide file's other
@@ -44,6 +44,12 @@ __all__ = ["BLOCK_BYTES", "Flag", "MeasurementReader"]
 BLOCK_BYTES = 1 << 22
 #: the header line may be this long (a file of one huge line is not a CSV of measurements)
 HEADER_BYTES = 1 << 20
+#: the least time between two rows (s): the twin's clock counts whole nanoseconds and no
+#: logger samples faster than 1 GHz, so rows closer than this are not seconds of a record (a
+#: time column in another unit, or garbage); the drift lines' least squares would also fail on
+#: them (times 1e-160 s apart square to zero). Half a nanosecond, so a 1 GHz record's times,
+#: rounded to floats (4e-9 - 3.0000000000000004e-9 < 1e-9), pass
+MIN_TIME_STEP_S = 0.5e-9
 
 
 @dataclass(frozen=True)
@@ -171,7 +177,9 @@ class MeasurementReader:
         if any(c is None for c in cols):
             return None  # a null ("nan", "", "NA"): a row to flag
         time = cols[0]
-        if time.size and (time[0] <= self._last_time or not np.all(np.diff(time) > 0)):
+        if time.size and (
+            not time[0] - self._last_time >= MIN_TIME_STEP_S or not np.all(np.diff(time) >= MIN_TIME_STEP_S)
+        ):
             return None
         if not all(np.isfinite(c).all() for c in cols):  # inf
             return None
@@ -218,6 +226,13 @@ class MeasurementReader:
         if t <= self._last_time:
             raise ConfigError(
                 f"line {lineno}: time {t!r} s is not after {self._last_time!r} s (time must increase)",
+                source=self.source,
+            )
+        if t - self._last_time < MIN_TIME_STEP_S:
+            raise ConfigError(
+                f"line {lineno}: time {t!r} s is less than {MIN_TIME_STEP_S * 1e9:g} ns after "
+                f"{self._last_time!r} s (the time column must be seconds; no logger samples "
+                "faster than 1 GHz)",
                 source=self.source,
             )
         self._last_time = t
