@@ -236,6 +236,9 @@ FLAGGED = {
     "probe-a-word": {17: "9=ERR", 250: "9=overload"},
     "temp-a-word": {17: "3=warm", 250: "3=--"},
     "probe-underscore": {17: "9=1_0", 250: "9=0x10"},
+    # beyond any sensor of a tester: an overload code, not a measurement (flagged like inf)
+    "probe-overload": {17: "9=1e308", 250: "9=-9.9e37"},
+    "temp-overload": {17: "1=1e300", 250: "8=1.0000001e9"},
 }
 
 

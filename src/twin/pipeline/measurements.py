@@ -11,9 +11,9 @@ exit code 2) and what is flagged (the row is left out, the rest computed, the ro
   :data:`MIN_TIME_STEP_S` after the one before (rows of the wrong length apart): refused, as
   the drift windows and the filter's order depend on it;
 * a row: the wrong number of values (a torn line, a logger's restart), or a column the error
-  model reads holding anything but a finite number (``nan``, ``inf``, empty, ``NA``, a word):
-  flagged. Columns the error model does not read are not looked at (a wide file's other
-  columns may hold anything).
+  model reads holding anything but a finite number of at most :data:`MAX_MEASURED` (``nan``,
+  ``inf``, empty, ``NA``, a word, a logger's overload value ``9.9e37``): flagged. Columns the
+  error model does not read are not looked at (a wide file's other columns may hold anything).
 
 Blocks of about ``block_bytes`` are parsed by Arrow's C++ reader (correctly rounded, as
 Python's ``float()``), only the columns kept; a block Arrow refuses, or one with a value to
@@ -50,6 +50,11 @@ HEADER_BYTES = 1 << 20
 #: them (times 1e-160 s apart square to zero). Half a nanosecond, so a 1 GHz record's times,
 #: rounded to floats (4e-9 - 3.0000000000000004e-9 < 1e-9), pass
 MIN_TIME_STEP_S = 0.5e-9
+#: the largest magnitude a column the error model reads may hold, in its SI unit (K, m, N, N.m,
+#: rad): orders of magnitude beyond any sensor of a wear tester (a billion kelvin, metres,
+#: newtons), and small enough that the model's products and squares stay finite. A value
+#: beyond it is a sensor's overload or dropout code (DMMs write 9.9e37), flagged like ``inf``
+MAX_MEASURED = 1e9
 
 
 @dataclass(frozen=True)
@@ -181,7 +186,10 @@ class MeasurementReader:
             not time[0] - self._last_time >= MIN_TIME_STEP_S or not np.all(np.diff(time) >= MIN_TIME_STEP_S)
         ):
             return None
-        if not all(np.isfinite(c).all() for c in cols):  # inf
+        if not np.isfinite(time).all():  # inf
+            return None
+        # False for inf and NaN too: one pass over each column
+        if not all((np.abs(c) <= MAX_MEASURED).all() for c in cols[1:]):
             return None
         return Block(time, dict(zip(self.names[1:], cols[1:], strict=True)))
 
@@ -203,6 +211,12 @@ class MeasurementReader:
                 value = _number(fields[j])
                 if value is None or not math.isfinite(value):
                     bad = f"column '{self.header[j]}': {fields[j].strip()!r} is not a finite number"
+                    break
+                if abs(value) > MAX_MEASURED:
+                    bad = (
+                        f"column '{self.header[j]}': {fields[j].strip()!r} is beyond "
+                        f"+-{MAX_MEASURED:g} (a sensor's overload value, not a measurement)"
+                    )
                     break
                 row.append(value)
             if bad is not None:
