@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
-from twin.errors import ConfigError
+from twin.errors import ConfigError, ConfigErrors
 
 __all__ = [
     "DEFAULT_FILE",
@@ -447,23 +447,72 @@ def parse_coefficients(data: Mapping[str, Any], source: str) -> Coefficients:
     return Coefficients(coefficients, fits, dict(identified))
 
 
+#: the largest magnitude of a prior's value and sigma, in the coefficient's SI unit. Every
+#: coefficient is a bench tester's displacement per kelvin, newton or newton-metre, a runout
+#: (m), an angle (rad) or the probe's scale (1): real ones lie between 1e-12 and 2 pi. Far
+#: beyond, the fit (steps of sigma, residuals divided by noise of about 1e-12 m) overflows:
+#: a value of 1e308 gives residuals that are not finite, a sigma of 1e308 steps that are not
+PRIOR_MAX = 1e6
+#: the smallest sigma of a prior (SI unit): 1e-18 of the smallest coefficient, far below any
+#: knowledge; much smaller sigmas square to zero in the fit's normal matrix (1e-300 gives a
+#: correlation of NaN), and 0 divides by zero
+PRIOR_SIGMA_MIN = 1e-30
+
+
 def load_priors(path: str | Path | None = None) -> dict[str, Prior]:
     """The priors file (default: the committed one): a ``[priors.<name>]`` table for every
     coefficient, with ``value``, its ``unit`` and ``source``, and ``sigma`` where it is a prior
-    (without, the value only starts the fit)."""
+    (without, the value only starts the fit).
+
+    Every problem of the file is reported, one line each (:class:`ConfigErrors`): a missing
+    prior, a wrong unit, a value that is not a finite number within :data:`PRIOR_MAX`, a sigma
+    that is not a finite number between :data:`PRIOR_SIGMA_MIN` and :data:`PRIOR_MAX`."""
     path = priors_path() if path is None else Path(path)
     source = str(path)
     data = read_toml_file(path)
     _table(data, source, "", {"priors"})
     units = coefficient_units()
     raw = _table(data.get("priors"), source, "priors", set(units))
+    problems: list[ConfigError] = []
     missing = [name for name in units if name not in raw]
     if missing:
-        raise ConfigError(f"missing prior(s): {', '.join(missing)}", source=source, key="priors")
+        problems.append(ConfigError(f"missing prior(s): {', '.join(missing)}", source=source, key="priors"))
     priors = {}
     for name, unit in units.items():
+        if name not in raw:
+            continue
         key = f"priors.{name}"
         if not isinstance(raw[name], Mapping) or raw[name].get("unit") != unit:
-            raise ConfigError(f"unit must be {unit!r}", source=source, key=f"{key}.unit")
-        priors[name] = _prior(raw[name], unit, source, key)
+            problems.append(ConfigError(f"unit must be {unit!r}", source=source, key=f"{key}.unit"))
+            continue
+        found = [ConfigError(m, source=source, key=f"{key}.{k}") for k, m in _prior_bounds(raw[name], unit)]
+        try:
+            prior = _prior(raw[name], unit, source, key)
+        except ConfigError as exc:
+            found = found or [exc]
+        problems += found
+        if not found:
+            priors[name] = prior
+    if problems:
+        raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
     return priors
+
+
+def _prior_bounds(raw: Mapping[str, Any], unit: str) -> list[tuple[str, str]]:
+    """(key, problem) of a prior's value and sigma beyond what the fit can use (see
+    :data:`PRIOR_MAX`); a missing value is :func:`_prior`'s to report."""
+    out = []
+    value = raw.get("value", 0.0)
+    if not _finite(value) or abs(value) > PRIOR_MAX:
+        out.append(("value", f"must be a finite number within +-{PRIOR_MAX:g} {unit}, got {value!r}"))
+    if "sigma" in raw:
+        sigma = raw["sigma"]
+        if not _finite(sigma) or not PRIOR_SIGMA_MIN <= sigma <= PRIOR_MAX:
+            out.append(
+                (
+                    "sigma",
+                    f"must be a finite number > 0, from {PRIOR_SIGMA_MIN:g} to {PRIOR_MAX:g} {unit} "
+                    f"(leave it out for a start value only), got {sigma!r}",
+                )
+            )
+    return out
