@@ -95,6 +95,27 @@ def test_compensate_a_run_folder_reproduces_its_errormodel_csv(tmp_path: Path) -
     assert again["config"].startswith(str(run_dir / "run.json"))
 
 
+def test_compensate_does_not_write_over_a_run_folder_without_force(tmp_path: Path, capsys) -> None:
+    run_dir = tmp_path / "run"
+    assert (
+        main(["run", "sine-load", "--out", str(run_dir), "--quiet", "--set", 'scenario.duration="10 min"'])
+        == 0
+    )
+    before = {n: (run_dir / n).read_bytes() for n in ("summary.json", "errormodel.csv", "error_budget.png")}
+    capsys.readouterr()
+    assert main(["compensate", str(run_dir), "--out", str(run_dir)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"twin: --out: {run_dir} holds another command's outputs (run.json, summary.json): "
+        "--force writes over them, or name another --out"
+    ]
+    assert {n: (run_dir / n).read_bytes() for n in before} == before
+    # --force writes the compensation's files there (the run's own error model: the same rows)
+    assert main(["compensate", str(run_dir), "--out", str(run_dir), "--force"]) == 0
+    assert (run_dir / "errormodel.csv").read_bytes() == before["errormodel.csv"]
+    assert "input_rows" in json.loads((run_dir / "summary.json").read_text())
+
+
 def test_the_template_runs_as_it_is(tmp_path: Path, capsys) -> None:
     assert main(["compensate", "--template", str(tmp_path / "tpl")]) == 0
     toml = (tmp_path / "tpl" / "LAB.toml").read_text()

@@ -349,6 +349,35 @@ def _refuse_an_earlier_run(out: Path, force: bool) -> None:
         )
 
 
+def _refuse_another_commands_outputs(out: Path, force: bool) -> None:
+    """compensate writes into its own earlier output folder as it is (its files replace
+    theirs), but over a run's, a sweep's or a held-out test's outputs (run.json, or a
+    summary.json that is not a compensation's) only with ``--force``: their summary.json and
+    errormodel.csv would be lost without a word."""
+    import json
+
+    from twin.outputs.run_folder import RUN_FILE, SUMMARY_JSON
+
+    if force or not out.is_dir():
+        return
+    found = [RUN_FILE] if (out / RUN_FILE).exists() else []
+    summary = out / SUMMARY_JSON
+    if summary.exists():
+        try:
+            # a compensation's summary has input_rows; a run's, a sweep's or a test's has none
+            own = "input_rows" in json.loads(summary.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError, TypeError):
+            own = False  # unreadable: not known to be a compensation's, so not overwritten
+        if not own:
+            found.append(SUMMARY_JSON)
+    if found:
+        raise ConfigError(
+            f"{out} holds another command's outputs ({', '.join(found)}): --force writes over "
+            "them, or name another --out",
+            source="--out",
+        )
+
+
 def _cmd_resume(args: argparse.Namespace) -> int:
     import functools
     import time
@@ -431,6 +460,7 @@ def _cmd_compensate(args: argparse.Namespace) -> int:
         out = output_folder(args.out, run_dir.with_name(run_dir.name + "-compensated"))
     else:
         out = output_folder(args.out, csv.with_name(csv.stem + "-compensated"))
+    _refuse_another_commands_outputs(out, args.force)
     summary = compensate(csv, Path(args.config) if args.config else None, out, config)
     flagged = summary["input_rows"]["flagged"]
     if flagged:
@@ -540,6 +570,11 @@ def make_parser() -> argparse.ArgumentParser:
         help="[errormodel] column map and coefficients (default: the twin's names)",
     )
     p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write into an --out folder that holds another command's outputs (a run's, a sweep's)",
+    )
     p.set_defaults(func=_cmd_compensate)
 
     p = sub.add_parser(
