@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import re
 import zipfile
 from pathlib import Path
 
@@ -155,6 +156,18 @@ def test_an_external_fmu_travels_in_the_archive(tmp_path: Path, lowpass_fmu: Pat
     assert "filter.y" in _run(ssp, tmp_path / "run").names()
 
 
+#: an exported SystemStructure.ssd with one attribute's value changed: (attribute, new value)
+SSD_EDITS = {
+    "seed-superscript-two": ("seed", "\u00b2"),  # str.isdigit() takes it, int() does not
+    "seed-negative": ("seed", "-7"),
+    "seed-a-word": ("seed", "abc"),
+    "seed-a-fraction": ("seed", "1.5"),
+    "seed-empty": ("seed", ""),
+    "start-time-100-s": ("startTime", "100.0"),
+    "start-time-inf": ("startTime", "INF"),
+}
+
+
 def _bad_archive(tmp_path: Path, case: str) -> Path:
     good = _export(TESTER, tmp_path / "good.ssp")
     path = tmp_path / f"{case}.ssp"
@@ -169,6 +182,12 @@ def _bad_archive(tmp_path: Path, case: str) -> Path:
                     continue
                 if case == "doctype":
                     data = data.replace(b"?>", b'?>\n<!DOCTYPE x [<!ENTITY e SYSTEM "/etc/passwd">]>', 1)
+                if case in SSD_EDITS:
+                    attribute, value = SSD_EDITS[case]
+                    data, n = re.subn(
+                        rf'\b{attribute}="[^"]*"'.encode(), f'{attribute}="{value}"'.encode(), data
+                    )
+                    assert n == 1, case
                 if case == "not-ssp":
                     data = data.replace(b"<ssd:Elements>", b"<ssd:Elementz>").replace(
                         b"</ssd:Elements>", b"</ssd:Elementz>"
@@ -187,6 +206,14 @@ def _bad_archive(tmp_path: Path, case: str) -> Path:
         ("doctype", "document type"),
         ("not-ssp", "not valid SSP 1.0"),
         ("escaping-member", "outside the archive"),
+        # the twin's annotations are checked as a scenario file's [scenario] table is
+        ("seed-superscript-two", "scenario.seed: expected an integer in [0, 2^31), got '\u00b2'"),
+        ("seed-negative", "scenario.seed: expected an integer in [0, 2^31), got -7"),
+        ("seed-a-word", "scenario.seed: expected an integer in [0, 2^31), got 'abc'"),
+        ("seed-a-fraction", "scenario.seed: expected an integer in [0, 2^31), got '1.5'"),
+        ("seed-empty", "scenario.seed: expected an integer in [0, 2^31), got ''"),
+        ("start-time-100-s", "startTime '100.0': a start time other than 0 is not supported"),
+        ("start-time-inf", "startTime 'INF': a start time other than 0 is not supported"),
     ],
 )
 def test_an_archive_the_twin_cannot_run_is_one_line(

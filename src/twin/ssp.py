@@ -28,6 +28,7 @@ loading), and the rest becomes an ordinary scenario (``--set`` works as for a TO
 from __future__ import annotations
 
 import os
+import re
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -355,6 +356,15 @@ def _scenario_table(root: ET.Element, name: str, description: str, source: str) 
     experiment = root.find("ssd:DefaultExperiment", NS)
     if experiment is None or experiment.get("stopTime") is None:
         raise ConfigError(f"{SSD_NAME}: no DefaultExperiment stopTime (the run's duration)", source=source)
+    start = experiment.get("startTime")
+    # the schema makes it an xs:double (INF and NaN included); a twin's run starts at 0 s, so
+    # another start would silently shift every profile and event: refused, not ignored
+    if start is not None and float(start) != 0.0:
+        raise ConfigError(
+            f"{SSD_NAME}: DefaultExperiment startTime {start!r}: a start time other than 0 is not "
+            "supported (a twin's run starts at 0 s)",
+            source=source,
+        )
     algorithm = _annotation(experiment, OSP_TYPE)
     fixed = algorithm.find("osp:Algorithm/osp:FixedStepAlgorithm", NS) if algorithm is not None else None
     if fixed is None or fixed.get("baseStepSize") is None:
@@ -374,8 +384,13 @@ def _scenario_table(root: ET.Element, name: str, description: str, source: str) 
             table["output_interval"] = f"{settings.get('outputInterval')} s"
         if settings.get("driftWindow"):
             table["drift_window"] = f"{settings.get('driftWindow')} s"
-        if settings.get("seed", "").isdigit():
-            table["seed"] = int(settings.get("seed", "0"))
+        seed = settings.get("seed")
+        if seed is not None:
+            # an integer as a scenario file's seed is, checked where that one is (scenario.seed:
+            # an integer in [0, 2^31)); anything else ("abc", "1.5", "²") is passed on as text
+            # for that check to refuse. [0-9], not str.isdigit(): that takes "²", int() does not
+            is_int = re.fullmatch(r"\s*[+-]?[0-9]{1,30}\s*", seed)
+            table["seed"] = int(seed) if is_int else seed
     else:
         table["output_interval"] = table["step"]
     return table
