@@ -398,6 +398,21 @@ def test_a_hostile_file_gets_one_line_and_exit_2(case: Hostile, tmp_path: Path, 
     assert case.word.lower() in lines[0].lower(), err
 
 
+def test_a_byte_order_mark_at_the_start_is_read_past(tmp_path: Path, capsys) -> None:
+    """Notepad saves UTF-8 with a byte-order mark, which tomllib refuses ('Invalid statement
+    at line 1, column 1'): the file reads as without it."""
+    plain = _scenario(tmp_path, paper_text(), "plain.toml")
+    marked = tmp_path / "marked.toml"
+    marked.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    assert read_toml(marked, str(marked)) == read_toml(plain, str(plain))
+    assert main(["validate", str(marked)]) == 0, capsys.readouterr().err
+    # only at the start: elsewhere it is a character TOML does not allow there
+    inside = tmp_path / "inside.toml"
+    inside.write_bytes(plain.read_bytes() + b"\xef\xbb\xbf\n")
+    with pytest.raises(ConfigError, match="TOML syntax error"):
+        read_toml(inside, str(inside))
+
+
 # ----------------------------------------------------------------------------- any bytes at all
 
 

@@ -236,9 +236,10 @@ def toml_copy(node: Any) -> Any:
 
 
 def parse_toml(text: str, source: str) -> dict[str, Any]:
-    """TOML text's data, with the checks of :func:`read_toml`."""
+    """TOML text's data, with the checks of :func:`read_toml`. A leading byte-order mark is
+    dropped: Windows editors (Notepad) write one, and tomllib refuses it."""
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"TOML syntax error: {exc}", source=source) from None
     except RecursionError:
