@@ -337,7 +337,13 @@ MORE_HOSTILE = [
     Hostile("coefficients-fifo", "regular file", _coefficients(_fifo_path), file="pipe"),
     Hostile("coefficients-directory", "directory", _coefficients("/tmp"), file="/tmp"),
     Hostile("coefficients-huge", "bytes", _coefficients(_big_path), file="big.toml"),
-    Hostile("coefficients-missing", "not found", _coefficients("nope.toml"), file="nope.toml"),
+    # the file that names it and the key, as for extends (not only the missing file's path)
+    Hostile(
+        "coefficients-missing",
+        "nope.toml: file not found",
+        _coefficients("nope.toml"),
+        "errormodel.coefficients",
+    ),
     Hostile(
         "coefficients-deep",
         "nested",

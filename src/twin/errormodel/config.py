@@ -52,7 +52,16 @@ def coefficients_for(em: Mapping[str, Any], source: str) -> Coefficients | None:
     if spec is None:
         return None
     if isinstance(spec, str):
-        return load_coefficients(Path(source).resolve().parent / spec)
+        path = Path(source).resolve().parent / spec
+        try:
+            return load_coefficients(path)
+        except ConfigError as exc:
+            if exc.source != str(path) or exc.key is not None:
+                raise  # a problem inside the file: its own name and key say where
+            # the file itself cannot be read (missing, a folder): say so where it is named
+            raise ConfigError(
+                f"{spec}: {exc.message}", source=source, key="errormodel.coefficients"
+            ) from None
     if isinstance(spec, Mapping):
         return parse_coefficients({"coefficients": spec}, f"{source}: errormodel")
     raise ConfigError(
