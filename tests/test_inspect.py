@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -37,9 +38,31 @@ def test_inspect_a_model_by_name(capsys) -> None:
         ("FixtureMechanic", "did you mean 'FixtureMechanics'"),
         ("/etc/hostname", "not a readable"),
         ("nope.fmu", "not found"),
+        ("/dev/zero", "/dev/zero: is not a regular file"),
+        ("", "inspect: is empty"),
+        (" ", "inspect: is empty"),
     ],
 )
 def test_inspect_bad_targets_get_one_line(target: str, word: str, capsys) -> None:
     assert main(["inspect", target]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and word in err[0], err
+
+
+@pytest.mark.parametrize(
+    ("description", "word"),
+    [
+        (b"<x/>", "lacks an element or attribute FMI requires"),  # fmpy: 'NoneType' ... 'startswith'
+        (b'<fmiModelDescription fmiVersion="2.0"/>', "lacks an element or attribute"),
+    ],
+)
+def test_an_fmu_whose_model_description_lacks_what_fmi_requires_gets_one_line(
+    description: bytes, word: str, tmp_path: Path, capsys
+) -> None:
+    fmu = tmp_path / "slip.fmu"
+    with zipfile.ZipFile(fmu, "w") as zf:
+        zf.writestr("modelDescription.xml", description)
+    assert main(["inspect", str(fmu)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {fmu}: not a readable FMI model description: "), err
+    assert word in err[0] and "NoneType" not in err[0], err

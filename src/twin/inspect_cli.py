@@ -22,6 +22,8 @@ def _description(target: str) -> Any:
     from twin.config.problems import did_you_mean
     from twin.fmu.catalog import model_names, sources_dir
 
+    if not target.strip():  # Path("") is ".", the current folder: not what anyone meant
+        raise ConfigError("is empty: name an FMU file or a model of the twin", source="inspect")
     path = Path(target)
     if not path.exists() and path.suffix != ".fmu" and len(path.parts) == 1:
         names = model_names()
@@ -31,9 +33,21 @@ def _description(target: str) -> Any:
             )
         path = sources_dir() / target / "modelDescription.xml"
     if not path.is_file() and not path.is_dir():
+        if path.exists():  # /dev/zero, a FIFO: reading one could block or never end
+            raise ConfigError(
+                "is not a regular file (a device, FIFO or socket), expected an FMU", source=str(path)
+            )
         raise ConfigError("file not found", source=str(path))
     try:
         return read_model_description(str(path), validate=False)
+    except (AttributeError, TypeError, KeyError, IndexError):
+        # fmpy reads the document's attributes unchecked (validate=False): one it lacks ends in
+        # "'NoneType' object has no attribute ...", which says nothing of the file
+        raise ConfigError(
+            "not a readable FMI model description: modelDescription.xml lacks an element or "
+            'attribute FMI requires (its root must be <fmiModelDescription fmiVersion="2.0" ...>)',
+            source=str(path),
+        ) from None
     except Exception as exc:  # fmpy raises several kinds for a file that is not an FMU
         raise ConfigError(
             f"not a readable FMI model description: {exc}".splitlines()[0], source=str(path)
