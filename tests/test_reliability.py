@@ -172,3 +172,26 @@ def test_resume_of_an_edited_scenario_is_refused(tmp_path: Path) -> None:
     scenario.write_text(scenario.read_text().replace("[scenario]\n", "[scenario]\nseed = 2\n"))
     code, _, err = finish(twin("resume", str(out), "--quiet"))
     assert code == 2 and "changed since the checkpoint" in err and "Traceback" not in err, err
+
+
+def test_resume_refuses_a_checkpoint_interval_run_would_not_write(tmp_path: Path) -> None:
+    """run.json's checkpoint_every_ns is null or a positive multiple of the step (0.1 s) as
+    `twin run` writes it; 0, -1, 1 ns or half a step would have switched the resumed run's
+    checkpoints off without a word."""
+    out = _checkpointed(tmp_path, Path(CONSTANT))
+    (out / "summary.json").unlink()  # as if killed after the checkpoint
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["checkpoint_every_ns"] == 600 * 10**9  # what run writes
+    signals = (out / "signals.csv").read_bytes()
+    for bad in (0, -1, 1, 50_000_000):
+        (out / "run.json").write_text(json.dumps({**meta, "checkpoint_every_ns": bad}))
+        code, _, err = finish(twin("resume", str(out), "--quiet"))
+        assert code == 2, err
+        assert err.strip().splitlines() == [
+            f"twin: {out / 'run.json'}: checkpoint_every_ns: must be null or a positive multiple of "
+            f"scenario.step (100000000 ns), got {bad}"
+        ]
+        assert not (out / "summary.json").exists() and (out / "signals.csv").read_bytes() == signals
+    (out / "run.json").write_text(json.dumps({**meta, "checkpoint_every_ns": None}))  # no more checkpoints
+    code, _, err = finish(twin("resume", str(out), "--quiet"))
+    assert code == 0, err

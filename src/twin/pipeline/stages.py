@@ -37,6 +37,7 @@ from twin.fmu.pool import SlotPool
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
     DISK_FULL_ERRNOS,
+    RUN_FILE,
     SUMMARY_JSON,
     Checkpoint,
     RunFolder,
@@ -550,6 +551,19 @@ def run_point(
     return summarize(simulation, evaluate_run(simulation, cfg), process_start=start)
 
 
+def _check_checkpoint_every(every_ns: int | None, step_ns: int, run_json: Path) -> None:
+    """run.json's ``checkpoint_every_ns`` as ``twin run`` writes it: null (no checkpoints) or
+    a positive multiple of the scenario's step. Anything else (0, -1, 1, half a step) would
+    turn the resumed run's checkpoints off without a word (checkpoint_ticks has no tick for
+    it), so a second kill would lose everything after this checkpoint."""
+    if every_ns is not None and (every_ns <= 0 or every_ns % step_ns):
+        raise ConfigError(
+            f"must be null or a positive multiple of scenario.step ({step_ns} ns), got {every_ns}",
+            source=str(run_json),
+            key="checkpoint_every_ns",
+        )
+
+
 def resume_run(
     run_dir: Path,
     *,
@@ -563,6 +577,7 @@ def resume_run(
     folder = RunFolder(run_dir)
     meta = folder.resumable()
     scenario = load_scenario(meta.scenario, list(meta.overrides))
+    _check_checkpoint_every(meta.checkpoint_every_ns, scenario.step_ns, folder.file(RUN_FILE))
     return run(
         scenario,
         run_dir,
