@@ -39,8 +39,8 @@ def test_inspect_a_model_by_name(capsys) -> None:
         ("/etc/hostname", "not a readable"),
         ("nope.fmu", "not found"),
         ("/dev/zero", "/dev/zero: is not a regular file"),
-        ("", "inspect: is empty"),
-        (" ", "inspect: is empty"),
+        ("", "inspect: the target is empty"),
+        (" ", "inspect: the target is empty"),
     ],
 )
 def test_inspect_bad_targets_get_one_line(target: str, word: str, capsys) -> None:

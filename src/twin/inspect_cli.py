@@ -22,8 +22,6 @@ def _description(target: str) -> Any:
     from twin.config.problems import did_you_mean
     from twin.fmu.catalog import model_names, sources_dir
 
-    if not target.strip():  # Path("") is ".", the current folder: not what anyone meant
-        raise ConfigError("is empty: name an FMU file or a model of the twin", source="inspect")
     path = Path(target)
     if not path.exists() and path.suffix != ".fmu" and len(path.parts) == 1:
         names = model_names()
