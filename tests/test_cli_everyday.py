@@ -189,3 +189,21 @@ def test_validate_refuses_parameters_the_fmus_themselves_refuse(sets: list[str],
     assert len(err) == 1 and "fmu.thermal.parameters: the FMU refuses them" in err[0] and reason in err[0], (
         err
     )
+
+
+def test_run_refuses_parameters_the_fmus_refuse_before_it_makes_its_folder(tmp_path: Path, capsys) -> None:
+    # it used to fail in the FMU's initialization with exit 1 and a run folder begun
+    out = tmp_path / "r"
+    argv = [
+        "run",
+        "--set",
+        "fmu.thermal.parameters.hyd_share_oil=0.5",
+        "--uncertainty",
+        "0",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "fmu.thermal.parameters: the FMU refuses them" in err[0], err
+    assert not out.exists()
