@@ -268,7 +268,9 @@ def test_a_full_disk_while_the_fmus_libraries_are_cached_names_the_cache(tmp_pat
     out = tmp_path / "run"
     _, line = _limited_run(out, 12_000, {**os.environ, "TWIN_CACHE_DIR": str(cache)})
     assert f"while writing {cache} (the library of " in line and ".fmu)" in line, line
-    assert json.loads((out / "summary.json").read_text())["status"] == "failed: disk full"
+    # the libraries are taken out when the FMUs' own checks initialize them, before the run
+    # folder is made: nothing of the run was begun
+    assert not out.exists()
 
 
 #: the twin, started as the console script starts it, by a wrapper that says when
