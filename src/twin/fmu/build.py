@@ -29,7 +29,8 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from twin.errors import BuildError
-from twin.fmu.catalog import Description, Model, Variable, model, model_names, sources_dir
+from twin.fmu.description import Description, Variable
+from twin.fmu.sources import Model, model, model_names, sources_dir
 from twin.fmu.toolchain import (
     LIBRARY_SUFFIX,
     cache_dir,

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 from twin.errors import ConfigError
 
 if TYPE_CHECKING:
-    from twin.fmu.catalog import Description
+    from twin.fmu.description import Description
 
 __all__ = ["MAX_FMU_BYTES", "ExternalFMU", "check", "is_external", "verified_path"]
 
@@ -71,7 +71,7 @@ def _check(path: Path, size: int, mtime_ns: int) -> ExternalFMU:
     import fmpy
     from fmpy.validation import validate_fmu
 
-    from twin.fmu.catalog import describe
+    from twin.fmu.description import describe
     from twin.fmu.toolchain import file_sha256
 
     if not zipfile.is_zipfile(path):

@@ -27,7 +27,7 @@ from fmpy import platform as fmpy_platform
 from fmpy.fmi2 import FMU2Slave
 
 from twin.errors import FMUError
-from twin.fmu.catalog import Description, Variable, describe
+from twin.fmu.description import Description, Variable, describe
 from twin.fmu.workdir import extraction_dir
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
