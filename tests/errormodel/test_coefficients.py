@@ -93,7 +93,7 @@ def test_changing_the_tester_does_not_change_the_error_models_coefficients(scena
     assert nominal.fmu("mechanics").parameters["alpha_steel"].value == 1.17e-5  # the drawing's handbook value
     # ... the model did not: its coefficients are the file's, for both runs
     a, b = evaluation_config(nominal), evaluation_config(perturbed)
-    assert a.geometry == b.geometry == committed().thermal()
+    assert a.thermal == b.thermal == committed().thermal()
     assert a.mechanics == b.mechanics == committed().mechanics()
 
 
@@ -104,7 +104,7 @@ def test_a_scenario_names_its_coefficients_file_relative_to_itself(tmp_path: Pat
     base = (scenarios_dir() / "constant-load.toml").resolve()
     scenario.write_text(f'extends = "{base}"\n[errormodel]\ncoefficients = "mine.toml"\n')
     cfg = evaluation_config(load_scenario(scenario))
-    assert cfg.geometry.alpha_l_detecting_frame == 9.9e-6
+    assert cfg.thermal.alpha_l_detecting_frame == 9.9e-6
     assert cfg.mechanics.load_compliance == 3.3e-10
 
 
@@ -115,7 +115,7 @@ def test_a_labs_errormodel_table_may_hold_the_coefficients_inline() -> None:
     }
     table["probe_zero_drift"]["value"] = 0.7e-6
     cfg = errormodel_config(None, {"coefficients": table}, "LAB.toml", 300.0)
-    assert cfg.geometry.probe_zero_drift == 0.7e-6
+    assert cfg.thermal.probe_zero_drift == 0.7e-6
     assert cfg.mechanics == committed().mechanics()
 
 

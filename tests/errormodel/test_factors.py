@@ -16,8 +16,9 @@ import pytest
 
 from twin.errormodel import factors as factors_module
 from twin.errormodel.config import errormodel_config, input_columns, model_defaults
-from twin.errormodel.evaluate import PARTS, EvaluationConfig, evaluate, evaluation_signals
+from twin.errormodel.evaluate import PARTS, evaluate, evaluation_signals
 from twin.errormodel.factors import FACTORS, Contribution, Factor, FactorError, Measured, factor, factor_list
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import DEFAULT_TEMPERATURES
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError, TwinError

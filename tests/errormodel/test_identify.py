@@ -20,7 +20,6 @@ from twin.errormodel.coefficients import (
     load_coefficients,
     load_priors,
 )
-from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, Measured
 from twin.errormodel.identify import (
     CALIBRATIONS,
@@ -31,6 +30,7 @@ from twin.errormodel.identify import (
     lab_channels,
     run_experiment,
 )
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import (
     CREEP_COEFFICIENTS,
     RETARDATION_TIMES_S,
@@ -126,7 +126,7 @@ def _motion(
     for field in ("load", "torque", "angle", "vibration", "reading"):
         truth.add(Signal(getattr(COLUMNS, field), "", ""), true.get(field, np.zeros(len(table.time))))
     cfg = EvaluationConfig(
-        geometry=ThermalCoefficients.from_values(TRUTH),
+        thermal=ThermalCoefficients.from_values(TRUTH),
         mechanics=MechanicalCoefficients.from_values(TRUTH),
         true_wear=None,
     )

@@ -28,7 +28,7 @@ time as one batch of the stepping loop.
 from __future__ import annotations
 
 import time as wallclock
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,10 +38,11 @@ from twin.config.spec import Scenario
 from twin.cosim import events
 from twin.cosim.checkpoint import restore, snapshot
 from twin.cosim.instances import close_slots, initialize, open_slots
+from twin.cosim.native import NativeLoop
 from twin.cosim.plan import Plan, make_plan
 from twin.cosim.recording import MemoryRecorder, Recorder, batch_rows
 from twin.cosim.state import State, make_state
-from twin.cosim.stepping import Loop, Stepping, check_loop, final_tick, make_stepping
+from twin.cosim.stepping import Loop, PythonLoop, Stepping, check_loop, final_tick
 from twin.errors import FMUError, RunError
 from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
@@ -216,6 +217,13 @@ class Master:
         """Free the FMU instances, or with ``reuse`` give them back to the pool (again: a no-op)."""
         close_slots(self.slots, self.pool if reuse else None)
         self.slots = []
+
+
+def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> Stepping:
+    """The loop named ``loop`` over ``state`` (the compiled one is built on first use)."""
+    if check_loop(loop) == "python":
+        return PythonLoop(plan, state, slots)
+    return NativeLoop(plan, state, slots)
 
 
 def run_scenario(scenario: Scenario, *, progress: ProgressFn | None = None, loop: Loop = "fast") -> RunResult:

@@ -1,7 +1,7 @@
 """The stepping loop: runs a batch of ticks of the plan over the exchange state.
 
 Two implementations behind one small interface, :class:`Stepping` (libcosim's "algorithm"):
-the compiled stepper (:class:`twin.cosim.native.NativeLoop`, ``loop="fast"``) and
+the compiled stepper (``twin.cosim.native``, ``loop="fast"``) and
 :class:`PythonLoop` here (``loop="python"``), which does the same ticks in plain Python on the
 same arrays; a test checks that both give byte-identical signals.
 
@@ -178,15 +178,6 @@ def check_loop(loop: str) -> Loop:
     return loop  # type: ignore[return-value]
 
 
-def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> Stepping:
-    """The loop named ``loop`` over ``state`` (the compiled one is built on first use)."""
-    if check_loop(loop) == "python":
-        return PythonLoop(plan, state, slots)
-    from twin.cosim.native import NativeLoop
-
-    return NativeLoop(plan, state, slots)
-
-
 __all__ = [
     "LOOPS",
     "Gather",
@@ -195,7 +186,6 @@ __all__ = [
     "Stepping",
     "check_loop",
     "final_tick",
-    "make_stepping",
     "non_finite",
     "row_values",
 ]

@@ -26,8 +26,8 @@ from twin.errormodel.coefficients import (
     load_coefficients,
     parse_coefficients,
 )
-from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, PARTS
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import (
     COLUMN_FIELDS,
     DEFAULT_READING,
@@ -103,7 +103,7 @@ def errormodel_config(
         raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
     _check_columns(columns, source)
     return EvaluationConfig(
-        geometry=ThermalCoefficients.from_values(values, source=source),
+        thermal=ThermalCoefficients.from_values(values, source=source),
         mechanics=MechanicalCoefficients.from_values(values, source=source),
         factors=tuple(factors),
         **{k: v for k, v in columns.items() if k in _sensor_fields()},

@@ -26,14 +26,14 @@ import numpy as np
 
 from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
 from twin.errormodel.factors import FACTORS, PARTS, Contribution, Measured, endpoints
-from twin.errormodel.sources import COLUMN_FIELDS, Columns, MechanicalCoefficients, ThermalGeometry
+from twin.errormodel.settings import EvaluationConfig
+from twin.errormodel.sources import COLUMN_FIELDS
 from twin.errormodel.tester import tester_model
 from twin.signals.table import Signal, SignalTable
 
 __all__ = [
     "PARTS",
     "Evaluation",
-    "EvaluationConfig",
     "compensation_summary",
     "endpoints",
     "evaluate",
@@ -44,23 +44,6 @@ __all__ = [
 
 #: the Frechet distance is computed on at most this many points per curve (evenly decimated)
 FRECHET_POINTS = 800
-
-
-@dataclass(frozen=True, kw_only=True)
-class EvaluationConfig(Columns):
-    """Which columns hold what (the fields of :class:`~twin.errormodel.sources.Columns`), what
-    is known of the tester, and the evaluation's settings."""
-
-    geometry: ThermalGeometry
-    mechanics: MechanicalCoefficients | None = None
-    window_s: float = 300.0
-    spike_half_window: int = 10
-    spike_sigmas: float = 5.0
-    spike_min: float = 1e-6
-    ra_window_s: float = 1800.0
-    #: the factors the model evaluates; the paper's thermal experiment leaves out loading and
-    #: fluctuating (no load, no motion: its Eq. 10), so their sensors' noise does not enter
-    factors: tuple[str, ...] = PARTS
 
 
 def evaluation_signals(*, with_true_wear: bool) -> list[Signal]:

@@ -24,11 +24,12 @@ from __future__ import annotations
 import keyword
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from twin.errormodel.model import ErrorModel, Errors
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import (
     COLUMN_FIELDS,
     MechanicalCoefficients,
@@ -41,9 +42,6 @@ from twin.errormodel.sources import (
 )
 from twin.errors import ConfigError, TwinError
 from twin.signals.table import SignalTable
-
-if TYPE_CHECKING:
-    from twin.errormodel.evaluate import EvaluationConfig
 
 __all__ = [
     "FACTORS",
@@ -152,7 +150,7 @@ class Measured:
         temperatures = {
             point: _column(table, col, f"temperature at '{point}'") for point, col in cfg.temperatures.items()
         }
-        if history is None and "loading" in cfg.factors:
+        if history is None and cfg.factor_on("loading"):
             load = table.columns.get(cfg.load)
             history = None if load is None else load_history(table.time, load)
         return cls(table, cfg, model, reading, cleaned, spikes, temperatures, history)
@@ -247,7 +245,7 @@ class Factor:
 
     def is_on(self, cfg: EvaluationConfig) -> bool:
         """Whether ``cfg`` switches it on (its ``factors``): then its sensors count as used."""
-        return self.name in cfg.factors
+        return cfg.factor_on(self.name)
 
     def contribution(self, m: Measured) -> Contribution:
         """Its contribution on ``m``, zero while switched off; checked against the declaration.
@@ -339,7 +337,7 @@ def _thermal(m: Measured) -> Contribution:
     """Thermal dE_T: alpha L dT of every body from the temperature rises, plus the probe's
     zero drift, through the positioning error matrices dT_ijp (``p_dz``)."""
     rises = {point: _rel(y) for point, y in m.temperatures.items()}
-    by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.geometry))
+    by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.thermal))
     return Contribution(np.sum(np.array(list(by_body.values())), axis=0), by_body)
 
 

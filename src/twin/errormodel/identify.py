@@ -46,8 +46,8 @@ import numpy as np
 from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data, scenarios_dir
 from twin.config.spec import Scenario
 from twin.errormodel.coefficients import Coefficient, Coefficients, Fit, Prior, coefficient_units
-from twin.errormodel.evaluate import EvaluationConfig
 from twin.errormodel.factors import FACTORS, Measured
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import CREEP_COEFFICIENTS, Columns, MechanicalCoefficients, ThermalCoefficients
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError, RunError
@@ -289,7 +289,7 @@ def _config(values: Mapping[str, float]) -> EvaluationConfig:
 
 def _coefficient_fields(values: Mapping[str, float]) -> dict[str, Any]:
     return {
-        "geometry": ThermalCoefficients.from_values(values, source="twin identify"),
+        "thermal": ThermalCoefficients.from_values(values, source="twin identify"),
         "mechanics": MechanicalCoefficients.from_values(values, source="twin identify"),
     }
 

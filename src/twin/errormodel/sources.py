@@ -145,10 +145,6 @@ class ThermalCoefficients(_Coefficients):
     # fmt: on
 
 
-#: the name the evaluation's configuration knows the thermal coefficients by
-ThermalGeometry = ThermalCoefficients
-
-
 def thermal_errors(
     rises: Mapping[str, np.ndarray], g: ThermalCoefficients
 ) -> dict[str, dict[str, np.ndarray]]:

@@ -169,7 +169,7 @@ class StreamingEvaluation:
         self._squares = {f.name: 0.0 for f in FACTORS}
         self._spikes = 0
         self._wear: list[Block] = []
-        self._history = LoadHistory() if cfg.load in self.signals and "loading" in cfg.factors else None
+        self._history = LoadHistory() if cfg.load in self.signals and cfg.factor_on("loading") else None
 
     @property
     def rows(self) -> int:

@@ -17,7 +17,7 @@ import numpy as np
 
 from twin.config.spec import NS_PER_S
 from twin.errormodel.config import errormodel_config, input_columns, model_defaults
-from twin.errormodel.evaluate import EvaluationConfig
+from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.streaming import CHUNK_ROWS, Block, StreamingEvaluation
 from twin.errors import ConfigError
 from twin.outputs.csv import SignalsCsvWriter, units_sidecar_path

@@ -30,8 +30,9 @@ from typing import TYPE_CHECKING, Any
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.master import Loop, Master, RunResult
 from twin.errormodel.config import evaluation_config, input_columns
-from twin.errormodel.evaluate import EvaluationConfig, evaluate, evaluation_signals
+from twin.errormodel.evaluate import evaluate, evaluation_signals
 from twin.errormodel.factors import FACTORS
+from twin.errormodel.settings import EvaluationConfig
 from twin.errors import ConfigError, RunError, TwinError
 from twin.fmu.pool import SlotPool
 from twin.outputs.plots import BudgetColumns

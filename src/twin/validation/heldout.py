@@ -228,7 +228,7 @@ def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: 
 
     cfg = replace(
         evaluation_config(scenario),
-        geometry=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
+        thermal=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
         mechanics=MechanicalCoefficients.from_values(values, source="twin heldout: identified"),
     )
     sim = simulate(scenario, keep=input_columns(cfg))
