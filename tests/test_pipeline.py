@@ -19,7 +19,7 @@ from twin.errormodel.config import evaluation_config, input_columns
 from twin.errormodel.evaluate import PARTS
 from twin.errors import RunError
 from twin.outputs.csv import read_signals_csv
-from twin.outputs.sink import Outcome
+from twin.outputs.sink import Outcome, Sink
 from twin.paper import TEMPERATURE_RISE_K
 from twin.pipeline import RunSummary, evaluate_run, run, run_point, simulate, summarize, write_outputs
 from twin.signals.recorder import FLUSH_ROWS
@@ -90,8 +90,10 @@ def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummar
     cfg = evaluation_config(scenario)
     events: list[str] = []
 
-    class Tail:
+    class Tail(Sink):
         """A sink of its own: the last row of each column, and what the run told it."""
+
+        path = Path("tail")
 
         def open(self, signals: list[Signal]) -> None:
             events.append("open")

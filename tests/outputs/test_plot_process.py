@@ -16,7 +16,8 @@ import pytest
 from twin.errors import RunError
 from twin.outputs import plots
 from twin.outputs.plot_process import PlotProcess, columns_json, thinned
-from twin.outputs.plots import BudgetColumns, ErrorBudgetSink, WearPlotSink
+from twin.outputs.plot_sinks import ErrorBudgetSink, WearPlotSink
+from twin.outputs.plots import BudgetColumns
 from twin.outputs.sink import Outcome
 from twin.pipeline.stages import Evaluated, write_outputs
 from twin.signals.table import Signal, SignalTable
@@ -98,11 +99,11 @@ def test_a_plot_sent_when_the_outcome_is_known_is_drawn_meanwhile_and_waited_for
     budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
     wear = WearPlotSink(out / "wear.png", _columns(), "a run: wear against swing cycles", process)
     outcome = _outcome(_table())
-    assert budget.prepare(outcome)
+    assert budget.begin(outcome)
     assert process.pending == out / "error_budget.png"
     # one plot at a time: a second one would fill the pipe and block the run until the first
     # is drawn; it is sent at its close instead
-    assert not wear.prepare(outcome)
+    assert not wear.begin(outcome)
     budget.close(outcome)
     assert process.pending is None
     wear.close(outcome)
@@ -148,7 +149,7 @@ def test_a_run_that_fails_after_sending_its_plot_abandons_it(tmp_path: Path, whe
     process = PlotProcess()
     process.start()
     budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
-    assert budget.prepare(_outcome(_table()))
+    assert budget.begin(_outcome(_table()))
     if when == "once it is drawn":
         deadline = time.monotonic() + 60
         while not (out / "error_budget.png").exists():
@@ -166,7 +167,7 @@ def test_a_sent_plot_whose_helper_dies_is_drawn_in_the_run(here: dict[str, bytes
     process.start()
     budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
     outcome = _outcome(_table())
-    assert budget.prepare(outcome)
+    assert budget.begin(outcome)
     assert process._proc is not None
     process._proc.kill()
     budget.close(outcome)

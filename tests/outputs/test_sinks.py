@@ -15,10 +15,11 @@ import pytest
 
 import twin.signals.recorder as recorder_module
 from twin.outputs.csv import DerivedCsvSink, SignalsCsvSink, read_signals_csv, write_signals_csv
-from twin.outputs.plots import BudgetColumns, ErrorBudgetSink
+from twin.outputs.plot_sinks import ErrorBudgetSink
+from twin.outputs.plots import BudgetColumns
 from twin.outputs.recording_sink import RecordingSink
 from twin.outputs.rerun_rec import entity_path, read_recording
-from twin.outputs.sink import Outcome
+from twin.outputs.sink import Outcome, Sink
 from twin.outputs.summary import SummarySink
 from twin.signals.recorder import TeeRecorder
 from twin.signals.table import Block, Signal, SignalTable
@@ -29,12 +30,13 @@ DERIVED = ("errormodel.e_total", *PARTS.values())
 PLOT = BudgetColumns("probe.reading", "errormodel.e_total", PARTS, ["thermal.t_base", "thermal.no_such"])
 
 
-class Log:
+class Log(Sink):
     """A sink that writes down what it is told."""
 
     def __init__(self, events: list[tuple[str, Any]] | None = None, name: str = "log") -> None:
         self.events = events if events is not None else []
         self.name = name
+        self.path = Path(name)
 
     def open(self, signals: list[Signal]) -> None:
         self.events.append((self.name, "open", [s.name for s in signals]))
@@ -146,8 +148,8 @@ def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file
     events: list[tuple[str, Any]] = []
 
     class Plot(Log):
-        def prepare(self, outcome: Outcome) -> bool:
-            self.events.append((self.name, "prepare"))
+        def begin(self, outcome: Outcome) -> bool:
+            self.events.append((self.name, "begin"))
             return True
 
     rec = TeeRecorder([Log(events, "csv"), Plot(events, "png")], hold_last=True)
@@ -156,7 +158,7 @@ def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file
     assert [e[:2] for e in events] == [
         ("csv", "open"),
         ("png", "open"),
-        ("png", "prepare"),
+        ("png", "begin"),
         ("csv", "write"),
         ("png", "write"),
         ("csv", "close"),

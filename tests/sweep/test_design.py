@@ -95,7 +95,7 @@ def test_the_point_count_checked_before_a_design_is_made_is_its_size(
     design: str, samples: int, extra: str, tmp_path: Path
 ) -> None:
     # the limit on a sweep's points is checked from this count, before the design exists
-    from twin.sweep.design import point_count
+    from twin.sweep.spec import point_count
 
     groups = 'groups = ["a", "a", "b"]\n' if extra == "GROUPS" else ""
     body = (

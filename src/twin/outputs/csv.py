@@ -31,7 +31,7 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from twin.errors import ConfigError
-from twin.outputs.sink import ClosesOnExit, OutcomeSink
+from twin.outputs.sink import ClosesOnExit, OutcomeSink, Sink
 from twin.outputs.summary import write_summary
 from twin.signals.table import Block, Signal, SignalTable
 
@@ -273,7 +273,7 @@ def write_signals_csv(table: SignalTable, path: str | os.PathLike[str], *, sidec
     return Path(path)
 
 
-class SignalsCsvSink:
+class SignalsCsvSink(Sink):
     """``signals.csv`` as a sink: every recorded row, appended block by block as the run goes.
 
     ``resume_at`` (a checkpoint's ``csv_position``) continues the file of a resumed run.

@@ -14,7 +14,7 @@ each job with one JSON line. The same drawing code on the same samples gives the
 drawing in the run's own process (tests/outputs/test_plot_process.py).
 
 A plot is sent as soon as the run's outcome is known (:meth:`PlotProcess.send`, from the plot
-sink's ``prepare``; written to the helper by a thread, so a helper still importing matplotlib
+sink's ``begin``; written to the helper by a thread, so a helper still importing matplotlib
 does not hold the run) and drawn while the run finishes its other files; one at a time. The
 run waits for each PNG (:meth:`PlotProcess.answer`) before summary.json, so every file it
 lists exists, and for the helper to end (it leaves at once, without the interpreter's
@@ -41,12 +41,11 @@ from typing import IO, Any
 import numpy as np
 
 from twin.errors import RunError
+from twin.outputs import plots
 from twin.signals.table import Signal, SignalTable
 
 __all__ = ["PlotProcess", "main", "thinned"]
 
-#: the jobs the helper draws: kind -> (the plot's figure function's name in twin.outputs.plots)
-KINDS = ("budget", "wear")
 #: seconds the run waits for the helper to end once its input is closed
 _EXIT_WAIT_S = 5.0
 
@@ -245,7 +244,7 @@ def _read_job(line: bytes, stream: IO[bytes]) -> tuple[dict[str, Any], SignalTab
     """One job's header and samples. Raises ValueError (or EOFError) on anything else: the
     stream is then out of step, and the helper ends."""
     header = json.loads(line)
-    if not isinstance(header, dict) or header.get("kind") not in KINDS:
+    if not isinstance(header, dict) or header.get("kind") not in plots.KINDS:
         raise ValueError("a job is a JSON object with kind 'budget' or 'wear'")
     n, names = header.get("n"), header.get("names")
     if not (
@@ -263,16 +262,8 @@ def _read_job(line: bytes, stream: IO[bytes]) -> tuple[dict[str, Any], SignalTab
 
 
 def _draw(header: Mapping[str, Any], table: SignalTable) -> None:
-    from twin.outputs import plots
-
     columns = plots.BudgetColumns(**header["columns"])
-    path, title = Path(str(header["path"])), str(header["title"])
-    if header["kind"] == "budget":
-        plots.save_png(plots.budget_figure(table, columns, title), path)
-    else:
-        fig = plots.wear_figure(table, columns, title)
-        if fig is not None:
-            plots.save_png(fig, path)
+    plots.draw(str(header["kind"]), table, columns, str(header["title"]), Path(str(header["path"])))
 
 
 def main() -> int:
@@ -282,8 +273,6 @@ def main() -> int:
     # helper's input; a helper that died of it would leave its plot to the run's process
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    from twin.outputs import plots
-
     plots.warm_up()
     stdin, stdout = sys.stdin.buffer, sys.stdout
     while line := stdin.readline():

@@ -18,10 +18,8 @@ artists); fixed size, dpi and fonts and no ``Software`` metadata make the bytes 
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 import os
-from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,27 +27,22 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.errors import RunError
 from twin.outputs.atomic import write_atomic
-from twin.outputs.sink import OutcomeSink
 from twin.signals.table import SignalTable
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from twin.outputs.plot_process import PlotProcess
-    from twin.outputs.sink import Outcome
-    from twin.signals.table import Signal
 
 __all__ = [
     "DPI",
     "FIGSIZE_IN",
+    "KINDS",
     "WEAR_FIGSIZE_IN",
     "BudgetColumns",
-    "ErrorBudgetSink",
-    "WearPlotSink",
     "budget_figure",
+    "draw",
     "error_budget_png",
     "human_name",
     "save_png",
@@ -66,7 +59,7 @@ _UM_PER_M = 1e6
 _PART_COLORS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:cyan", "tab:olive", "tab:pink")
 #: most points drawn per curve: the figure is about 1000 px wide, and drawing every sample of a
 #: long run costs seconds without changing a pixel of the trends
-_MAX_POINTS = 2000
+MAX_POINTS = 2000
 
 
 #: measuring points whose name is not just their key with spaces
@@ -160,7 +153,7 @@ def error_budget_png(
     return save_png(budget_figure(table, columns, title), Path(path))
 
 
-def _checked(table: SignalTable, columns: BudgetColumns) -> None:
+def checked(table: SignalTable, columns: BudgetColumns) -> None:
     missing = columns.missing(table)
     if missing:
         raise KeyError(f"columns not in the signal table: {missing}")
@@ -209,13 +202,13 @@ def _stacked(ax: Axes, t: np.ndarray, parts: Mapping[str, np.ndarray]) -> None:
 def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
     """The error-budget figure of ``table`` (three panels, see the module). Raises
     ``KeyError`` naming a column the table lacks."""
-    _checked(table, columns)
+    checked(table, columns)
     with _style():
         return _draw_budget(table, columns, title)
 
 
 def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
-    every = max(1, len(table.time) // _MAX_POINTS)
+    every = max(1, len(table.time) // MAX_POINTS)
     t, t_label = _time_axis(table.time[::every])
 
     def um(name: str) -> np.ndarray:
@@ -272,7 +265,7 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
     if wear is None or any(c not in table for c in (*wear, columns.reading)):
         return None
     true_wear, compensated, cycles = wear
-    every = max(1, len(table.time) // _MAX_POINTS)
+    every = max(1, len(table.time) // MAX_POINTS)
     with _style():
         fig = _new_figure(WEAR_FIGSIZE_IN)
         ax = fig.subplots(gridspec_kw={"left": 0.08, "right": 0.71, "top": 0.9, "bottom": 0.12})
@@ -326,154 +319,16 @@ def warm_up() -> None:
         fig.savefig(io.BytesIO(), format="png", dpi=DPI, metadata={"Software": None})
 
 
-class _PlotSink(OutcomeSink):
-    """A PNG drawn from the outcome's table when the run is over, into ``path``; by the run's
-    :class:`~twin.outputs.plot_process.PlotProcess` when given one (``twin run`` starts it
-    with the command; else it starts when the run opens its outputs), else in process.
-
-    :meth:`prepare` sends the plot to that process as soon as the outcome is known, so it is
-    drawn while the outputs before it close; :meth:`close` waits for it. Subclasses say what
-    they draw (:meth:`_job`) and how (:meth:`_draw_here`).
-    """
-
-    #: a run interrupted after its co-simulation leaves out the plots not already sent to the
-    #: plot process (they only draw what the CSV files hold, and drawing in the run's process
-    #: means importing matplotlib, a third of a second)
-    skippable = True
-    #: the plot process's name for this plot (twin.outputs.plot_process.KINDS)
-    kind = ""
-
-    def __init__(
-        self, path: Path, columns: BudgetColumns, title: str, process: PlotProcess | None = None
-    ) -> None:
-        self.path = path
-        self.columns = columns
-        self.title = title
-        self.process = process.use() if process is not None else None
-
-    def open(self, signals: list[Signal]) -> None:
-        """The run starts: so does the plot process, which imports matplotlib meanwhile."""
-        if self.process is not None:
-            self.process.start()
-
-    def prepare(self, outcome: Outcome) -> bool:
-        """The outcome is known: hand the plot to the plot process, which draws it while the
-        outputs before this one close. True when sent (then :meth:`close` waits for it, even
-        if a stop comes in between); False when it is left to :meth:`close` (no process, one
-        plot in its hands already, or nothing to draw)."""
-        try:
-            job = self._job(outcome)
-        except KeyError:  # raised again by close, in its turn: the files before it are written
-            return False
-        if job is None or self.process is None:
-            return False
-        table, columns, names = job
-        return self._send(table, columns, names)
-
-    def close(self, outcome: Outcome) -> None:
-        try:
-            super().close(outcome)
-        finally:
-            self._release()
-
-    def fail(self, error: BaseException) -> None:
-        """The run broke: nothing new is written. A plot already handed to the plot process
-        (:meth:`prepare`) is abandoned: the process is stopped at once and what it wrote of the
-        plot removed (the run removed any earlier run's file when it started)."""
-        if self._in_hand():
-            assert self.process is not None
-            self.process.abandon()
-            self.path.unlink(missing_ok=True)
-            for tmp in self.path.parent.glob(f".{self.path.name}.*.tmp"):
-                tmp.unlink(missing_ok=True)
-        self._release()
-
-    def write_outcome(self, outcome: Outcome) -> None:
-        if self._in_hand():
-            assert self.process is not None
-            if self.process.answer():
-                return
-        job = self._job(outcome)
-        if job is None:
-            return
-        table, columns, names = job
-        if not self._send(table, columns, names) or not self.process or not self.process.answer():
-            try:
-                self._draw_here(table, columns)
-            except OSError:
-                raise  # the file could not be written (a full disk): the run says which
-            except Exception as exc:  # as the plot process reports it (plot_process.main)
-                raise RunError(f"{self.path.name}: the plot failed: {type(exc).__name__}: {exc}") from exc
-
-    @abstractmethod
-    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
-        """The table, the columns and the names of the columns the plot draws; None when the
-        outcome has nothing for it. Raises ``KeyError`` naming a column the table lacks."""
-
-    @abstractmethod
-    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
-        """Draw the plot in this process."""
-
-    def _in_hand(self) -> bool:
-        """Whether the plot process has this plot in hand (sent, not yet answered)."""
-        return self.process is not None and self.process.pending == self.path
-
-    def _release(self) -> None:
-        process, self.process = self.process, None
-        if process is not None:
-            process.release()
-
-    def _send(self, table: SignalTable, columns: BudgetColumns, names: list[str]) -> bool:
-        """Whether the plot process took it (False: draw it here)."""
-        if self.process is None or not self.process.running:
-            return False
-        from twin.outputs.plot_process import columns_json, thinned
-
-        return self.process.send(
-            self.kind, self.path, thinned(table, names, _MAX_POINTS), columns_json(columns), self.title
-        )
+#: the plots a run draws, by kind: :func:`draw` makes them (in the run's process or its helper)
+KINDS = ("budget", "wear")
 
 
-class ErrorBudgetSink(_PlotSink):
-    """``error_budget.png`` as a sink.
-
-    Only when the error model ran (the plot shows its prediction); temperatures the table
-    lacks are left out rather than failing the plot.
-    """
-
-    kind = "budget"
-
-    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
-        table = outcome.table
-        if table is None:
-            return None
-        present = {k: v for k, v in self.columns.temperature_columns().items() if v in table}
-        columns = dataclasses.replace(self.columns, temperatures=present)
-        if columns.compensated and columns.compensated not in table:
-            columns = dataclasses.replace(columns, compensated=None)
-        _checked(table, columns)
-        names = [columns.reading, columns.predicted, *columns.parts.values(), *present.values()]
-        names += [columns.compensated] if columns.compensated else []
-        return table, columns, list(dict.fromkeys(names))
-
-    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
-        save_png(budget_figure(table, columns, self.title), self.path)
-
-
-class WearPlotSink(_PlotSink):
-    """``wear.png``: wear against swing cycles with the wear limit (only for a run whose table
-    has the true wear, the compensated wear and the cycles)."""
-
-    kind = "wear"
-
-    def _job(self, outcome: Outcome) -> tuple[SignalTable, BudgetColumns, list[str]] | None:
-        table = outcome.table
-        wear = self.columns.wear_columns()
-        if table is None or wear is None or any(c not in table for c in (*wear, self.columns.reading)):
-            return None
-        return table, self.columns, list(dict.fromkeys([*wear, self.columns.reading]))
-
-    def _draw_here(self, table: SignalTable, columns: BudgetColumns) -> None:
-        fig = wear_figure(table, columns, self.title)
-        if fig is not None:
-            save_png(fig, self.path)
+def draw(kind: str, table: SignalTable, columns: BudgetColumns, title: str, path: Path) -> None:
+    """Draw the plot ``kind`` (one of :data:`KINDS`) of ``table`` into the PNG ``path``; the
+    wear plot of a table without wear is not drawn."""
+    if kind == "budget":
+        save_png(budget_figure(table, columns, title), path)
+        return
+    fig = wear_figure(table, columns, title)
+    if fig is not None:
+        save_png(fig, path)

@@ -16,12 +16,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
+from twin.outputs.sink import Outcome, Sink
 from twin.signals.table import Block, Signal
 
 if TYPE_CHECKING:
     from twin.outputs.rerun_rec import RecordingWriter
     from twin.outputs.scene3d import TesterScene
-    from twin.outputs.sink import Outcome
 
 __all__ = ["RecordingSink", "settle_when_rerun_loads"]
 
@@ -53,7 +53,7 @@ def _rerun_rec() -> ModuleType:
     return rerun_rec
 
 
-class RecordingSink:
+class RecordingSink(Sink):
     """``recording.rrd`` as a sink: the recorded rows streamed as the run goes, then the
     columns derived after it (the error model's) on the same timeline.
 

@@ -377,7 +377,7 @@ class RunFolder:
         """The outputs written once the error model has run: errormodel.csv, the plot
         (titled after ``name``; drawn by ``plot_process`` when given) and summary.json, last."""
         from twin.outputs.csv import DerivedCsvSink
-        from twin.outputs.plots import ErrorBudgetSink, WearPlotSink
+        from twin.outputs.plot_sinks import ErrorBudgetSink, WearPlotSink
         from twin.outputs.summary import SummarySink
 
         process = plot_process

@@ -16,12 +16,10 @@ cut to what a file needs):
     the run broke with an exception nothing else handled: keep what is written, release the
     file, write nothing new.
 
-A sink whose file another process makes (the plots) may also have ``prepare(outcome) ->
-bool``, asked before any sink closes: True when it has started its file, to be finished by
-its ``close``. A run with no rows to stream (``twin compensate`` on a CSV) goes straight to
-``close``. A sink
-that can continue its file after a resumed run also has ``checkpoint() -> dict``: where its
-file stands, saved in the run's checkpoint.
+A sink whose file another process makes (the plots) begins it early (:meth:`Sink.begin`,
+asked before any sink closes). A run with no rows to stream (``twin compensate`` on a CSV)
+goes straight to ``close``. A sink that can continue its file after a resumed run says
+where its file stands (:meth:`Sink.checkpoint`, saved in the run's checkpoint).
 
 Adding an output is one class with these four methods in its own module, and a line in
 :mod:`twin.outputs.run_folder` that names its file and puts it in the run's list.
@@ -31,8 +29,9 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Protocol, Self
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 if TYPE_CHECKING:
     from twin.signals.table import Block, Signal, SignalTable
@@ -67,27 +66,46 @@ class Outcome:
         return self._summary
 
 
-class Sink(Protocol):
-    """One output of a run (see the module docstring for when each method is called)."""
+class Sink(ABC):
+    """One output of a run (see the module docstring for when each method is called).
 
+    ``path`` is its file (named in the run's timings and in what an interrupted run left
+    out); a ``skippable`` sink only draws what the others hold (the plots): a run stopped
+    after its co-simulation leaves it out unless it has begun.
+    """
+
+    path: Path
+    skippable: ClassVar[bool] = False
+
+    @abstractmethod
     def open(self, signals: list[Signal]) -> None:
         """The recorded columns, before the first block."""
-        ...
 
+    @abstractmethod
     def write(self, block: Block) -> None:
         """Rows of every recorded column, in time order."""
-        ...
 
+    @abstractmethod
     def close(self, outcome: Outcome) -> None:
         """The run is over: finish the file (idempotent)."""
-        ...
 
+    @abstractmethod
     def fail(self, error: BaseException) -> None:
         """The run broke: keep what is written and release the file (also after close)."""
-        ...
+
+    def begin(self, outcome: Outcome) -> bool:
+        """The outcome is known, before any sink closes: True when this sink has begun its
+        file now (another process draws it while the files before it are written), to be
+        finished by :meth:`close`. By default nothing begins early."""
+        return False
+
+    def checkpoint(self) -> dict[str, Any]:
+        """Where its file stands, saved in a run's checkpoint so that a resumed run continues
+        it (empty: a file written anew, or written only at the end)."""
+        return {}
 
 
-class OutcomeSink(ABC):
+class OutcomeSink(Sink):
     """Base of the sinks that write only when the run is over, from its outcome (the error
     model's CSV, the plot, the summary): the streamed rows are not theirs, and a run that
     broke leaves them nothing begun to release. Subclasses implement :meth:`write_outcome`,

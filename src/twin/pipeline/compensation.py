@@ -96,7 +96,7 @@ def compensate(
         },
         **evaluation.summary(),
     }
-    from twin.outputs.plots import ErrorBudgetSink
+    from twin.outputs.plot_sinks import ErrorBudgetSink
     from twin.outputs.summary import SummarySink
 
     title = f"{csv_path.name}: predicted error and its parts"

@@ -261,8 +261,8 @@ def write_outputs(
     answers a signal's name, the sinks that only draw what the others hold (``skippable``:
     the plots, most of what comes after the co-simulation) are left out and their
     files' names added to ``skipped``: an interrupted run keeps its data, not its pictures.
-    A sink with ``prepare(outcome) -> bool`` is asked first whether it starts its file now
-    (the plots, drawn by their own process while the files before them are written). The
+    Every sink is asked first whether it begins its file now (:meth:`~twin.outputs.sink.Sink.begin`:
+    the plots, drawn by their own process while the files before them are written). The
     rows ``held`` back at the end of the run (:func:`simulate`'s ``hold_last_rows``) are
     handed to the sinks after that, before any closes (their time into ``timings`` as
     ``last_rows``).
@@ -272,29 +272,23 @@ def write_outputs(
     def stopped() -> bool:
         return stop is not None and stop() is not None
 
-    # a sink whose file another process makes (the plots) starts it now, to be made while the
-    # files before it are written; once started it is waited for, stop or not
-    started = {
-        id(sink)
-        for sink in sinks
-        if (prepare := getattr(sink, "prepare", None)) is not None
-        and not (getattr(sink, "skippable", False) and stopped())
-        and prepare(outcome)
-    }
+    # a sink whose file another process makes (the plots) begins it now, to be made while the
+    # files before it are written; once begun it is waited for, stop or not
+    begun = {id(sink) for sink in sinks if not (sink.skippable and stopped()) and sink.begin(outcome)}
     if held is not None:
         t0 = time.perf_counter()
         held.flush()
         if timings is not None:
             timings["last_rows"] = time.perf_counter() - t0
     for sink in sinks:
-        if getattr(sink, "skippable", False) and id(sink) not in started and stopped():
+        if sink.skippable and id(sink) not in begun and stopped():
             if skipped is not None:
-                skipped.append(Path(getattr(sink, "path", type(sink).__name__)).name)
+                skipped.append(sink.path.name)
             continue
         t0 = time.perf_counter()
         sink.close(outcome)
         if timings is not None:
-            timings[Path(getattr(sink, "path", type(sink).__name__)).name] = time.perf_counter() - t0
+            timings[sink.path.name] = time.perf_counter() - t0
 
 
 def cycles_column(scenario: Scenario) -> str | None:

@@ -10,21 +10,35 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from twin.signals.table import Block, Signal, SignalTable
 
-if TYPE_CHECKING:
-    from twin.outputs.sink import Sink
-
-__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "TeeRecorder"]
+__all__ = ["FLUSH_ROWS", "FLUSH_SECONDS", "RowSink", "TeeRecorder"]
 
 #: rows are written to disk at least this often (rows) ...
 FLUSH_ROWS = 4096
 #: ... and at least this often (wall seconds): a killed run loses at most this much
 FLUSH_SECONDS = 5.0
+
+
+class RowSink(Protocol):
+    """What the recorder hands rows to: the first two events of a run's sink
+    (:class:`twin.outputs.sink.Sink` adds how the run ends)."""
+
+    def open(self, signals: list[Signal]) -> None:
+        """The recorded columns, before the first block."""
+        ...
+
+    def write(self, block: Block) -> None:
+        """Rows of every recorded column, in time order."""
+        ...
+
+    def checkpoint(self) -> dict[str, Any]:
+        """Where its file stands, for a run resumed from a checkpoint (empty: nothing to say)."""
+        ...
 
 
 def _keep_nothing(name: str) -> bool:
@@ -54,7 +68,7 @@ class TeeRecorder:
 
     def __init__(
         self,
-        sinks: Sequence[Sink] = (),
+        sinks: Sequence[RowSink] = (),
         *,
         keep: Callable[[str], bool] = _keep_nothing,
         resume: Mapping[str, Any] | None = None,
@@ -129,9 +143,7 @@ class TeeRecorder:
         self.flush()
         part: dict[str, Any] = {}
         for sink in self.sinks:
-            where = getattr(sink, "checkpoint", None)
-            if where is not None:
-                part.update(where())
+            part.update(sink.checkpoint())
         table = self.table()
         part["kept_time"] = table.time
         part["kept_rows"] = (

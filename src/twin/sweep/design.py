@@ -17,8 +17,6 @@ designs are SALib's samplers.
 from __future__ import annotations
 
 import itertools
-import math
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -84,29 +82,6 @@ def matrix(spec: Spec) -> np.ndarray:
         return morris.sample(problem, spec.samples, num_levels=spec.morris_levels, seed=seed)
     unit = _unit_samples(spec, np.random.default_rng(sequence))
     return scale_samples(unit, problem)
-
-
-#: the most points a sweep may have: its design matrix and its results table are held in
-#: memory, and a few lines (eight keys of twenty levels, a Saltelli design of 2^23 samples)
-#: otherwise ask for 10^8 to 10^10 points and fill it before the first point runs. A million
-#: points of the paper replay are about five hours on a two-core machine.
-MAX_POINTS = 1_000_000
-
-
-def point_count(
-    design: str, samples: int, problem: Mapping[str, Any], levels: Sequence[Sequence[Any]], second_order: bool
-) -> int:
-    """How many points a design has, without making it (SALib's sizes: Saltelli N (k + 2), or
-    N (2k + 2) with second-order indices, Morris N (k + 1) trajectories' points, with k the
-    groups where there are groups, else the keys)."""
-    if design == "grid":
-        return math.prod(len(lv) for lv in levels)
-    k = len(set(problem["groups"])) if problem.get("groups") else int(problem["num_vars"])
-    if design == "saltelli":
-        return samples * (2 * k + 2 if second_order else k + 2)
-    if design == "morris":
-        return samples * (k + 1)
-    return samples
 
 
 def make_design(spec: Spec) -> Design:

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -463,6 +463,29 @@ def _blame(p: _Problems, e: ConfigError, names: list[str]) -> None:
         p.add(hit, e.message or str(e))
 
 
+#: the most points a sweep may have: its design matrix and its results table are held in
+#: memory, and a few lines (eight keys of twenty levels, a Saltelli design of 2^23 samples)
+#: otherwise ask for 10^8 to 10^10 points and fill it before the first point runs. A million
+#: points of the paper replay are about five hours on a two-core machine.
+MAX_POINTS = 1_000_000
+
+
+def point_count(
+    design: str, samples: int, problem: Mapping[str, Any], levels: Sequence[Sequence[Any]], second_order: bool
+) -> int:
+    """How many points a design has, without making it (SALib's sizes: Saltelli N (k + 2), or
+    N (2k + 2) with second-order indices, Morris N (k + 1) trajectories' points, with k the
+    groups where there are groups, else the keys)."""
+    if design == "grid":
+        return math.prod(len(lv) for lv in levels)
+    k = len(set(problem["groups"])) if problem.get("groups") else int(problem["num_vars"])
+    if design == "saltelli":
+        return samples * (2 * k + 2 if second_order else k + 2)
+    if design == "morris":
+        return samples * (k + 1)
+    return samples
+
+
 def load_spec(path: str | Path) -> Spec:
     """Read and check a sweep file; raises :class:`ConfigError` / :class:`ConfigErrors`."""
     path = Path(path)
@@ -507,8 +530,6 @@ def spec_from_data(raw: Mapping[str, Any], path: Path, base: Path | None = None)
             problem["groups"] = groups
         centres = [[centre(r[1], r[2]), *ends(r[1], r[2])] for r in rows]
     p.check()
-    from twin.sweep.design import MAX_POINTS, point_count  # design imports this module
-
     points = point_count(sw["design"], sw["samples"], problem, levels, sw["second_order"])
     if points > MAX_POINTS:
         p.add(
