@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 from xml.etree import ElementTree as ET
 
 from twin.errors import ConfigError
+from twin.files import write_atomic
 
 if TYPE_CHECKING:
     from twin.config.spec import Scenario
@@ -105,8 +106,8 @@ class Exported:
 
 def _values(scenario: Scenario) -> dict[str, dict[str, Any]]:
     """Each instance's parameter values (the master's seeds included) and constant inputs."""
-    from twin.cosim.plan import instance_seed
     from twin.fmu.catalog import variables
+    from twin.seeds import instance_seed
 
     out: dict[str, dict[str, Any]] = {}
     for i, spec in enumerate(scenario.fmus):
@@ -228,17 +229,16 @@ def export_ssp(scenario: Scenario, out: Path) -> Exported:
     values = _values(scenario)
     ssd = _ssd(scenario, sources, values)
     _validate_ssd(ssd)  # never write an archive other tools would refuse
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-    try:
+
+    def write(tmp: Path) -> None:
         with zipfile.ZipFile(tmp, "w") as zf:
             _member(zf, SSD_NAME, ssd)
             for spec in scenario.fmus:
                 _member(zf, f"resources/{spec.name}.ssv", _parameter_set(spec, values[spec.name]))
             for name, path in files.items():
                 _member(zf, name, path.read_bytes(), zipfile.ZIP_STORED)  # an FMU is a zip already
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
+
+    write_atomic(out, write)
     return Exported(out, len(scenario.fmus), len(scenario.connections), _left_out(scenario))
 
 

@@ -10,8 +10,9 @@ import twin.cosim.instances
 import twin.fmu.build
 import twin.fmu.catalog
 from twin.config.load import load_scenario
-from twin.cosim.plan import BATCH_TICKS, ColumnKind, InputKind, instance_seed, make_plan
+from twin.cosim.plan import BATCH_TICKS, ColumnKind, InputKind, make_plan
 from twin.errors import ConfigError
+from twin.seeds import instance_seed
 
 from .test_master import LOOP_SYSTEM, scenario
 

@@ -20,8 +20,9 @@ from twin.errormodel.coefficients import default_path, load_coefficients
 from twin.errormodel.identify import EXPERIMENTS, identify
 from twin.errormodel.sources import CREEP_COEFFICIENTS
 from twin.errors import ConfigError
+from twin.seeds import Key, scenario_seed
 from twin.validation.draws import Testers as Draws  # not a test class
-from twin.validation.draws import load_testers, overrides_for, run_seed
+from twin.validation.draws import load_testers, overrides_for
 from twin.validation.heldout import load_heldout, run_heldout
 
 TESTERS = 5
@@ -101,7 +102,7 @@ def test_coefficients_are_what_identify_finds_on_that_tester(five, tmp_path: Pat
     cfg = load_heldout(write_heldout(tmp_path / "heldout.toml"))
     values = Draws(load_testers(cfg.spreads), cfg.seed).draw(0)
     data = read_scenario_data(SCENARIOS / "calibration" / EXPERIMENTS[0].scenario)
-    seeds = {e.name: [f"scenario.seed={run_seed(cfg.seed, 0, 1000 + k)}"] for k, e in enumerate(EXPERIMENTS)}
+    seeds = {e.name: [f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, 0, 1000 + k)}"] for k, e in enumerate(EXPERIMENTS)}
     found = identify(overrides_for(values, data), per_experiment=seeds).values()
     row = table.iloc[0]
     for name, value in found.items():

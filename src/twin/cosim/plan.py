@@ -24,6 +24,7 @@ from typing import Any
 from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
 from twin.errors import ConfigError
 from twin.fmu.catalog import variables as model_variables
+from twin.seeds import instance_seed
 from twin.signals.table import Signal as SignalMeta
 
 #: ticks per batch at most: bounds the driven matrix and the row buffer (memory flat in run length)
@@ -154,11 +155,6 @@ class Plan:
         """The ticks a checkpoint is taken at (never at the end: the run is complete then)."""
         every = (every_ns or 0) // self.step_ns
         return range(every, self.n_ticks, every) if every > 0 else range(0)
-
-
-def instance_seed(scenario_seed: int, index: int) -> int:
-    """Distinct, reproducible noise streams per instance from the one scenario seed."""
-    return (scenario_seed * 1_000_003 + 7919 * (index + 1)) % (2**31 - 1)
 
 
 def _real_outputs(model: str) -> tuple[str, ...]:
@@ -296,6 +292,5 @@ __all__ = [
     "PlannedEvent",
     "PlannedInput",
     "PlannedInstance",
-    "instance_seed",
     "make_plan",
 ]

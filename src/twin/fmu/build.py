@@ -22,13 +22,13 @@ from __future__ import annotations
 import functools
 import hashlib
 import io
-import os
 import tempfile
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
 from twin.errors import BuildError
+from twin.files import write_atomic
 from twin.fmu.description import Description, Variable
 from twin.fmu.sources import Model, model, model_names, sources_dir
 from twin.fmu.toolchain import (
@@ -152,15 +152,17 @@ def generate_vars_header(description: Description, where: str = "modelDescriptio
 
 def _zip_tree(tree: Path, fmu_path: Path) -> None:
     """Zip with sorted names and a fixed timestamp, so the same sources give the same bytes."""
-    tmp = fmu_path.with_name(fmu_path.name + f".{os.getpid()}.tmp")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-        for p in sorted(tree.rglob("*")):
-            if p.is_file():
-                info = zipfile.ZipInfo(p.relative_to(tree).as_posix(), date_time=(2017, 3, 1, 0, 0, 0))
-                info.compress_type = zipfile.ZIP_DEFLATED
-                info.external_attr = 0o644 << 16
-                zf.writestr(info, p.read_bytes())
-    os.replace(tmp, fmu_path)  # atomic: a concurrent reader never sees half a file
+
+    def write(tmp: Path) -> None:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+            for p in sorted(tree.rglob("*")):
+                if p.is_file():
+                    info = zipfile.ZipInfo(p.relative_to(tree).as_posix(), date_time=(2017, 3, 1, 0, 0, 0))
+                    info.compress_type = zipfile.ZIP_DEFLATED
+                    info.external_attr = 0o644 << 16
+                    zf.writestr(info, p.read_bytes())
+
+    write_atomic(fmu_path, write)  # a concurrent reader never sees half a file
 
 
 def _lay_out(tree: Path, m: Model, files: Mapping[str, bytes]) -> None:

@@ -36,6 +36,7 @@ from importlib.resources.abc import Traversable
 from pathlib import Path
 
 from twin.errors import BuildError, ToolMissingError, UnsafeCacheError
+from twin.files import write_text_atomic
 
 #: environment variable naming the cache folder
 CACHE_ENV = "TWIN_CACHE_DIR"
@@ -90,10 +91,7 @@ def file_sha256(path: Path) -> str:
 
 def record_digest(path: Path, sha256: str | None = None) -> None:
     """Write ``path``'s SHA-256 beside it (atomically), as the cache's record of what it built."""
-    record = digest_file(path)
-    tmp = record.with_name(f".{record.name}.{os.getpid()}.tmp")
-    tmp.write_text((sha256 or file_sha256(path)) + "\n", encoding="ascii")
-    os.replace(tmp, record)
+    write_text_atomic(digest_file(path), (sha256 or file_sha256(path)) + "\n")
 
 
 def verified(path: Path) -> bool:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from twin.errors import CheckpointError
+from twin.files import write_atomic
 
 FORMAT = "twin-checkpoint"
 VERSION = 1
@@ -93,17 +94,15 @@ def save(path: Path, data: Mapping[str, Any]) -> None:
         "manifest_sha256": np.frombuffer(hashlib.sha256(raw).hexdigest().encode("ascii"), dtype=np.uint8),
         **enc.parts,
     }
-    tmp = path.with_name(path.name + ".tmp")
-    try:
+
+    def write(tmp: Path) -> None:
         with open(tmp, "wb") as f:
             np.savez(f, **arrays)
             f.flush()
             os.fsync(f.fileno())
-    except OSError as exc:  # a full disk: the last whole checkpoint stays, and the error names it
-        tmp.unlink(missing_ok=True)
-        exc.filename = exc.filename or str(path)
-        raise
-    os.replace(tmp, path)
+
+    # a full disk: the last whole checkpoint stays, and the error names it
+    write_atomic(path, write)
 
 
 def _manifest(archive: Any, source: str) -> dict[str, Any]:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.outputs.atomic import write_atomic
+from twin.files import write_atomic
 from twin.signals.table import SignalTable
 
 if TYPE_CHECKING:
@@ -297,7 +297,7 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
 
 
 def save_png(fig: Figure, path: Path) -> Path:
-    """Write ``fig`` to the PNG ``path``, whole or not at all (:func:`twin.outputs.atomic.write_atomic`:
+    """Write ``fig`` to the PNG ``path``, whole or not at all (:func:`twin.files.write_atomic`:
     a full disk or a killed plot leaves no cut PNG); returns ``path``."""
     # metadata Software=None drops matplotlib's version stamp: same input -> same bytes.
     return write_atomic(

@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from twin.errors import CheckpointError, ConfigError
+from twin.files import write_text_atomic
 from twin.outputs import checkpoint_file
-from twin.outputs.summary import write_json_atomic
 
 if TYPE_CHECKING:
     from twin.outputs.plot_process import PlotProcess
@@ -246,7 +246,7 @@ class RunFolder:
         self.make()
         for name in RUN_OUTPUTS:
             self.file(name).unlink(missing_ok=True)
-        # what a kill left of an atomic write (write_json_atomic's hidden temporary files)
+        # what a kill left of an atomic write (twin.files' hidden temporary files)
         for name in (*RUN_OUTPUTS, RUN_FILE):
             for tmp in self.path.glob(f".{name}.*.tmp"):
                 tmp.unlink(missing_ok=True)
@@ -259,7 +259,7 @@ class RunFolder:
             },
             indent=2,
         )
-        write_json_atomic(self.file(RUN_FILE), text)
+        write_text_atomic(self.file(RUN_FILE), text, sync=True)
 
     def resumable(self) -> RunMeta:
         """``run.json`` of a folder that can be resumed; :class:`ConfigError` if it cannot."""

@@ -22,13 +22,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from twin.outputs.atomic import write_atomic
+from twin.files import write_text_atomic
 from twin.outputs.sink import OutcomeSink
 
 if TYPE_CHECKING:
     from twin.outputs.sink import Outcome
 
-__all__ = ["SummarySink", "summary_text", "to_jsonable", "write_json_atomic", "write_summary"]
+__all__ = ["SummarySink", "summary_text", "to_jsonable", "write_summary"]
 
 
 def to_jsonable(obj: Any, _where: str = "$") -> Any:
@@ -116,22 +116,6 @@ def _numpy_scalar(obj: np.generic, where: str) -> Any:
     return _jsonable(obj.item(), where)
 
 
-def write_json_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` atomically (:func:`twin.outputs.atomic.write_atomic`), its
-    data on disk before the rename makes it visible; returns the path."""
-
-    def write(tmp: Path) -> None:
-        # os.open with mode 0o666 honours the umask, unlike tempfile's private 0o600 files,
-        # so the summary gets the same permissions as the other outputs of the run.
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-
-    return write_atomic(path, write)
-
-
 def summary_text(data: Mapping[str, Any]) -> str:
     """``data`` as the text of a summary file: JSON, indent 2, insertion order, NaN/Inf as null."""
     return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False, allow_nan=False) + "\n"
@@ -139,7 +123,7 @@ def summary_text(data: Mapping[str, Any]) -> str:
 
 def write_summary(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
     """Write ``data`` as JSON (indent 2, insertion order, NaN/Inf as null) atomically to ``path``."""
-    return write_json_atomic(path, summary_text(data))
+    return write_text_atomic(path, summary_text(data), sync=True)
 
 
 class SummarySink(OutcomeSink):

@@ -22,18 +22,16 @@ from typing import Any
 
 import numpy as np
 
+from twin import seeds
+from twin.seeds import Key, scenario_seed
 from twin.sweep.spec import Spec, toml_value
 
 SEED_KEY = "scenario.seed"
 
 
-def _sequence(seed: int, *key: int) -> np.random.SeedSequence:
-    return np.random.SeedSequence(seed, spawn_key=key)
-
-
 def point_seed(sweep_seed: int, index: int) -> int:
     """The scenario seed of point ``index`` (in [0, 2^31), what a scenario accepts)."""
-    return int(_sequence(sweep_seed, 1, index).generate_state(1, np.uint32)[0] % (2**31))
+    return scenario_seed(sweep_seed, Key.POINT, index)
 
 
 @dataclass(frozen=True)
@@ -73,7 +71,7 @@ def matrix(spec: Spec) -> np.ndarray:
     from SALib.util import scale_samples
 
     problem = {k: list(v) if isinstance(v, list) else v for k, v in spec.problem.items()}
-    sequence = _sequence(spec.seed, 0)
+    sequence = seeds.sequence(spec.seed, Key.DESIGN)
     if spec.design == "saltelli":
         seed = int(sequence.generate_state(1)[0])
         return saltelli.sample(problem, spec.samples, calc_second_order=spec.second_order, seed=seed)

@@ -20,7 +20,6 @@ number of workers or the order results came back in.
 from __future__ import annotations
 
 import json
-import os
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -29,18 +28,13 @@ from typing import Any
 import pandas as pd
 
 from twin.errors import ConfigError
+from twin.files import write_atomic
 
 TABLE = "results.parquet"
 CSV = "results.csv"
 META = "sweep.json"
 FIXED_COLUMNS = ("point", "seed")
 STATUS_COLUMNS = ("status", "error")
-
-
-def _atomic(path: Path, write: Any) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    write(tmp)
-    os.replace(tmp, path)
 
 
 class ResultStore:
@@ -81,7 +75,7 @@ class ResultStore:
         """Create the folder and ``sweep.json`` (once the points can run)."""
         self.out.mkdir(parents=True, exist_ok=True)
         text = json.dumps(self.meta, indent=2) + "\n"
-        _atomic(self.out / META, lambda p: p.write_text(text, encoding="utf-8"))
+        write_atomic(self.out / META, lambda p: p.write_text(text, encoding="utf-8"))
 
     @property
     def done(self) -> set[int]:
@@ -99,8 +93,8 @@ class ResultStore:
         if not self._dirty or (not force and now - self._last < self._interval):
             return
         table = self.table()
-        _atomic(self.out / TABLE, lambda p: table.to_parquet(p, index=False))
-        _atomic(self.out / CSV, lambda p: table.to_csv(p, index=False))
+        write_atomic(self.out / TABLE, lambda p: table.to_parquet(p, index=False))
+        write_atomic(self.out / CSV, lambda p: table.to_csv(p, index=False))
         took = time.perf_counter() - now
         self.write_s += took
         self._last = time.perf_counter()

@@ -16,13 +16,13 @@ naming what differs. This module is the only one that knows the cache's layout.
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from twin.errors import RunError
+from twin.files import write_bytes_atomic
 
 PLUGIN_NAME = "twin-sweep-binaries"
 
@@ -85,9 +85,7 @@ def install(artifacts: tuple[Artifact, ...]) -> list[Path]:
         path = target / a.name
         if verified(path) and _sha256(path.read_bytes()) == a.sha256:
             continue
-        tmp = path.with_name(f".{a.name}.{os.getpid()}.tmp")
-        tmp.write_bytes(a.data)
-        os.replace(tmp, path)  # atomic: a point starting now sees the old file or the new one
+        write_bytes_atomic(path, a.data)  # a point starting now sees the old file or the new one
         record_digest(path, a.sha256)  # the cache loads only what it can check
         written.append(path)
     missing = sorted(_expected_names() - {a.name for a in artifacts})

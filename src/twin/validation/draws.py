@@ -26,26 +26,13 @@ import numpy as np
 
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
+from twin.seeds import Key, generator
 from twin.sweep.spec import Spec, spec_from_data, toml_value
 
-#: spawn keys of the seed sequences (the sweep's design uses 0 and 1)
-TESTER_KEY = 2
-ROOM_KEY = 3
-RUN_SEED_KEY = 4
 #: the room table's sampling interval, s (a day's sine between samples is off by < 0.001 K)
 ROOM_STEP_S = 300.0
 #: room shapes of an unknown rise (x = t / rise time, from 0 to 1)
 ROOM_SHAPES = ("exponential", "ramp", "s-curve")
-
-
-def sequence(seed: int, *key: int) -> np.random.SeedSequence:
-    """The seed sequence of one draw (see the module's text for the keys)."""
-    return np.random.SeedSequence(seed, spawn_key=key)
-
-
-def run_seed(seed: int, *key: int) -> int:
-    """A scenario seed in [0, 2^31) for one run."""
-    return int(sequence(seed, RUN_SEED_KEY, *key).generate_state(1, np.uint32)[0] % (2**31))
 
 
 def instance_of(key: str) -> str | None:
@@ -87,7 +74,7 @@ class Testers:
         from SALib.util import scale_samples
 
         problem = {k: list(v) if isinstance(v, list) else v for k, v in self.spec.problem.items()}
-        rng = np.random.default_rng(sequence(self.seed, TESTER_KEY, index))
+        rng = generator(self.seed, Key.TESTER, index)
         unit = rng.random((1, len(self.names)))
         row = scale_samples(unit, problem)[0]
         return {n: float(v) for n, v in zip(self.names, row, strict=True)}

@@ -33,6 +33,7 @@ from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
 from twin.errormodel.identify import Experiment, Record, lab_record
 from twin.errors import ConfigError, ConfigErrors, RunError
+from twin.seeds import Key, generator, scenario_seed
 
 __all__ = ["HeldOut", "load_heldout", "run_heldout", "run_tester", "summarise"]
 
@@ -302,21 +303,14 @@ def _heldout_scenario(
     from twin.config.load import read_scenario_data
     from twin.config.overrides import apply_overrides
     from twin.sweep.spec import build_scenario
-    from twin.validation.draws import (
-        ROOM_KEY,
-        overrides_for,
-        run_seed,
-        sequence,
-        smooth_drift,
-        with_room_drift,
-    )
+    from twin.validation.draws import overrides_for, smooth_drift, with_room_drift
 
     data = read_scenario_data(ho.path)
     apply_overrides(data, ho.overrides, f"{cfg.path}: {ho.name}: set")
-    sets = [*overrides_for(values, data), f"scenario.seed={run_seed(cfg.seed, i, j)}"]
+    sets = [*overrides_for(values, data), f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, i, j)}"]
     scenario = build_scenario(data, ho.path, sets)
     if cfg.room_drift_K > 0:
-        rng = np.random.default_rng(sequence(cfg.seed, ROOM_KEY, i, j))
+        rng = generator(cfg.seed, Key.ROOM, i, j)
         with_room_drift(data, scenario, cfg.room, smooth_drift(rng, cfg.room_drift_K))
         scenario = build_scenario(data, ho.path, sets)
     return scenario
@@ -327,13 +321,13 @@ def make_job(cfg: HeldOut, testers: Any, priors: Mapping[str, Prior], i: int) ->
     every held-out scenario (scenarios built and checked here, on the client)."""
     from twin.config.load import read_scenario_data
     from twin.errormodel.identify import EXPERIMENTS, experiment_scenario
-    from twin.validation.draws import overrides_for, run_seed
+    from twin.validation.draws import overrides_for
 
     values = testers.draw(i)
     calibration = []
     for k, e in enumerate(EXPERIMENTS):
         data = read_scenario_data(cfg.calibration / e.scenario)
-        sets = [*overrides_for(values, data), f"scenario.seed={run_seed(cfg.seed, i, 1000 + k)}"]
+        sets = [*overrides_for(values, data), f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, i, 1000 + k)}"]
         calibration.append((e, experiment_scenario(e, sets, cfg.calibration)[0]))
     heldout = tuple((ho, _heldout_scenario(cfg, ho, values, i, j)) for j, ho in enumerate(cfg.scenarios))
     return TesterJob(i, values, tuple(calibration), heldout, priors)

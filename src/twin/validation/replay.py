@@ -42,6 +42,7 @@ import numpy as np
 
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError, ConfigErrors
+from twin.seeds import Key, generator, scenario_seed
 
 __all__ = ["Uncertainty", "add_to_summary", "parse_uncertainty", "run_uncertainty"]
 
@@ -51,8 +52,6 @@ _KEYS = {"samples", "seed", "spreads", "room", "room_shapes", "room_drift_K"}
 #: every sample's row is kept until uncertainty.csv is written; a mistyped count (1e9) would
 #: otherwise fill the memory before the first sample ran
 MAX_SAMPLES = 100_000
-#: spawn keys of this Monte Carlo's draws (distinct from the held-out validation's)
-SAMPLE_KEY = 7
 
 
 @dataclass(frozen=True)
@@ -194,7 +193,6 @@ def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) ->
     from twin.validation.draws import (
         room_profile,
         sample_times,
-        sequence,
         set_room,
         shape,
         smooth_drift,
@@ -202,7 +200,7 @@ def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) ->
     )
 
     profile = room_profile(scenario, unc.room.split(".", 1)[1])
-    drift = smooth_drift(np.random.default_rng(sequence(unc.seed, SAMPLE_KEY, i)), unc.room_drift_K)
+    drift = smooth_drift(generator(unc.seed, Key.SAMPLE, i), unc.room_drift_K)
     if profile.kind != "exponential":
         # not a rise of unknown shape (a day's sine, a lab's table): the scenario's own curve
         with_room_drift(data, scenario, unc.room, drift)
@@ -226,7 +224,7 @@ def sample_scenarios(
     """The varied keys, and sample ``i``'s scenario and room shape."""
     from twin.config.overrides import apply_overrides
     from twin.sweep.spec import build_scenario
-    from twin.validation.draws import overrides_for, run_seed
+    from twin.validation.draws import overrides_for
 
     data = copy.deepcopy(dict(data))
     apply_overrides(data, overrides, f"{base}: --set")
@@ -236,7 +234,7 @@ def sample_scenarios(
     def make(i: int) -> tuple[Scenario, str]:
         point = copy.deepcopy(data)
         name = _room(unc, point, nominal, i)
-        sets = [*overrides_for(testers.draw(i), point), f"scenario.seed={run_seed(unc.seed, SAMPLE_KEY, i)}"]
+        sets = [*overrides_for(testers.draw(i), point), f"scenario.seed={scenario_seed(unc.seed, Key.RUN, Key.SAMPLE, i)}"]
         return build_scenario(point, base, sets), name
 
     return testers.names, make
