@@ -178,7 +178,7 @@ def calibrate(scenario: Scenario) -> Calibration:
 
 def _with_room_shape(data: dict[str, Any], scenario: Scenario, name: str) -> dict[str, Any]:
     """The scenario's data with its room rise in shape ``name`` (same start, rise and rise time)."""
-    from twin.cosim.profiles import profile_function
+    from twin.config.profiles import profile_function
     from twin.validation.draws import room_profile, sample_times, set_room, shape
 
     profile = room_profile(scenario, ROOM_KEY.split(".", 1)[1])

@@ -61,7 +61,7 @@ def _scenario_path(name: str | None) -> Path:
     """The scenario a command names: a file, or the name of a shipped scenario (``sine-load``
     for ``scenarios/sine-load.toml``); none: the paper's experiment."""
     from twin.config.load import default_scenario_path, scenarios_dir
-    from twin.config.problems import did_you_mean
+    from twin.config.reader import did_you_mean
 
     if not name:
         return default_scenario_path()
@@ -86,7 +86,7 @@ def _load(args: argparse.Namespace):
 def _cmd_list(args: argparse.Namespace) -> int:
     """The shipped scenarios with their descriptions."""
     from twin.config.load import scenarios_dir
-    from twin.config.problems import read_toml
+    from twin.config.reader import read_toml
 
     folder = scenarios_dir()
     groups = [

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from twin.config.problems import read_toml
+from twin.config.reader import read_toml
 from twin.errors import ConfigError
 
 __all__ = [

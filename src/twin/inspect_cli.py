@@ -19,7 +19,7 @@ __all__ = ["add_parser"]
 def _description(target: str) -> Any:
     from fmpy import read_model_description
 
-    from twin.config.problems import did_you_mean
+    from twin.config.reader import did_you_mean
     from twin.fmu.catalog import model_names, sources_dir
 
     path = Path(target)

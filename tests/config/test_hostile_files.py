@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from tests.config.scenario_toml import paper_text
 from twin.cli import main
-from twin.config.problems import MAX_TOML_BYTES, MAX_TOML_DEPTH, read_toml
+from twin.config.reader import MAX_TOML_BYTES, MAX_TOML_DEPTH, read_toml
 from twin.errors import ConfigError
 
 
@@ -530,11 +530,11 @@ def test_bytes_read_again_are_not_parsed_again_and_each_reader_gets_its_own_copy
     reader that changes its data (as ``--set`` does) changes nobody else's."""
     import tomllib
 
-    from twin.config import problems
+    from twin.config import reader
 
     parses: list[str] = []
     real = tomllib.loads
-    monkeypatch.setattr(problems.tomllib, "loads", lambda text: parses.append(text) or real(text))
+    monkeypatch.setattr(reader.tomllib, "loads", lambda text: parses.append(text) or real(text))
     path = tmp_path / "parameters.toml"
     path.write_text('[parameters]\nL = 0.125\nname = "a"\n')
     first = read_toml(path, "first")
@@ -574,7 +574,7 @@ def test_a_reader_of_parsed_bytes_shares_no_table_or_array_with_another(tmp_path
     first["profile"].append({})
     assert read_toml(path, "second") == expected
     # data a caller built (a sweep point's) may hold other types: those are deep-copied
-    from twin.config.problems import toml_copy
+    from twin.config.reader import toml_copy
 
     built = {"pair": ([1.0], "x")}
     copied = toml_copy(built)

@@ -37,7 +37,7 @@ from twin.config.load import (
     load_scenario_data,
     parse_duration,
 )
-from twin.config.problems import SAFE_NAME
+from twin.config.reader import SAFE_NAME
 from twin.config.spec import NS_PER_S
 from twin.errors import ConfigError, ConfigErrors
 from twin.fmu.build import model_names

@@ -10,7 +10,7 @@ import pytest
 
 from twin.cli import main
 from twin.config.load import default_scenario_path, read_scenario_data
-from twin.cosim.profiles import profile_function
+from twin.config.profiles import profile_function
 from twin.errors import ConfigError
 from twin.paper import DRIFT_M, FEM_PARTS_M
 from twin.validation.draws import ROOM_SHAPES

@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from twin.config.endpoints import check_range, endpoint
-from twin.config.problems import Problems, array_of_tables, table
+from twin.config.reader import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
 from twin.fmu.catalog import variables as model_variables
 

@@ -7,7 +7,8 @@ import re
 from fractions import Fraction
 from typing import Any
 
-from twin.config.spec import NS_PER_S
+#: nanoseconds per second: every time of the twin is an integer number of nanoseconds
+NS_PER_S = 1_000_000_000
 
 #: longest run accepted: a year of simulated time
 MAX_DURATION_NS = 366 * 24 * 3600 * NS_PER_S

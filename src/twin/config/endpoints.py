@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from twin.config.problems import Problems
+from twin.config.checks import range_problem
+from twin.config.reader import Problems
 from twin.config.spec import FMUSpec
 from twin.fmu.catalog import Variable
 from twin.fmu.catalog import variables as model_variables
@@ -41,12 +42,6 @@ def check_range(
 ) -> None:
     """Values driven into an input must lie in its declared range (the FMU would refuse them)."""
     inst, var = target.split(".")
-    v = model_variables(fmus[inst].model)[var]
-    bad = [x for x in values if not v.min <= x <= v.max]
-    if bad:
-        p.add(
-            key,
-            f"reaches {bad[0]!r} {v.unit}, outside the range [{v.min!r}, {v.max!r}] of {target}".replace(
-                "  ", " "
-            ),
-        )
+    why = range_problem(model_variables(fmus[inst].model)[var], target, values)
+    if why is not None:
+        p.add(key, why)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from twin.config.endpoints import check_range, endpoint
-from twin.config.problems import Problems, array_of_tables
+from twin.config.reader import Problems, array_of_tables
 from twin.config.spec import Connection, Event, FMUSpec
 from twin.fmu.catalog import variables as model_variables
 

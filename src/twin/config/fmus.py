@@ -13,15 +13,15 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from twin.config.checks import parameter_value
 from twin.config.durations import format_duration
-from twin.config.problems import Problems, did_you_mean, finite_number, read_toml, table
+from twin.config.reader import Problems, did_you_mean, finite_number, read_toml, table
 from twin.config.spec import FMUSpec, Parameter
 from twin.errors import ConfigError
-from twin.fmu.catalog import Variable, model_names
+from twin.fmu.catalog import model_names
 from twin.fmu.catalog import variables as model_variables
 
 _FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
-_EXPECTED = {"Boolean": "true or false", "Integer": "an integer"}
 
 
 def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
@@ -45,37 +45,13 @@ def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
     return raw["value"], str(raw.get("source", ""))
 
 
-def _typed(p: Problems, var: Variable, raw: Any, key: str) -> float | int | bool | None:
-    """``raw`` as a value of the variable's type, or None and a problem."""
-    if var.type == "Boolean":
-        ok = isinstance(raw, bool)
-    elif var.type == "Integer":
-        ok = not isinstance(raw, bool) and isinstance(raw, int)
-    else:
-        ok = not isinstance(raw, bool) and isinstance(raw, int | float)
-    if not ok:
-        p.add(key, f"expected {_EXPECTED.get(var.type, 'a number')}, got {raw!r}")
-        return None
-    if var.type in _EXPECTED:
-        return raw
-    if not finite_number(raw):
-        p.add(key, f"expected a finite number, got {raw!r}")
-        return None
-    return float(raw)
-
-
-def _parameter_value(p: Problems, model: str, var: Variable, raw: Any, key: str) -> Parameter | None:
+def _parameter_value(p: Problems, model: str, name: str, raw: Any, key: str) -> Parameter | None:
     unwrapped = _unwrap(p, raw, key)
-    value = _typed(p, var, unwrapped[0], key) if unwrapped is not None else None
-    if unwrapped is None or value is None:
+    if unwrapped is None:
         return None
-    if var.type != "Boolean" and not var.min <= value <= var.max:
-        p.add(
-            key,
-            f"{value!r} {var.unit} is outside the physical range [{var.min!r}, {var.max!r}] of {model}.{var.name}".replace(
-                "  ", " "
-            ),
-        )
+    value, why = parameter_value(model, name, unwrapped[0])
+    if why is not None or value is None:
+        p.add(key, why or "")
         return None
     return Parameter(value, unwrapped[1])
 
@@ -122,7 +98,7 @@ def _parameters(p: Problems, model: str, given: Mapping[str, tuple[Any, str]]) -
             known = [n for n, v in variables.items() if v.causality == "parameter"]
             p.add(where, f"{model} has no parameter '{k}'{did_you_mean(k, known)}")
             continue
-        param = _parameter_value(p, model, var, v, where)
+        param = _parameter_value(p, model, k, v, where)
         if param is not None:
             params[k] = param
     return params

@@ -3,25 +3,14 @@
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
 from twin.config.durations import parse_duration
 from twin.config.endpoints import check_range, endpoint
-from twin.config.problems import Problems, finite_number, table
-from twin.config.spec import NS_PER_S, Connection, FMUSpec, Profile
-
-PROFILE_PARAMS: dict[str, tuple[set[str], set[str]]] = {
-    # kind: (required, optional)
-    "constant": ({"value"}, set()),
-    "ramp": ({"start", "end", "duration"}, {"delay"}),
-    "exponential": ({"start", "rise", "time_constant"}, {"rise_at"}),
-    "sine": ({"mean", "amplitude", "period"}, {"phase"}),
-    "table": ({"points"}, set()),
-}
-_PROFILE_DURATIONS = {"duration", "delay", "time_constant", "rise_at", "period"}
+from twin.config.reader import Problems, finite_number, table
+from twin.config.spec import NS_PER_S, PROFILE_DURATIONS, PROFILE_PARAMS, Connection, FMUSpec, Profile
 
 
 def _points(p: Problems, pts: Any, key: str) -> tuple[tuple[float, float], ...]:
@@ -74,7 +63,7 @@ def _values(
         elif k == "points":
             points = _points(p, raw[k], f"{key}.points")
         else:
-            v = _seconds(p, raw, k, key) if k in _PROFILE_DURATIONS else p.number(raw, k, key + ".")
+            v = _seconds(p, raw, k, key) if k in PROFILE_DURATIONS else p.number(raw, k, key + ".")
             if v is not None:
                 params[k] = v
     return params, points
@@ -111,23 +100,8 @@ def _profile(
     params, points = _values(p, raw, key, kind)
     profile = Profile(target, kind, MappingProxyType(params), points, str(raw.get("source", "")))
     if required <= set(params) | ({"points"} if points else set()):
-        check_range(p, fmus, target, profile_extremes(profile), key)
+        check_range(p, fmus, target, profile.extremes(), key)
     return profile
-
-
-def profile_extremes(pr: Profile) -> list[float]:
-    """The values a profile can reach (its extremes), for the range check."""
-    q = pr.params
-    if pr.kind == "constant":
-        return [q["value"]]
-    if pr.kind == "ramp":
-        return [q["start"], q["end"]]
-    if pr.kind == "exponential":
-        scale = 1.0 / -math.expm1(-q["rise_at"] / q["time_constant"]) if "rise_at" in q else 1.0
-        return [q["start"], q["start"] + q["rise"] * scale]
-    if pr.kind == "sine":
-        return [q["mean"] - q["amplitude"], q["mean"] + q["amplitude"]]
-    return [v for _, v in pr.table]
 
 
 def load_profiles(

@@ -21,7 +21,7 @@ from twin.config.events import FAULTS, load_events
 from twin.config.fmus import load_fmus
 from twin.config.inputs import load_profiles
 from twin.config.overrides import apply_overrides
-from twin.config.problems import Problems, read_toml, table
+from twin.config.reader import Problems, read_toml, table
 from twin.config.scenario_table import load_scenario_table
 from twin.config.spec import FMUSpec, Parameter, Scenario
 from twin.errors import ConfigError, ConfigErrors
@@ -40,8 +40,19 @@ __all__ = [
     "scenarios_dir",
 ]
 
-#: "uncertainty" is read by twin run (twin.validation.replay), not by the co-simulation
-_TOP_KEYS = {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel", "uncertainty"}
+#: the tables of a scenario file; "errormodel", "uncertainty" and "reference" are passed on as
+#: written, and checked where they are used (twin.pipeline.prepare)
+_TOP_KEYS = {
+    "scenario",
+    "fmu",
+    "connections",
+    "delay",
+    "input",
+    "event",
+    "errormodel",
+    "uncertainty",
+    "reference",
+}
 
 
 def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None) -> None:
@@ -62,6 +73,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     profiles = load_profiles(p, data, by_name, connections)
     events = load_events(p, data, by_name, sc.duration_ns, connections)
     errormodel = table(p, data, "errormodel")
+    uncertainty, reference = table(p, data, "uncertainty"), table(p, data, "reference")
 
     if p.items:
         raise ConfigErrors(p.items)
@@ -81,6 +93,8 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         drift_window_ns=sc.drift_window_ns,
         wear_limit_mm=sc.wear_limit_mm,
         errormodel=MappingProxyType({k: Parameter(v) for k, v in errormodel.items()}),
+        uncertainty=MappingProxyType(uncertainty),
+        reference=MappingProxyType(reference),
     )
 
 

@@ -6,7 +6,7 @@ import tomllib
 from collections.abc import Sequence
 from typing import Any
 
-from twin.config.problems import check_values
+from twin.config.reader import check_values
 from twin.errors import ConfigError, ConfigErrors
 
 

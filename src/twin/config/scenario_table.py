@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.durations import MAX_DURATION_NS, format_duration
-from twin.config.problems import Problems, finite_number, table, unsafe_name
+from twin.config.reader import Problems, finite_number, table, unsafe_name
 from twin.config.spec import NS_PER_S
 
 _SCENARIO_KEYS = {

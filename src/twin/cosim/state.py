@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from twin.config.profiles import Signal, constant, profile_function, ramp_from
 from twin.config.spec import NS_PER_S, Profile
 from twin.cosim.layout import TwinCounters
 from twin.cosim.plan import DrivenSpec, InputKind, Plan, PlannedInstance
-from twin.cosim.profiles import Signal, constant, profile_function, ramp_from
 from twin.fmu.slot import RealPort
 
 

@@ -256,7 +256,7 @@ def _section(
 
 def read_toml_file(path: str | Path) -> dict[str, Any]:
     """A TOML file's data; a missing or malformed file is a one-line :class:`ConfigError`."""
-    from twin.config.problems import read_toml  # the loader's one reader of TOML files
+    from twin.config.reader import read_toml  # the loader's one reader of TOML files
 
     return read_toml(Path(path), str(path))
 

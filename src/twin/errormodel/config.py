@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from twin.config.problems import did_you_mean
+from twin.config.reader import did_you_mean
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errormodel.coefficients import (
     Coefficients,

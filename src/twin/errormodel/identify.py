@@ -265,7 +265,7 @@ def known_displacement(
 
 def _profile(scenario: Scenario, target: str) -> Callable[[np.ndarray], np.ndarray]:
     """The time function of the profile driving ``target`` (``instance.variable``)."""
-    from twin.cosim.profiles import profile_function
+    from twin.config.profiles import profile_function
 
     for p in scenario.profiles:
         if p.target == target:

@@ -264,7 +264,7 @@ def _parse(data: dict[str, Any], source: str) -> TesterSpec:
 
 @cache
 def _packaged_spec() -> TesterSpec:
-    from twin.config.problems import parse_toml
+    from twin.config.reader import parse_toml
 
     text = resources.files("twin.errormodel").joinpath(DATA_FILE).read_text(encoding="utf-8")
     return _parse(parse_toml(text, DATA_FILE), DATA_FILE)
@@ -277,7 +277,7 @@ def load_tester_spec(path: str | Path | None = None) -> TesterSpec:
     """
     if path is None:
         return _packaged_spec()
-    from twin.config.problems import read_toml  # the one reader of a user's TOML files
+    from twin.config.reader import read_toml  # the one reader of a user's TOML files
 
     path = Path(path)
     return _parse(read_toml(path, str(path)), str(path))

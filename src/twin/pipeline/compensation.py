@@ -239,7 +239,7 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
 
 
 def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
-    from twin.config.problems import read_toml
+    from twin.config.reader import read_toml
 
     data = read_toml(path, source)
     unknown = sorted(set(data) - {"errormodel"})

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data
-from twin.config.problems import toml_copy, unsafe_name
+from twin.config.reader import toml_copy, unsafe_name
 from twin.config.spec import Scenario
 from twin.errors import ConfigError, ConfigErrors
 
@@ -120,7 +120,7 @@ def _is_number(v: Any) -> bool:
 
 
 def _read(path: Path) -> dict[str, Any]:
-    from twin.config.problems import read_toml  # the loader's one reader of TOML files
+    from twin.config.reader import read_toml  # the loader's one reader of TOML files
 
     return read_toml(path, str(path))
 

@@ -156,7 +156,7 @@ def with_room_drift(
     data: dict[str, Any], scenario: Scenario, key: str, drift: Callable[[np.ndarray], np.ndarray]
 ) -> None:
     """The scenario's own room curve plus ``drift`` (of x = t / run length), as a table."""
-    from twin.cosim.profiles import profile_function
+    from twin.config.profiles import profile_function
 
     profile = room_profile(scenario, key.split(".", 1)[1])
     t = sample_times(scenario, [a for a, _ in profile.table])

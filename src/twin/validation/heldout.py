@@ -128,7 +128,7 @@ def _scenarios(p: list[ConfigError], src: str, folder: Path, raw: Any) -> list[H
 
 def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     """Read and check a held-out file; every problem at once (:class:`ConfigErrors`)."""
-    from twin.config.problems import read_toml
+    from twin.config.reader import read_toml
 
     path = Path(path)
     src, folder = str(path), path.resolve().parent

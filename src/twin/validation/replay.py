@@ -136,7 +136,7 @@ def calibrated_spreads(data: Mapping[str, Any], base_dir: Path) -> dict[str, tup
     """SALib rows (dist, bounds) of the parameters whose parameter files give an interval
     (``interval = [lo, hi]``: uniform) or a standard error (``std_error``: lognormal with the
     relative sigma), by ``fmu.<instance>.parameters.<name>``."""
-    from twin.config.problems import read_toml
+    from twin.config.reader import read_toml
 
     out: dict[str, tuple[str, list[float]]] = {}
     for inst, spec in data.get("fmu", {}).items():
@@ -189,7 +189,7 @@ def _room(unc: Uncertainty, data: dict[str, Any], scenario: Scenario, i: int) ->
     """Sample ``i``'s room: a rise (an ``exponential`` profile, the paper's) takes a shape in
     turn, reaching the scenario's rise at its rise time; any other room keeps its own curve;
     both with a slow drift."""
-    from twin.cosim.profiles import profile_function
+    from twin.config.profiles import profile_function
     from twin.validation.draws import (
         room_profile,
         sample_times,
