@@ -771,7 +771,7 @@ def bench_libcosim(duration: str, step: str, reps: int) -> None:
 
 def twin_command() -> list[str]:
     exe = Path(sys.executable).parent / "twin"
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "twin.cli"]
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "twin"]
 
 
 def cli_run(args: Sequence[str], out: Path) -> dict[str, Any]:

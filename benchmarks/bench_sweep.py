@@ -105,7 +105,7 @@ def throughput(folder: Path, points: int, reps: int) -> dict[str, Any]:
 def round_trip(folder: Path, points: int, max_batch: int) -> float:
     """Second half of (b): ms per point of a sweep whose points do nothing, on 2 workers, at
     most ``max_batch`` points to a task (1: each point's own round trip; the sweep's own
-    :data:`twin.sweep.execute.MAX_BATCH`: what a sweep of such short points costs a point)."""
+    :data:`twin.pipeline.cluster.MAX_BATCH`: what a sweep of such short points costs a point)."""
     import cloudpickle
 
     from twin.sweep import execute
@@ -159,7 +159,7 @@ def _row(name: str, value: str, goal: str = "", ok: bool | str | None = None) ->
 
 
 def main() -> int:
-    from twin.sweep.execute import MAX_BATCH
+    from twin.pipeline.cluster import MAX_BATCH
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small sizes: a check that it runs, not figures")

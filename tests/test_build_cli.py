@@ -27,7 +27,7 @@ def test_missing_compiler_and_cmake_give_one_line_and_exit_2(tmp_path: Path) -> 
     env = {k: v for k, v in os.environ.items() if k != "CC"}
     env["PATH"] = str(tmp_path)  # nothing on PATH: no cc, no cmake
     proc = subprocess.run(
-        [sys.executable, "-m", "twin.cli", "build", "--out", str(tmp_path / "out")],
+        [sys.executable, "-m", "twin", "build", "--out", str(tmp_path / "out")],
         env=env,
         capture_output=True,
         text=True,
@@ -80,7 +80,7 @@ def test_a_broken_c_compiler_gets_one_line_saying_what_to_install(tmp_path: Path
     # issue 14: not a multi-line cmake dump; the dump goes to a log file the line names
     env = {**os.environ, "CC": "/bin/false", "TWIN_CACHE_DIR": str(tmp_path / "cache")}
     r = subprocess.run(
-        [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())", "build"],
+        [sys.executable, "-c", "import sys; from twin.cli import console; sys.exit(console())", "build"],
         capture_output=True, text=True, env=env, timeout=300,
     )  # fmt: skip
     assert r.returncode == 1

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.calibrate import BODIES, PRIORS, ROOM_SHAPES, SIGMA_MEAS_K, calibrate_file
+from twin.calibration.thermal import BODIES, PRIORS, ROOM_SHAPES, SIGMA_MEAS_K, calibrate_file
 from twin.config.load import default_scenario_path, load_scenario
 from twin.paper import TEMPERATURE_RISE_K
 
@@ -54,7 +54,7 @@ def test_the_rerun_reproduces_what_the_rises_determine(rerun: Path) -> None:
 
 def _objective(rep: dict) -> float:
     """The fit's weighted least-squares objective, from its report: the rises' misfit in
-    measurement sigmas plus each log-factor in its prior sigmas (src/twin/calibrate.py)."""
+    measurement sigmas plus each log-factor in its prior sigmas (src/twin/calibration/thermal.py)."""
     sigma = rep["sigma_meas_K"]
     misfit = sum(((r["twin"] - r["paper"]) / sigma) ** 2 for r in rep["rises_K"].values())
     prior = sum(

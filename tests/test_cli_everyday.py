@@ -115,7 +115,7 @@ def test_the_progress_bar_names_its_phases_on_a_terminal(tmp_path: Path) -> None
     import sys
 
     master, slave = pty.openpty()
-    cmd = [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())", "run", "constant-load",
+    cmd = [sys.executable, "-c", "import sys; from twin.cli import console; sys.exit(console())", "run", "constant-load",
            "--out", str(tmp_path / "run"), "--set", 'scenario.duration="20 min"']  # fmt: skip
     proc = subprocess.Popen(cmd, stdin=slave, stdout=slave, stderr=slave)
     os.close(slave)

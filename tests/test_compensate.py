@@ -8,18 +8,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.runs import run_into
 from twin.cli import main
 from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.coefficients import default_path
 from twin.errormodel.sources import DEFAULT_TEMPERATURES
-from twin.pipeline import run
 
 pytestmark = pytest.mark.slow
 
 
 def test_compensating_a_runs_csv_reproduces_the_runs_error_model(tmp_path: Path) -> None:
     sc = load_scenario(scenarios_dir() / "constant-load.toml", ['scenario.duration="20 min"'])
-    run(sc, tmp_path / "run")
+    run_into(sc, tmp_path / "run")
     config = tmp_path / "lab.toml"
     # what a lab writes down once: where its tester's identified coefficients are (here the
     # twin's committed ones, which the run used)

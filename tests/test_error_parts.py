@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.runs import run_into
 from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.coefficients import default_path, load_coefficients
 from twin.errormodel.evaluate import PARTS
 from twin.errormodel.sources import CREEP_COEFFICIENTS, load_history
 from twin.outputs import read_signals_csv
-from twin.pipeline import run
 
 pytestmark = pytest.mark.slow
 
@@ -53,7 +53,7 @@ def parts_of(tmp_path: Path, *switch_on: str, tilt: float = 0.0) -> tuple[dict[s
     coefficients.write(tmp_path / "coefficients.toml")
     model = f'errormodel.coefficients="{tmp_path / "coefficients.toml"}"'
     sc = load_scenario(scenarios_dir() / "base" / "tester-system.toml", [*QUIET, *switch_on, model])
-    run(sc, tmp_path)
+    run_into(sc, tmp_path)
     table = read_signals_csv(tmp_path / "signals.csv")
     model = read_signals_csv(tmp_path / "errormodel.csv")
     assert np.array_equal(model.time, table.time)

@@ -9,9 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from twin.calibration.geometry import capacity, derive, derived_file, derived_file_text, mass
+from twin.config.drawing import load_geometry, positions
 from twin.config.load import scenarios_dir
 from twin.errormodel.tester import load_tester_spec
-from twin.geometry import capacity, derive, derived_file, derived_file_text, load_geometry, mass, positions
 
 SCENARIOS = scenarios_dir()
 G = load_geometry(SCENARIOS)

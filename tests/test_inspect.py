@@ -53,7 +53,7 @@ def test_inspect_bad_targets_get_one_line(target: str, word: str, capsys) -> Non
     ("description", "word"),
     [
         (b"<x/>", "lacks an element or attribute FMI requires"),  # fmpy: 'NoneType' ... 'startswith'
-        (b'<fmiModelDescription fmiVersion="2.0"/>', "lacks an element or attribute"),
+        (b'<fmiModelDescription fmiVersion="2.0"/>', "'modelName' is required but missing"),  # the schema
     ],
 )
 def test_an_fmu_whose_model_description_lacks_what_fmi_requires_gets_one_line(

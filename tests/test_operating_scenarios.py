@@ -20,8 +20,9 @@ from pathlib import Path
 
 import pytest
 
+from tests.runs import run_into
 from twin.config.load import load_scenario, scenarios_dir
-from twin.pipeline import RunSummary, run
+from twin.pipeline import RunSummary
 
 pytestmark = pytest.mark.slow
 
@@ -51,7 +52,7 @@ REMOVED = {"constant-load": 0.9, "sine-load": 0.9, "trapezoid-load": 0.9, "day-n
 
 @pytest.mark.parametrize("name", sorted(REMOVED))
 def test_compensation_removes_the_detecting_error(name: str, tmp_path: Path) -> None:
-    summary = run(load_scenario(scenarios_dir() / f"{name}.toml"), tmp_path)
+    summary = run_into(load_scenario(scenarios_dir() / f"{name}.toml"), tmp_path)
     check_summary(summary, REMOVED[name])
     # every factor of the scenario is present
     figures = summary.figures()
@@ -62,7 +63,7 @@ def test_compensation_removes_the_detecting_error(name: str, tmp_path: Path) -> 
 
 
 def test_mil_endurance_run(tmp_path: Path) -> None:
-    summary = run(load_scenario(scenarios_dir() / "mil-endurance.toml"), tmp_path)
+    summary = run_into(load_scenario(scenarios_dir() / "mil-endurance.toml"), tmp_path)
     check_summary(summary, 0.9)
     assert 0.0 < summary.results["wear_mm"]["true"] < MIL_WEAR_LIMIT_MM
     # the goal: the compensated curve within 2 um RMS of the true wear (measured 0.38 um)

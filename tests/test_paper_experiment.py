@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.runs import run_into
 from twin.config.load import default_scenario_path, load_scenario
 from twin.outputs import read_signals_csv
 from twin.paper import DRIFT_M, FEM_PARTS_M, TEMPERATURE_RISE_K
-from twin.pipeline import run
 
 pytestmark = pytest.mark.slow
 
@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("paper")
-    summary = run(load_scenario(default_scenario_path()), out)
+    summary = run_into(load_scenario(default_scenario_path()), out)
     assert (out / "summary.json").read_text(encoding="utf-8") == summary.to_json()
     return out, summary.to_dict()
 
@@ -128,13 +128,15 @@ def test_same_scenario_and_seed_give_byte_identical_signals(
     paper_run: tuple[Path, dict], tmp_path: Path
 ) -> None:
     out, _ = paper_run
-    run(load_scenario(default_scenario_path()), tmp_path)
+    run_into(load_scenario(default_scenario_path()), tmp_path)
     assert (tmp_path / "signals.csv").read_bytes() == (out / "signals.csv").read_bytes()
 
 
 def test_another_seed_gives_other_noise(paper_run: tuple[Path, dict], tmp_path: Path) -> None:
     out, _ = paper_run
-    run(load_scenario(default_scenario_path(), ["scenario.seed=7", 'scenario.duration="30 min"']), tmp_path)
+    run_into(
+        load_scenario(default_scenario_path(), ["scenario.seed=7", 'scenario.duration="30 min"']), tmp_path
+    )
     a = read_signals_csv(out / "signals.csv")
     b = read_signals_csv(tmp_path / "signals.csv")
     n = len(b)

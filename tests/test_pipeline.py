@@ -14,14 +14,24 @@ import numpy as np
 import pytest
 
 import twin.pipeline.stages as stages
+from tests.runs import run_into
 from twin.config.load import load_scenario, scenarios_dir
-from twin.errormodel.config import evaluation_config, input_columns
 from twin.errormodel.evaluate import PARTS
 from twin.errors import RunError
 from twin.outputs.csv import read_signals_csv
 from twin.outputs.sink import Outcome, Sink
 from twin.paper import TEMPERATURE_RISE_K
-from twin.pipeline import RunSummary, evaluate_run, run, run_point, simulate, summarize, write_outputs
+from twin.pipeline import (
+    RunControls,
+    RunSummary,
+    evaluate_run,
+    prepare_scenario,
+    run_point,
+    simulate,
+    summarize,
+    write_outputs,
+)
+from twin.pipeline.stages import OutputsLog
 from twin.signals.recorder import FLUSH_ROWS
 from twin.signals.table import Block, Signal
 
@@ -37,7 +47,7 @@ def short_scenario(*overrides: str):
 @pytest.fixture(scope="module")
 def folder_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, RunSummary]:
     out = tmp_path_factory.mktemp("run")
-    return out, run(short_scenario(), out)
+    return out, run_into(short_scenario(), out)
 
 
 def without_timing(figures: dict[str, float]) -> dict[str, float]:
@@ -78,7 +88,7 @@ def test_run_point_gives_the_runs_figures_and_writes_no_file(
 ) -> None:
     _, summary = folder_run
     monkeypatch.chdir(tmp_path)
-    point = run_point(short_scenario())
+    point = run_point(prepare_scenario(short_scenario()))
     assert list(tmp_path.iterdir()) == []
     assert without_timing(point.figures()) == without_timing(summary.figures())
     assert pickle.loads(pickle.dumps(point)).figures() == point.figures()  # a worker sends it back
@@ -86,8 +96,7 @@ def test_run_point_gives_the_runs_figures_and_writes_no_file(
 
 def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummary], tmp_path: Path) -> None:
     out, summary = folder_run
-    scenario = short_scenario()
-    cfg = evaluation_config(scenario)
+    prepared = prepare_scenario(short_scenario())
     events: list[str] = []
 
     class Tail(Sink):
@@ -111,12 +120,14 @@ def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummar
             events.append("fail")
 
     tail = Tail()
-    simulation = simulate(scenario, sinks=[tail], keep=input_columns(cfg))
+    simulation = simulate(prepared, [tail])
     assert simulation.result.status == "completed" and simulation.table.names()
-    evaluated = evaluate_run(simulation, cfg)
+    evaluated = evaluate_run(simulation)
     assert evaluated.table is simulation.table and "errormodel.e_z" in evaluated.columns
-    made = summarize(simulation, evaluated, process_start=0.0)
-    write_outputs([tail], evaluated, made.to_dict)
+    made = summarize(simulation, evaluated)
+    write_outputs(
+        [tail], Outcome(evaluated.table, evaluated.columns, made.to_dict), RunControls(), OutputsLog()
+    )
     assert events[0] == "open" and events[-1] == "close" and set(events[1:-1]) == {"write"}
     signals = read_signals_csv(out / "signals.csv")
     assert tail.names == signals.names()
@@ -137,7 +148,7 @@ def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_a_summary_saying_
 
     monkeypatch.setattr(stages, "evaluate_run", broken)
     with pytest.raises(RunError, match="RuntimeError: the error model broke; everything recorded is in"):
-        run(short_scenario(), tmp_path)
+        run_into(short_scenario(), tmp_path)
     # every row, though the run held them all back for after its plots (fewer than FLUSH_ROWS)
     assert len(read_signals_csv(tmp_path / "signals.csv")) < FLUSH_ROWS
     assert (tmp_path / "signals.csv").read_bytes() == (out / "signals.csv").read_bytes()
@@ -156,8 +167,8 @@ def test_a_run_that_breaks_after_simulating_keeps_its_rows_and_a_summary_saying_
 POINT = """
 import json, sys
 from twin.config.load import load_scenario
-from twin.pipeline import run_point
-point = run_point(load_scenario(sys.argv[1]))
+from twin.pipeline import prepare_scenario, run_point
+point = run_point(prepare_scenario(load_scenario(sys.argv[1])))
 print(json.dumps({"status": point.status, "error": point.error, "sim_end_s": point.sim_end_s,
                   "figures": sorted(point.figures())}))
 """

@@ -23,7 +23,7 @@ CONSTANT = str(REPO / "scenarios" / "constant-load.toml")
 
 def twin(*args: str, **kwargs) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "twin.cli", *args],
+        [sys.executable, "-m", "twin", *args],
         cwd=REPO,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

@@ -21,7 +21,7 @@ from twin.outputs import read_signals_csv
 
 pytestmark = pytest.mark.slow
 
-TWIN = [sys.executable, "-c", "import sys; from twin.entry import main; sys.exit(main())"]
+TWIN = [sys.executable, "-c", "import sys; from twin.cli import console; sys.exit(console())"]
 PAPER = scenarios_dir() / "li2017-thermal-experiment.toml"
 MIL = scenarios_dir() / "mil-endurance.toml"
 
@@ -274,13 +274,13 @@ def test_a_full_disk_while_the_fmus_libraries_are_cached_names_the_cache(tmp_pat
 
 
 #: the twin, started as the console script starts it, by a wrapper that says when
-#: twin.entry (20 lines, importing only sys) is imported: the interpreter's own start (site,
+#: twin.cli (its face: a few lines, importing only sys) is imported: the interpreter's own start (site,
 #: about 0.05 s here) and that import come before any code that could catch a Ctrl-C, so no
-#: program can turn one there into its own exit code; from twin.entry's main on, it is twin's
+#: program can turn one there into its own exit code; from twin.cli's main on, it is twin's
 UP = [
     sys.executable,
     "-c",
-    "import sys; from twin.entry import main; print('up', flush=True); sys.exit(main())",
+    "import sys; from twin.cli import console; print('up', flush=True); sys.exit(console())",
 ]
 
 

@@ -1,8 +1,7 @@
-"""``python -m twin``: the ``twin`` command (through :mod:`twin.entry`, so a Ctrl-C while it
-imports is one line and exit code 130, as for the console script)."""
+"""``python -m twin``: the ``twin`` command (:func:`twin.cli.console`)."""
 
 import sys
 
-from twin.entry import main
+from twin.cli import console
 
-sys.exit(main())
+sys.exit(console())

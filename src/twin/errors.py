@@ -9,6 +9,8 @@ that only know ``ValueError`` or ``RuntimeError`` still catch them.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 
 class TwinError(Exception):
     """Base class of every error raised by the twin on purpose."""
@@ -103,3 +105,12 @@ class FMUError(RunError):
     def __str__(self) -> str:
         msg = f"FMU '{self.instance}' failed in {self.call} at t = {self.time_s:.6g} s"
         return f"{msg}: {self.detail}" if self.detail else msg
+
+
+def did_you_mean(word: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` to a misspelt ``word``, or ``""``:
+    what a message about an unknown name adds."""
+    import difflib
+
+    close = difflib.get_close_matches(word, sorted(known), n=1, cutoff=0.7)
+    return f" (did you mean {close[0]!r}?)" if close else ""

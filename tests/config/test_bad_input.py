@@ -1064,7 +1064,7 @@ SUBPROCESS_CASES = ["syntax-unquoted-duration", "connection-unit-mismatch", "par
 
 def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "twin.cli", *args],
+        [sys.executable, "-m", "twin", *args],
         capture_output=True,
         text=True,
         cwd=cwd,

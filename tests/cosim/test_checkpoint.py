@@ -10,7 +10,7 @@ import pytest
 
 from twin.config.load import load_scenario
 from twin.config.spec import NS_PER_S
-from twin.cosim.master import Master
+from twin.cosim import Master, RunControls, make_plan
 from twin.errors import ConfigError, RunError
 
 from .test_master import LOOP_SYSTEM, scenario
@@ -59,12 +59,16 @@ def sc(tmp_path_factory: pytest.TempPathFactory) -> Any:
 @pytest.mark.parametrize("loop", ["fast", "python"])
 def test_resuming_from_any_checkpoint_gives_the_same_signals(sc: Any, loop: str) -> None:
     snaps: list[dict[str, Any]] = []
-    full = Master(sc, loop=loop, checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append).run()
+    full = Master(
+        make_plan(sc),
+        controls=RunControls(checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append),
+        loop=loop,
+    ).run()
     assert full.status == "completed"
     assert [s["tick"] for s in snaps] == [60, 120, 180, 240]
     for snap in snaps:
         saved = pickle.loads(pickle.dumps(snap, protocol=5))  # as the pipeline keeps it
-        rest = Master(sc, loop=loop, resume=saved).run()
+        rest = Master(make_plan(sc), loop=loop, resume=saved).run()
         assert rest.status == "completed"
         assert (rest.macro_steps, rest.fmu_steps, rest.end_ns) == (
             full.macro_steps,
@@ -79,7 +83,9 @@ def test_resuming_from_any_checkpoint_gives_the_same_signals(sc: Any, loop: str)
 
 def test_a_snapshot_holds_the_whole_master(sc: Any) -> None:
     snaps: list[dict[str, Any]] = []
-    Master(sc, checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append).run()
+    Master(
+        make_plan(sc), controls=RunControls(checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append)
+    ).run()
     snap = snaps[1]  # 120 s: after the set, the ramp and the bias
     assert set(snap) == {"tick", "macro_steps", "fmu_steps", "events_applied", "driven", "instances"}
     assert (snap["tick"], snap["macro_steps"], snap["fmu_steps"]) == (120, 120, 12 + 120)
@@ -104,18 +110,20 @@ def test_a_snapshot_holds_the_whole_master(sc: Any) -> None:
 
 def test_a_checkpoint_of_another_scenario_is_refused(sc: Any) -> None:
     snaps: list[dict[str, Any]] = []
-    Master(sc, checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append).run()
+    Master(
+        make_plan(sc), controls=RunControls(checkpoint_every_ns=EVERY_NS, on_checkpoint=snaps.append)
+    ).run()
     snaps[0]["instances"][0]["name"] = "other"
     with pytest.raises(RunError, match="checkpoint holds instance 'other'"):
-        Master(sc, resume=snaps[0]).run()
+        Master(make_plan(sc), resume=snaps[0]).run()
     del snaps[0]["driven"][0]
     with pytest.raises(RunError, match="driven inputs"):
-        Master(sc, resume=snaps[0]).run()
+        Master(make_plan(sc), resume=snaps[0]).run()
 
 
 def test_progress_is_reported_a_hundred_times_up_to_the_end(sc: Any) -> None:
     seen: list[tuple[int, int]] = []
-    Master(sc, progress=lambda now, total: seen.append((now, total))).run()
+    Master(make_plan(sc), controls=RunControls(progress=lambda now, total: seen.append((now, total)))).run()
     assert len(seen) == 100
     assert [now for now, _ in seen] == sorted({now for now, _ in seen})
     assert seen[-1] == (sc.duration_ns, sc.duration_ns)
@@ -128,7 +136,7 @@ def test_stop_ends_the_run_between_batches_with_its_rows(sc: Any) -> None:
         polls.append(1)
         return "SIGTERM" if len(polls) == 10 else None
 
-    result = Master(sc, stop=stop).run()
+    result = Master(make_plan(sc), controls=RunControls(stop=stop)).run()
     assert result.status == "interrupted" and result.info == {"interrupted_by": "SIGTERM"}
     end_s = result.end_ns / NS_PER_S
     assert 0 < end_s < 300 and result.macro_steps == result.end_ns // sc.step_ns
@@ -138,4 +146,4 @@ def test_stop_ends_the_run_between_batches_with_its_rows(sc: Any) -> None:
 
 def test_unknown_loop_names_are_refused(sc: Any) -> None:
     with pytest.raises(ConfigError, match="unknown master loop 'reference'"):
-        Master(sc, loop="reference")  # type: ignore[arg-type]
+        Master(make_plan(sc), loop="reference")  # type: ignore[arg-type]

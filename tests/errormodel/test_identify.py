@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.runs import run_into
+from twin.calibration.identify import identify, run_experiment
 from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.coefficients import (
     Coefficients,
@@ -21,15 +23,7 @@ from twin.errormodel.coefficients import (
     load_priors,
 )
 from twin.errormodel.factors import FACTORS, Measured
-from twin.errormodel.identify import (
-    CALIBRATIONS,
-    EXPERIMENTS,
-    Record,
-    fit_records,
-    identify,
-    lab_channels,
-    run_experiment,
-)
+from twin.errormodel.identify import CALIBRATIONS, EXPERIMENTS, Record, fit_records, lab_channels
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import (
     CREEP_COEFFICIENTS,
@@ -282,7 +276,7 @@ def test_the_experiments_record_only_the_labs_channels() -> None:
 
 @pytest.mark.slow
 def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path) -> None:
-    from twin.identify_cli import add_parser
+    from twin.cli.identify import add_parser
 
     parser = argparse.ArgumentParser()
     add_parser(parser.add_subparsers())
@@ -321,14 +315,13 @@ def test_identify_sees_the_tester_as_built() -> None:
 @pytest.mark.slow
 def test_a_run_of_a_changed_tester_is_compensated_with_the_same_coefficients(tmp_path: Path) -> None:
     from twin.outputs import read_signals_csv
-    from twin.pipeline import run
 
     from .test_coefficients import PERTURBED_TRUTH
 
     short = ['scenario.duration="10 min"']
     path = scenarios_dir() / "constant-load.toml"
-    run(load_scenario(path, short), tmp_path / "a")
-    run(load_scenario(path, [*short, *PERTURBED_TRUTH]), tmp_path / "b")
+    run_into(load_scenario(path, short), tmp_path / "a")
+    run_into(load_scenario(path, [*short, *PERTURBED_TRUTH]), tmp_path / "b")
     a, b = (read_signals_csv(tmp_path / d / "errormodel.csv") for d in "ab")
     # the tester read differently ...
     assert np.max(np.abs(a["errormodel.reading_change"] - b["errormodel.reading_change"])) > 1e-6
@@ -348,9 +341,8 @@ def test_with_identified_coefficients_the_predicted_drift_meets_the_probes(
     # true wear, which the paper's thermal experiment does not have) within 0.005 mm
     from twin.errormodel.factors import endpoints
     from twin.outputs import read_signals_csv
-    from twin.pipeline import run
 
-    summary = run(load_scenario(scenarios_dir() / scenario), tmp_path).to_dict()
+    summary = run_into(load_scenario(scenarios_dir() / scenario), tmp_path).to_dict()
     em = read_signals_csv(tmp_path / "errormodel.csv")
     start, end = endpoints(em.time, em["errormodel.residual"], 300.0)  # compensated - true wear
     drift = summary["drift_mm"]

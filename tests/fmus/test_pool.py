@@ -9,7 +9,7 @@ import pytest
 
 from twin.config.load import load_scenario, load_scenario_data, read_scenario_data, scenarios_dir
 from twin.config.spec import Scenario
-from twin.cosim.master import Master, RunResult
+from twin.cosim import Master, RunResult, make_plan
 from twin.fmu.pool import SlotPool, sweep_pool
 
 SHORT = ['scenario.duration="2 min"']
@@ -20,7 +20,7 @@ def scenario(name: str, *overrides: str) -> Scenario:
 
 
 def run(sc: Scenario, pool: SlotPool | None = None) -> RunResult:
-    return Master(sc, pool=pool).run()
+    return Master(make_plan(sc), pool=pool).run()
 
 
 def same_signals(a: RunResult, b: RunResult) -> None:
@@ -69,7 +69,7 @@ def test_a_failed_run_gives_its_instances_back_to_nobody(tmp_path: Path) -> None
 def test_the_pool_keeps_one_of_each_and_frees_the_rest() -> None:
     pool = SlotPool(per_key=1)
     sc = scenario("constant-load")
-    a, b = Master(sc, pool=pool), Master(sc, pool=pool)
+    a, b = Master(make_plan(sc), pool=pool), Master(make_plan(sc), pool=pool)
     # two runs at once in one process (a worker with two threads): two sets of instances
     a._create(), b._create()
     assert pool.created == 10
@@ -82,11 +82,14 @@ def test_the_pool_keeps_one_of_each_and_frees_the_rest() -> None:
 
 @pytest.mark.slow
 def test_sweep_points_reuse_the_workers_instances() -> None:
-    from twin.sweep.point import run_point
+    from twin.pipeline import prepare_scenario
+    from twin.pipeline.point import point_task
 
     pool = sweep_pool()
-    sc = scenario("constant-load")
-    first = run_point(sc)
+    sc = prepare_scenario(scenario("constant-load"))
+    first = point_task({"index": 0, "run": sc})["figures"]  # as a worker runs it: its pool
     reused = pool.reused
-    assert run_point(sc) == first  # same scenario, same seed: the same figures
+    assert (
+        point_task({"index": 0, "run": sc})["figures"] == first
+    )  # same scenario, same seed: the same figures
     assert pool.reused == reused + 5

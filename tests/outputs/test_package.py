@@ -43,15 +43,17 @@ def test_a_runs_recording_loads_rerun_with_its_first_rows(tmp_path: Path) -> Non
 
 @pytest.mark.parametrize(
     ("call", "settled"),
-    [("from twin.entry import main; rc = main()", True), ("from twin.cli import main; rc = main()", False)],
+    [
+        ("from twin.cli import console; rc = console()", True),
+        ("from twin.cli import main; rc = main()", False),
+    ],
     ids=["the command's own process", "a program calling twin.cli.main"],
 )
 def test_twin_run_settles_its_own_process_and_leaves_a_callers_alone(
     tmp_path: Path, call: str, settled: bool
 ) -> None:
-    """What twin.cli._settle_the_run_process sets (each measured in benchmarks/bench_phases.py):
-    pyarrow does not import pandas to ask whether rerun's lists are pandas objects (0.17 s,
-    43 MB), its buffers come from the system allocator, and the imports are frozen for the GC;
+    """What twin.cli.process.settle sets (each measured in benchmarks/bench_phases.py):
+    pyarrow's buffers come from the system allocator, and the imports are frozen for the GC;
     only where the process is the command's own."""
     args = [
         "twin",
@@ -65,16 +67,14 @@ def test_twin_run_settles_its_own_process_and_leaves_a_callers_alone(
     ]
     code = (
         f"import gc, sys; sys.argv = {args!r}; {call}; import pyarrow; "
-        "print(rc, 'pandas' in sys.modules, pyarrow.default_memory_pool().backend_name, gc.get_freeze_count() > 0)"
+        "print(rc, pyarrow.default_memory_pool().backend_name, gc.get_freeze_count() > 0)"
     )
     env = {
         k: v for k, v in os.environ.items() if k not in ("ARROW_DEFAULT_MEMORY_POOL", "MIMALLOC_PURGE_DELAY")
     }
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
-    rc, pandas, pool, frozen = done.stdout.split()
+    rc, pool, frozen = done.stdout.split()
     assert rc == "0"
-    assert (pandas, pool, frozen) == (
-        ("False", "system", "True") if settled else ("True", "mimalloc", "False")
-    )
+    assert (pool, frozen) == (("system", "True") if settled else ("mimalloc", "False"))
     assert (tmp_path / "r" / "recording.rrd").stat().st_size > 0

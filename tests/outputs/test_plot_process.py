@@ -19,7 +19,8 @@ from twin.outputs.plot_process import PlotProcess, columns_json, thinned
 from twin.outputs.plot_sinks import ErrorBudgetSink, WearPlotSink
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.sink import Outcome
-from twin.pipeline.stages import Evaluated, write_outputs
+from twin.pipeline import RunControls
+from twin.pipeline.stages import OutputsLog, write_outputs
 from twin.signals.table import Signal, SignalTable
 
 from .sample import PARTS, make_table
@@ -129,9 +130,9 @@ def test_a_stop_after_a_plot_was_sent_waits_for_it_and_skips_the_plots_not_sent(
         return "SIGINT" if len(asked) > 2 else None
 
     table = _table()
-    skipped: list[str] = []
-    write_outputs(sinks, Evaluated(table, ()), lambda: {}, stop=stop, skipped=skipped)
-    assert skipped == ["wear.png"]
+    log = OutputsLog()
+    write_outputs(sinks, Outcome(table, (), dict), RunControls(stop=stop), log)
+    assert log.skipped == ["wear.png"]
     assert {p.name: p.read_bytes() for p in out.glob("*.png")} == {
         "error_budget.png": here["error_budget.png"]
     }

@@ -175,17 +175,16 @@ def test_no_wear_plot_without_true_wear_or_cycles() -> None:
 
 
 def test_the_endurance_scenario_declares_the_mil_limit_and_its_run_gets_the_wear_plot() -> None:
-    from twin.config.load import load_scenario, scenarios_dir
-    from twin.errormodel.config import evaluation_config
+    from twin.pipeline import prepare
     from twin.pipeline.stages import budget_columns
 
-    endurance = load_scenario(scenarios_dir() / "mil-endurance.toml")
-    columns = budget_columns(evaluation_config(endurance), endurance)
+    endurance = prepare("mil-endurance")
+    columns = budget_columns(endurance.evaluation, endurance)
     assert columns.wear_limit_m == pytest.approx(0.152e-3)  # facts 4
     assert columns.wear_columns() == (
         "mechanics.wear_depth_true",
         "errormodel.wear_compensated",
         "oscillation.cycles",
     )
-    sine = load_scenario(scenarios_dir() / "sine-load.toml")
-    assert budget_columns(evaluation_config(sine), sine).wear_limit_m is None
+    sine = prepare("sine-load")
+    assert budget_columns(sine.evaluation, sine).wear_limit_m is None

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from twin.cli import main
+from twin.config.drawing import load_geometry
 from twin.config.load import default_scenario_path
-from twin.geometry import load_geometry
 
 BODIES = [
     "base",

@@ -127,29 +127,6 @@ def test_bad_budget_column_and_entity_collision(tmp_path: Path) -> None:
         RecordingWriter(tmp_path / "b.rrd", [Signal("x.a", "m", "x"), Signal("a", "m", "x")])
 
 
-def test_without_pandas_lookup_a_recording_leaves_pandas_out_and_usable(tmp_path: Path) -> None:
-    """What `twin run` does before it records: pyarrow answers rerun's lists without
-    importing pandas, and pandas still imports and converts when asked for by name."""
-    code = f"""
-import sys
-import numpy as np
-from twin.outputs.rerun_rec import arrow_without_pandas_lookup, write_recording
-from twin.signals.table import Signal, SignalTable
-arrow_without_pandas_lookup()
-table = SignalTable(np.arange(3.0))
-table.add(Signal("thermal.t_base", "K", "base"), np.array([293.0, 294.0, 295.0]))
-write_recording(table, {str(tmp_path / "r.rrd")!r}, budget_columns=["thermal.t_base"])
-print("pandas" in sys.modules)
-import pandas as pd
-import pyarrow as pa
-print(pa.Table.from_pandas(pd.DataFrame({{"a": [1.0, None]}})).column("a").null_count)
-"""
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["False", "1"]
-    assert _verify(tmp_path / "r.rrd").returncode == 0
-
-
 # rerun-sdk 0.41 can leave a flush unanswered for ever when its file writer stops on a full
 # disk just after the flush was queued (tests/test_run_faults.py fills a disk under a real run,
 # where it happened in about half the runs); these stand-ins for the stream give its answers

@@ -27,6 +27,7 @@ from twin.outputs.run_folder import (
     Checkpoint,
     RunFolder,
     RunMeta,
+    RunOutputs,
 )
 
 from .sample import PARTS, make_table
@@ -204,7 +205,7 @@ def test_resumed_sinks_cut_the_csv_back_to_the_checkpoint(tmp_path: Path) -> Non
     cut = text.index(b"\n", len(text) // 2) + 1
     ckpt = Checkpoint({}, {"csv_position": [cut, 0.0]}, "sample")
     plot = BudgetColumns("probe.reading", "errormodel.e_total", PARTS, [])
-    sinks = folder.run_sinks(name="sample", late_signals=[], budget_view=[], plot=plot, resume=ckpt)
+    sinks = folder.run_sinks(RunOutputs("sample", (), (), plot), resume=ckpt)
     assert folder.file(SIGNALS_CSV).read_bytes() == text[:cut]
     assert [type(s).__name__ for s in sinks] == [
         "SignalsCsvSink",

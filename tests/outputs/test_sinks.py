@@ -142,7 +142,8 @@ def test_tee_hands_a_failing_block_to_no_sink_twice() -> None:
 
 
 def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file_closes() -> None:
-    from twin.pipeline.stages import Evaluated, write_outputs
+    from twin.pipeline import RunControls
+    from twin.pipeline.stages import OutputsLog, write_outputs
 
     _, table = recorded(make_table(rows=30))
     events: list[tuple[str, Any]] = []
@@ -154,7 +155,7 @@ def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file
 
     rec = TeeRecorder([Log(events, "csv"), Plot(events, "png")], hold_last=True)
     stream(rec, table)
-    write_outputs(rec.sinks, Evaluated(None), lambda: {}, held=rec)
+    write_outputs(rec.sinks, Outcome(None, (), dict), RunControls(), OutputsLog(), held=rec)
     assert [e[:2] for e in events] == [
         ("csv", "open"),
         ("png", "open"),

@@ -30,13 +30,13 @@ def child_env(**extra: str) -> dict[str, str]:
 
 
 def sweep_cmd(spec: Path, out: Path, *args: str) -> list[str]:
-    return [sys.executable, "-m", "twin.sweep", str(spec), "--out", str(out), "--quiet", *args]
+    return [sys.executable, "-m", "twin", "sweep", str(spec), "--out", str(out), "--quiet", *args]
 
 
 def run_sweep_cli(
     spec: Path, out: Path, *args: str, timeout: float = 240
 ) -> subprocess.CompletedProcess[str]:
-    """``python -m twin.sweep`` in a child process (its own session, killed on timeout)."""
+    """``python -m twin sweep`` in a child process (its own session, killed on timeout)."""
     proc = subprocess.Popen(
         sweep_cmd(spec, out, *args),
         env=child_env(),

@@ -27,7 +27,9 @@ import pandas as pd
 import pytest
 
 from tests.sweep.helpers import child_env, run_sweep_cli, stop, sweep_cmd, write_spec
-from twin.sweep.execute import run_task
+from twin.pipeline import RunControls
+from twin.pipeline.cluster import StudyOptions
+from twin.pipeline.point import point_task
 from twin.sweep.runner import run_sweep
 from twin.sweep.spec import load_spec
 
@@ -137,7 +139,7 @@ def _crashing(payload: dict, *, log: str, always: bool) -> dict:
         f.write(f"{payload['index']}\n")
     if always or Path(log).read_text().count("\n") == 1:
         os._exit(1)
-    return run_task(payload)
+    return point_task(payload)
 
 
 @pytest.mark.parametrize(("always", "status"), [(True, "failed"), (False, "ok")])
@@ -146,7 +148,7 @@ def test_a_worker_dying_in_a_point_is_retried_once(tmp_path: Path, always: bool,
     log = tmp_path / "tries.log"
     cloudpickle.register_pickle_by_value(sys.modules[__name__])  # workers need not import tests
     task = functools.partial(_crashing, log=str(log), always=always)
-    summary = run_sweep(spec, tmp_path / "out", workers=1, task=task)
+    summary = run_sweep(spec, tmp_path / "out", RunControls(), StudyOptions(workers=1), task=task)
     row = _table(tmp_path / "out").iloc[0]
     assert log.read_text().split() == ["0", "0"]  # two tries, no third
     assert row["status"] == status and summary[status] == 1
@@ -182,7 +184,7 @@ def test_a_crashing_point_in_a_batch_costs_its_neighbours_only_a_rerun(tmp_path:
     log = tmp_path / "tries.log"
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     task = functools.partial(_quick_or_crashing, log=str(log), crash=20)
-    summary = run_sweep(spec, tmp_path / "out", workers=1, task=task)
+    summary = run_sweep(spec, tmp_path / "out", RunControls(), StudyOptions(workers=1), task=task)
     table = _table(tmp_path / "out")
     tries = log.read_text().split()
     assert list(table["point"]) == list(range(24)) and summary["ok"] == 23 and summary["failed"] == 1
@@ -273,9 +275,9 @@ def test_run_folders_come_back_from_the_workers(tmp_path: Path) -> None:
     spec = load_spec(
         write_spec(tmp_path / "f.toml", body.replace("seed = 11", "seed = 11\nrun_folders = true"))
     )
-    run_sweep(spec, tmp_path / "with", workers=1)
+    run_sweep(spec, tmp_path / "with", RunControls(), StudyOptions(workers=1))
     plain = load_spec(write_spec(tmp_path / "p.toml", body))
-    run_sweep(plain, tmp_path / "without", workers=1)
+    run_sweep(plain, tmp_path / "without", RunControls(), StudyOptions(workers=1))
     # the whole pipeline's run folder, and the same figures as the in-memory point
     pd.testing.assert_frame_equal(_table(tmp_path / "with"), _table(tmp_path / "without"))
     table = _table(tmp_path / "with")

@@ -58,11 +58,16 @@ def test_point_seeds_depend_only_on_the_sweep_seed_and_the_index() -> None:
     assert point_seed(8, 500) != seeds[500]
 
 
-def test_overrides_carry_values_and_seed(base_spec: Spec) -> None:
+def test_a_point_carries_its_values_and_seed(base_spec: Spec) -> None:
     design = make_design(with_(base_spec, samples=4))
-    sets = design.overrides(2)
-    assert sets[0] == f"input.thermal.t_room.rise={design.rows[2][0]!r}"
-    assert sets[-1] == f"scenario.seed={point_seed(9, 2)}"
+    values = design.values(2)
+    assert list(values) == [*base_spec.names, "scenario.seed"]
+    assert values["input.thermal.t_room.rise"] == design.rows[2][0]
+    assert values["scenario.seed"] == point_seed(9, 2)
+    point = design.point(base_spec.scenario, 2)  # the base scenario with those values set
+    assert point.profile("thermal.t_room").params["rise"] == design.rows[2][0]
+    assert point.fmu("sensors").parameters["probe_zero_drift"].value == design.rows[2][1]
+    assert point.seed == point_seed(9, 2) and base_spec.scenario.seed == 2017
     fixed = make_design(with_(base_spec, samples=4, vary_seed=False))
     assert set(fixed.seeds) == {2017}  # the paper scenario's own seed: common random numbers
 

@@ -14,23 +14,22 @@ import pytest
 from tests.sweep.helpers import PAPER
 from twin.config.load import load_scenario
 from twin.errors import ConfigError, RunError
-from twin.sweep import shipping
+from twin.pipeline import RunSummary, Timing, prepare_scenario, run_point, shipping
+from twin.pipeline.cluster import MAX_BATCH, TASK_SECONDS, TASKS_PER_THREAD_LEFT, _Batcher
+from twin.pipeline.point import figures, point_task
+from twin.pipeline.results import CSV, META, TABLE, ResultStore
 from twin.sweep.analysis import indices, statistics
-from twin.sweep.execute import MAX_BATCH, TASK_SECONDS, TASKS_PER_THREAD_LEFT, _Batcher, run_task
-from twin.sweep.point import flatten, run_point
-from twin.sweep.results import CSV, META, TABLE, ResultStore
 from twin.sweep.spec import Spec
 
 
-def test_flatten_keeps_the_figures_only() -> None:
-    summary = {
-        "scenario": "x",
+def test_a_points_figures_are_its_results_numbers_only() -> None:
+    results = {
         "drift_mm": {"predicted": -0.02, "probe": -0.021, "paper_measured": -0.021},
         "sensors_used": {"load": True},
         "compensation": {"residual_rms_um": {"before": 5.0, "after": None}},
-        "timing": {"cosim_s": 1.0},
     }
-    flat = flatten(summary)
+    timing = Timing(cosim_s=1.0, write_s=0.0, total_s=1.0, macro_steps=1, fmu_steps=1, realtime_factor=1.0)
+    flat = figures(RunSummary("x", "x.toml", "completed", 0, 60.0, timing, results=results))
     assert flat.keys() == {
         "drift_mm.predicted",
         "drift_mm.probe",
@@ -42,17 +41,19 @@ def test_flatten_keeps_the_figures_only() -> None:
 
 def test_run_point_gives_the_run_s_figures_in_memory() -> None:
     scenario = load_scenario(PAPER, ['scenario.duration = "20 min"'])
-    figures = run_point(scenario)
-    assert figures["drift_mm.probe"] < 0  # the room warms: the reading falls
+    point = figures(run_point(prepare_scenario(scenario)))
+    assert point["drift_mm.probe"] < 0  # the room warms: the reading falls
     # 20 min of a tester richer than the model: the compensation need not help yet (the paper's
     # full 480 min run is where it is judged); both residuals are real numbers of a few tenths of um
     for k in ("compensation.residual_rms_um.after", "compensation.residual_rms_um.before"):
-        assert 0.0 < figures[k] < 1.0, k
-    assert figures == run_point(scenario)  # same scenario, same seed: the same numbers
+        assert 0.0 < point[k] < 1.0, k
+    assert point == figures(
+        run_point(prepare_scenario(scenario))
+    )  # same scenario, same seed: the same numbers
 
 
-def test_run_task_records_a_failure_on_one_line() -> None:
-    record = run_task({"index": 3, "scenario": None})
+def test_point_task_records_a_failure_on_one_line() -> None:
+    record = point_task({"index": 3, "run": None})
     assert record["index"] == 3 and record["status"] == "failed"
     assert record["error"].startswith("AttributeError: ") and "\n" not in record["error"]
     assert record["figures"] == {} and record["peak_rss_mb"] > 0
@@ -139,11 +140,10 @@ def _linear_spec(design: str, n: int) -> tuple[Spec, pd.DataFrame]:
     spec = Spec(
         path=Path("s.toml"),
         name="s",
-        base=Path("b.toml"),
+        scenario=load_scenario(PAPER),  # a design of its own: the scenario is not read
         design=design,
         samples=n,
         seed=1,
-        fixed=(),
         problem=problem,
     )
     from twin.sweep.design import matrix
@@ -208,7 +208,7 @@ def test_a_workers_peak_memory_is_its_own_not_its_starters() -> None:
     import subprocess
     import sys
 
-    child = "from twin.sweep.execute import peak_rss_mb; print(peak_rss_mb())"
+    child = "from twin.pipeline.cluster import peak_rss_mb; print(peak_rss_mb())"
     parent = (
         "import subprocess, sys\n"
         "held = bytearray(300 * 2**20)\n"
@@ -217,4 +217,4 @@ def test_a_workers_peak_memory_is_its_own_not_its_starters() -> None:
     )
     done = subprocess.run([sys.executable, "-c", parent], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert 5.0 < float(done.stdout) < 150.0  # twin.sweep.execute and its imports: about 60 MB
+    assert 5.0 < float(done.stdout) < 150.0  # twin.pipeline.cluster and its imports: about 60 MB

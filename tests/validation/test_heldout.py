@@ -8,21 +8,25 @@ drawn FMU values, not the committed file), and bad input.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from twin.calibration.identify import identify
 from twin.cli import main
-from twin.config.load import read_scenario_data, scenarios_dir
+from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.coefficients import default_path, load_coefficients
-from twin.errormodel.identify import EXPERIMENTS, identify
+from twin.errormodel.identify import EXPERIMENTS
 from twin.errormodel.sources import CREEP_COEFFICIENTS
 from twin.errors import ConfigError
+from twin.pipeline import RunControls
+from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, scenario_seed
-from twin.validation.draws import Testers as Draws  # not a test class
-from twin.validation.draws import load_testers, overrides_for
+from twin.uncertainty.testers import Testers as Draws  # not a test class
+from twin.uncertainty.testers import instance_of, load_testers
 from twin.validation.heldout import load_heldout, run_heldout
 
 TESTERS = 5
@@ -58,7 +62,7 @@ thermal_only_max_um = 2.0
 def five(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, pd.DataFrame]:
     tmp = tmp_path_factory.mktemp("heldout")
     cfg = load_heldout(write_heldout(tmp / "heldout.toml"))
-    summary = run_heldout(cfg, tmp / "out", workers=2)
+    summary = run_heldout(cfg, tmp / "out", RunControls(), StudyOptions(workers=2))
     return summary, pd.read_parquet(tmp / "out" / "results.parquet")
 
 
@@ -86,12 +90,14 @@ def test_one_row_per_tester_and_scenario_and_the_summary_reads_the_table(five) -
 def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -> None:
     _, table = five
     cfg = load_heldout(write_heldout(tmp_path / "two.toml", testers=2))
-    run_heldout(cfg, tmp_path / "out", workers=1)
+    run_heldout(cfg, tmp_path / "out", RunControls(), StudyOptions(workers=1))
     two = pd.read_parquet(tmp_path / "out" / "results.parquet")
     pd.testing.assert_frame_equal(two, table.iloc[:2].reset_index(drop=True))
     with pytest.raises(ConfigError, match="already holds"):  # never overwritten unasked
-        run_heldout(cfg, tmp_path / "out", workers=1)
-    summary = run_heldout(cfg, tmp_path / "out", workers=1, resume=True)  # complete: nothing to run
+        run_heldout(cfg, tmp_path / "out", RunControls(), StudyOptions(workers=1))
+    summary = run_heldout(
+        cfg, tmp_path / "out", RunControls(), StudyOptions(workers=1, resume=True)
+    )  # complete: nothing to run
     assert summary["timing"]["identify_s_mean"] is None
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "out" / "results.parquet"), two)
 
@@ -100,10 +106,15 @@ def test_same_table_on_one_worker_and_with_fewer_testers(five, tmp_path: Path) -
 def test_coefficients_are_what_identify_finds_on_that_tester(five, tmp_path: Path) -> None:
     _, table = five
     cfg = load_heldout(write_heldout(tmp_path / "heldout.toml"))
-    values = Draws(load_testers(cfg.spreads), cfg.seed).draw(0)
-    data = read_scenario_data(SCENARIOS / "calibration" / EXPERIMENTS[0].scenario)
-    seeds = {e.name: [f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, 0, 1000 + k)}"] for k, e in enumerate(EXPERIMENTS)}
-    found = identify(overrides_for(values, data), per_experiment=seeds).values()
+    values = Draws(tuple(load_testers(cfg.spreads)), cfg.seed).draw(0)
+    fmus = {f.name for f in load_scenario(SCENARIOS / "calibration" / EXPERIMENTS[0].scenario).fmus}
+    # the tester as built as `twin identify --set` takes it
+    sets = [f"{k}={json.dumps(v)}" for k, v in values.items() if instance_of(k) in (None, *fmus)]
+    seeds = {
+        e.name: [f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, 0, 1000 + k)}"]
+        for k, e in enumerate(EXPERIMENTS)
+    }
+    found = identify(sets, per_experiment=seeds).values()
     row = table.iloc[0]
     for name, value in found.items():
         assert row[f"identified.{name}"] == value, name

@@ -9,21 +9,22 @@ import numpy as np
 import pytest
 
 from twin.cli import main
-from twin.config.load import default_scenario_path, read_scenario_data
+from twin.config.load import default_scenario_path, load_scenario
 from twin.config.profiles import profile_function
 from twin.errors import ConfigError
 from twin.paper import DRIFT_M, FEM_PARTS_M
-from twin.validation.draws import ROOM_SHAPES
-from twin.validation.replay import add_to_summary, parse_uncertainty, sample_scenarios
+from twin.pipeline.montecarlo import parse_uncertainty, sampler
+from twin.uncertainty.rooms import ROOM_SHAPES
+from twin.validation.paper_report import fem_components
 
 REPLAY = default_scenario_path()
 
 
 def test_samples_take_each_room_shape_in_turn_reaching_the_papers_rise() -> None:
-    data = read_scenario_data(REPLAY)
-    unc = parse_uncertainty(REPLAY, data)
+    scenario = load_scenario(REPLAY)
+    unc = parse_uncertainty(scenario)
     assert unc is not None and unc.samples > 0
-    names, make = sample_scenarios(unc, REPLAY, data, [])
+    names, make = sampler(unc, scenario)
     assert "fmu.sensors.parameters.probe_zero_drift" in names
     assert not any(".hydraulic." in n or ".oscillation." in n for n in names)  # the replay has neither
     end = 480 * 60.0
@@ -46,9 +47,9 @@ def test_samples_take_each_room_shape_in_turn_reaching_the_papers_rise() -> None
 
 
 def test_probe_zero_drift_is_centred_on_zero_not_on_the_committed_value() -> None:
-    data = read_scenario_data(REPLAY)
-    unc = parse_uncertainty(REPLAY, data, samples=64)
-    _, make = sample_scenarios(unc, REPLAY, data, [])
+    scenario = load_scenario(REPLAY)
+    unc = parse_uncertainty(scenario, samples=64)
+    _, make = sampler(unc, scenario)
     drifts = [make(i)[0].fmu("sensors").parameters["probe_zero_drift"].value for i in range(64)]
     assert abs(np.mean(drifts)) < 0.3e-6 * 3 / 8  # 3 standard errors of a mean of 64 draws
     assert 0.2e-6 < np.std(drifts) < 0.4e-6
@@ -56,30 +57,23 @@ def test_probe_zero_drift_is_centred_on_zero_not_on_the_committed_value() -> Non
 
 
 def test_bad_uncertainty_table_is_refused_before_the_run(tmp_path: Path) -> None:
-    text = REPLAY.read_text(encoding="utf-8").replace("room_drift_K = 1.0", "room_drift_K = -1.0")
     bad = tmp_path / "replay.toml"
-    bad.write_text(
-        text.replace('"calibration/', f'"{REPLAY.parent}/calibration/').replace(
-            '"validation/', f'"{REPLAY.parent}/validation/'
-        ),
-        encoding="utf-8",
-    )
+    bad.write_text(f'extends = "{REPLAY}"\n[uncertainty]\nroom_drift_K = -1.0\n', encoding="utf-8")
     with pytest.raises(ConfigError, match="room_drift_K"):
-        parse_uncertainty(bad, read_scenario_data(bad))
+        parse_uncertainty(load_scenario(bad))
     assert main(["run", str(bad), "--out", str(tmp_path / "run")]) == 2
     assert not (tmp_path / "run").exists()
 
 
 def test_fem_components_are_the_papers_beside_the_twins_thermal_parts() -> None:
     twin = {"bearing_block": -0.019, "t_plate": 0.0031, "detecting_frame": -0.0411, "long_pole": 0.0398}
-    out = add_to_summary({"thermal_parts_mm": twin, "drift_mm": {"probe": -0.02}}, None)
-    fem = out["paper"]["fem_components_mm"]
+    fem = fem_components({"thermal_parts_mm": twin, "drift_mm": {"probe": -0.02}}, ())
     assert set(fem) == set(FEM_PARTS_M)
     for part, m in FEM_PARTS_M.items():
         assert fem[part]["paper"] == pytest.approx(m * 1e3)
         assert fem[part]["twin"] == twin[part]
         assert fem[part]["derived"] == (part == "bearing_block")
-    assert "interval_90" not in out["drift_mm"]  # no Monte Carlo, no interval
+        assert "twin_interval_90" not in fem[part]  # no Monte Carlo, no interval
 
 
 @pytest.mark.slow
@@ -108,30 +102,25 @@ def test_twin_run_of_the_replay_gives_the_interval_and_the_honest_outcome(tmp_pa
 OUTCOME_INSIDE = False
 
 
-def test_calibrated_intervals_replace_the_handbook_spreads(tmp_path: Path) -> None:
-    """Where the thermal network's parameter file gives an interval or a standard error (the
-    calibration's), the Monte Carlo draws from it instead of the facts-6 spread. (The scenario
-    loader accepts such entries once the calibration writes them; read here without loading.)"""
-    from twin.validation.draws import load_testers
-    from twin.validation.replay import calibrated_spreads, merge_spreads
+def test_calibrated_standard_errors_replace_the_handbook_spreads() -> None:
+    """Where the thermal network's parameter file gives a standard error (the calibration's),
+    the Monte Carlo draws from it (lognormal, its relative sigma) instead of the facts-6 spread."""
+    from twin.uncertainty.spreads import calibrated_rows, merge_rows
+    from twin.uncertainty.testers import load_testers
 
-    (tmp_path / "network.toml").write_text(
-        "[parameters]\n"
-        'c_detecting_frame = { value = 3800.0, interval = [3000.0, 4000.0], source = "test" }\n'
-        'g_base_room = { value = 18.0, std_error = 1.8, source = "test" }\n'
-        'g_t_plate_room = { value = 1.2, source = "test: no interval" }\n',
-        encoding="utf-8",
+    scenario = load_scenario(REPLAY)
+    calibrated = {r[0]: r for r in calibrated_rows(scenario)}
+    base_room = scenario.fmu("thermal").parameters["g_base_room"]
+    assert base_room.std_error is not None  # li2017-thermal-network.toml gives one
+    assert calibrated["fmu.thermal.parameters.g_base_room"] == (
+        "fmu.thermal.parameters.g_base_room",
+        "lognorm",
+        [pytest.approx(np.log(base_room.value)), pytest.approx(base_room.std_error / base_room.value)],
     )
-    rows = calibrated_spreads({"fmu": {"thermal": {"parameter_files": ["network.toml"]}}}, tmp_path)
-    assert rows == {
-        "fmu.thermal.parameters.c_detecting_frame": ("unif", [3000.0, 4000.0]),
-        "fmu.thermal.parameters.g_base_room": ("lognorm", [pytest.approx(np.log(18.0)), pytest.approx(0.1)]),
-    }
-    data = read_scenario_data(REPLAY)
-    unc = parse_uncertainty(REPLAY, data)
-    problem = merge_spreads(load_testers(unc.spreads, REPLAY, list(data["fmu"])).problem, rows)
-    i = problem["names"].index("fmu.thermal.parameters.c_detecting_frame")
-    assert (problem["dists"][i], problem["bounds"][i]) == ("unif", [3000.0, 4000.0])
-    j = problem["names"].index("fmu.thermal.parameters.g_t_plate_room")
-    assert problem["dists"][j] == "lognorm" and problem["bounds"][j][1] == 0.3  # facts 6 spread kept
-    assert problem["num_vars"] == len(problem["names"]) == len(problem["bounds"])
+    unc = parse_uncertainty(scenario)
+    rows = {r[0]: r for r in merge_rows(load_testers(unc.spreads, scenario), list(calibrated.values()))}
+    assert rows["fmu.thermal.parameters.g_base_room"] == calibrated["fmu.thermal.parameters.g_base_room"]
+    assert rows["fmu.thermal.parameters.g_pole_lower_room"][1:] == (
+        "lognorm",
+        [pytest.approx(np.log(scenario.fmu("thermal").parameters["g_pole_lower_room"].value)), 0.3],
+    )  # not calibrated: facts 6 kept

@@ -24,11 +24,12 @@ from twin.fmu.catalog import variables as model_variables
 _FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
 
 
-def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
-    """(value, source) of a parameter given as a value or as ``{ value, source }``; a calibrated
-    value may also carry its ``std_error`` (a positive number, for the replay's Monte Carlo)."""
+def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str, float | None] | None:
+    """(value, source, standard error) of a parameter given as a value or as ``{ value,
+    source }``; a calibrated value may also carry its ``std_error`` (a positive number: the
+    run's Monte Carlo draws it)."""
     if not isinstance(raw, dict):
-        return raw, ""
+        return raw, "", None
     extra = set(raw) - {"value", "source", "std_error"}
     if extra:
         p.add(
@@ -42,7 +43,7 @@ def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str] | None:
     if "value" not in raw:
         p.add(key, "missing 'value'")
         return None
-    return raw["value"], str(raw.get("source", ""))
+    return raw["value"], str(raw.get("source", "")), float(se) if "std_error" in raw else None
 
 
 def _parameter_value(p: Problems, model: str, name: str, raw: Any, key: str) -> Parameter | None:
@@ -53,7 +54,7 @@ def _parameter_value(p: Problems, model: str, name: str, raw: Any, key: str) -> 
     if why is not None or value is None:
         p.add(key, why or "")
         return None
-    return Parameter(value, unwrapped[1])
+    return Parameter(value, unwrapped[1], unwrapped[2])
 
 
 def _parameter_file(p: Problems, path: Path, key: str) -> dict[str, tuple[Any, str]]:

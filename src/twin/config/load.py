@@ -21,7 +21,7 @@ from twin.config.events import FAULTS, load_events
 from twin.config.fmus import load_fmus
 from twin.config.inputs import load_profiles
 from twin.config.overrides import apply_overrides
-from twin.config.reader import Problems, read_toml, table
+from twin.config.reader import Problems, did_you_mean, read_toml, table
 from twin.config.scenario_table import load_scenario_table
 from twin.config.spec import FMUSpec, Parameter, Scenario
 from twin.errors import ConfigError, ConfigErrors
@@ -32,12 +32,14 @@ __all__ = [
     "MAX_DURATION_NS",
     "apply_overrides",
     "default_scenario_path",
+    "find_scenario",
     "format_duration",
     "load_scenario",
     "load_scenario_data",
     "parse_duration",
     "read_scenario_data",
     "scenarios_dir",
+    "shipped_scenarios",
 ]
 
 #: the tables of a scenario file; "errormodel", "uncertainty" and "reference" are passed on as
@@ -120,10 +122,10 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
     ``extends = "base/tester-system.toml"`` (relative to the file) takes that file as the
     starting point; the file's own tables merge over it key by key. A base's
     ``parameter_files`` stay relative to the base. An SSP archive (``.ssp``) is read as
-    :func:`twin.ssp.read_ssp_data` reads it.
+    :func:`twin.config.ssp.read_ssp_data` reads it.
     """
     if path.suffix == ".ssp":  # a system from another FMI tool: its FMUs run as external ones
-        from twin.ssp import read_ssp_data
+        from twin.config.ssp import read_ssp_data
 
         return read_ssp_data(path)
     data = read_toml(path, str(path))
@@ -146,23 +148,66 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
             raise
         # the base itself cannot be read: say so where it is named
         raise ConfigError(f"{parent}: {exc.message}", source=str(path), key="extends") from None
-    # a base's parameter files are named relative to the base's folder
+    _anchor(base, base_path.parent)
+    return _merge(base, data)
+
+
+def _anchor(base: dict[str, Any], folder: Path) -> None:
+    """A base's files (its parameter files, its coefficients file, its Monte Carlo's spreads)
+    are named relative to the base's own folder: made absolute before a file extends it."""
+
+    def absolute(name: Any) -> Any:
+        return str((folder / name).resolve()) if isinstance(name, str) else name
+
     for spec in base.get("fmu", {}).values():
         if isinstance(spec, dict) and isinstance(spec.get("parameter_files"), list):
-            spec["parameter_files"] = [
-                str((base_path.parent / f).resolve()) if isinstance(f, str) else f
-                for f in spec["parameter_files"]
-            ]
-    return _merge(base, data)
+            spec["parameter_files"] = [absolute(f) for f in spec["parameter_files"]]
+    for table, key in (("errormodel", "coefficients"), ("uncertainty", "spreads")):
+        if isinstance(base.get(table), dict) and isinstance(base[table].get(key), str):
+            base[table][key] = absolute(base[table][key])
 
 
 def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     """Read (resolving ``extends``), override (``--set``) and check a scenario file (TOML, or an
-    SSP archive: :mod:`twin.ssp`)."""
+    SSP archive: :mod:`twin.config.ssp`)."""
     path = Path(path)
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
     return load_scenario_data(data, str(path), path.resolve().parent)
+
+
+def find_scenario(name: str | Path | None) -> Path:
+    """The scenario a command names: a file (TOML or SSP), or the name of a shipped scenario
+    (``sine-load`` for ``scenarios/sine-load.toml``); none: the paper's experiment."""
+    if name is None:
+        return default_scenario_path()
+    path = Path(name)
+    if path.exists() or path.suffix in (".toml", ".ssp") or len(path.parts) > 1:
+        return path  # a file (a missing one is reported by the loader, naming it)
+    shipped = {p.stem: p for p in sorted(scenarios_dir().glob("*.toml"))}
+    if str(name) in shipped:
+        return shipped[str(name)]
+    raise ConfigError(
+        f"no scenario file or shipped scenario named {str(name)!r}{did_you_mean(str(name), shipped)} "
+        "(`twin list` shows them)",
+        source="scenario",
+    )
+
+
+def shipped_scenarios() -> list[tuple[str, Path, list[tuple[str, str]]]]:
+    """The shipped scenarios and calibration experiments that describe themselves: (title,
+    folder, [(name, description), ...]) of each group (``twin list``)."""
+    folder = scenarios_dir()
+    groups = [("scenarios", folder, ""), ("calibration experiments", folder / "calibration", "calibration/")]
+    out = []
+    for title, where, prefix in groups:
+        rows = []
+        for p in sorted(where.glob("*.toml")):
+            desc = read_toml(p, str(p)).get("scenario", {})
+            if isinstance(desc, dict) and "description" in desc:
+                rows.append((prefix + (p.name if prefix else p.stem), str(desc["description"])))
+        out.append((title, where, rows))
+    return out
 
 
 def default_scenario_path() -> Path:

@@ -1,7 +1,13 @@
-"""Collecting a scenario file's problems, and reading its TOML and its tables.
+"""The one validating reader of the files the twin reads: TOML read safely, and a collector of
+problems that checks each value as it is taken.
 
-Every problem is kept with the file name and the dotted key, so all of them are reported at
-once, one line each (like FMPy's validators), as :class:`~twin.errors.ConfigErrors`.
+:func:`read_toml` reads a regular file of bounded size, depth and integer range; a
+:class:`Problems` bound to the file takes its values (a table, a number in a range, an
+integer, a boolean, a list of strings, a duration), each checked as it is taken. Every
+problem is kept with the file's name and the dotted key, so all of them are reported at once,
+one line each, with a did-you-mean for a misspelt key (like FMPy's validators), as
+:class:`~twin.errors.ConfigErrors`. Scenarios, sweep files, held-out files, coefficients and
+priors, a lab's LAB.toml and a run's run.json are all read this way.
 """
 
 from __future__ import annotations
@@ -16,12 +22,12 @@ import stat
 import threading
 import tomllib
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from twin.config.durations import parse_duration
-from twin.errors import ConfigError
+from twin.errors import ConfigError, ConfigErrors, did_you_mean
 
 #: TOML integers are 64-bit signed (TOML 1.0); Python's reader accepts any size
 INT_LIMIT = 2**63 - 1
@@ -76,8 +82,16 @@ class Problems:
             self.add(prefix + key, str(exc))
             return None
 
-    def number(self, table: Mapping[str, Any], key: str, prefix: str) -> float | None:
-        """``table[key]`` as a finite float, or None and a problem."""
+    def number(
+        self,
+        table: Mapping[str, Any],
+        key: str,
+        prefix: str,
+        *,
+        lo: float = -math.inf,
+        hi: float = math.inf,
+    ) -> float | None:
+        """``table[key]`` as a finite float in [``lo``, ``hi``], or None and a problem."""
         v = table.get(key)
         if isinstance(v, bool) or not isinstance(v, int | float):
             self.add(prefix + key, f"expected a number, got {v!r}" if key in table else "missing (a number)")
@@ -85,7 +99,46 @@ class Problems:
         if not finite_number(v):
             self.add(prefix + key, f"expected a finite number, got {v!r}")
             return None
+        if not lo <= v <= hi:
+            self.add(prefix + key, f"expected a number in [{lo:g}, {hi:g}], got {v!r}")
+            return None
         return float(v)
+
+    def integer(
+        self, table: Mapping[str, Any], key: str, prefix: str, *, default: int, lo: int, hi: int
+    ) -> int:
+        """``table[key]`` (``default`` when absent) as an integer in [``lo``, ``hi``]; else
+        ``default`` and a problem."""
+        v = table.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            self.add(prefix + key, f"expected an integer in [{lo}, {hi}], got {v!r}")
+            return default
+        return v
+
+    def boolean(self, table: Mapping[str, Any], key: str, prefix: str, *, default: bool) -> bool:
+        """``table[key]`` (``default`` when absent) as true or false; else ``default`` and a problem."""
+        v = table.get(key, default)
+        if not isinstance(v, bool):
+            self.add(prefix + key, f"expected true or false, got {v!r}")
+            return default
+        return v
+
+    def strings(self, table: Mapping[str, Any], key: str, prefix: str) -> tuple[str, ...]:
+        """``table[key]`` (none when absent) as a list of strings; else () and a problem."""
+        v = table.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
+            self.add(prefix + key, "expected a list of strings")
+            return ()
+        return tuple(v)
+
+    def table(self, data: Mapping[str, Any], key: str, prefix: str = "") -> dict[str, Any]:
+        """``data[key]`` when it is a table (``{}`` when absent), else a problem and ``{}``."""
+        return table(self, data, key, prefix)
+
+    def check(self) -> None:
+        """Raise every problem found so far (one :class:`ConfigError`, or :class:`ConfigErrors`)."""
+        if self.items:
+            raise self.items[0] if len(self.items) == 1 else ConfigErrors(self.items)
 
 
 def array_of_tables(
@@ -171,14 +224,6 @@ def check_values(data: Any, source: str, key: str = "") -> None:
             raise ConfigError(
                 "integer out of range (TOML integers are 64-bit)", source=source, key=key or None
             )
-
-
-def did_you_mean(word: str, known: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` for the closest of ``known`` to a misspelt ``word``, or ``""``."""
-    import difflib
-
-    close = difflib.get_close_matches(word, sorted(known), n=1, cutoff=0.7)
-    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 #: what :func:`read_toml` parsed and checked, by the SHA-256 of the file's bytes: a sweep's

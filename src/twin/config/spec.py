@@ -55,6 +55,9 @@ class Parameter:
 
     value: ParameterValue
     source: str = ""
+    #: one standard error of a calibrated value (its parameter file gives it): what the run's
+    #: Monte Carlo draws it by
+    std_error: float | None = None
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,8 @@
 static plan of a scenario on its own (no FMU loaded).
 """
 
+from twin.cosim.controls import RunControls
 from twin.cosim.master import Master, RunResult
 from twin.cosim.plan import Plan, make_plan
 
-__all__ = ["Master", "Plan", "RunResult", "make_plan"]
+__all__ = ["Master", "Plan", "RunControls", "RunResult", "make_plan"]

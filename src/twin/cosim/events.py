@@ -38,6 +38,7 @@ from typing import Any
 import simpy
 
 from twin.config.spec import NS_PER_S
+from twin.cosim.controls import RunControls
 from twin.cosim.plan import Plan, PlannedEvent
 from twin.cosim.state import State
 
@@ -80,35 +81,29 @@ def _at_ticks(
 
 
 def start(
-    env: simpy.Environment,
-    plan: Plan,
-    state: State,
-    *,
-    progress: Callable[[int, int], None] | None = None,
-    checkpoint: Callable[[int], None] | None = None,
-    checkpoint_every_ns: int | None = None,
+    env: simpy.Environment, plan: Plan, state: State, controls: RunControls, checkpoint: Callable[[int], None]
 ) -> None:
     """Start every process of the run in ``env`` (whose clock is at the run's start).
 
-    ``progress(now_ns, duration_ns)`` is called at each progress mark; ``checkpoint(tick)`` at
-    each checkpoint time. Progress marks and batch limits wake the master even without a
-    callback: they are where batches end, so a run is cut the same way however it is observed.
+    ``controls.progress(now_ns, duration_ns)`` is told at each progress mark;
+    ``checkpoint(tick)`` is called at each of ``controls``' checkpoint times. Progress marks
+    and batch limits wake the master even without a listener: they are where batches end, so
+    a run is cut the same way however it is observed.
     """
     duration = plan.scenario.duration_ns
     step = plan.step_ns
 
     def report() -> None:
-        if progress is not None:
-            progress(env.now, duration)
+        if controls.progress is not None:
+            controls.progress(env.now, duration)
 
     def save() -> None:
-        if checkpoint is not None:
-            checkpoint(env.now // step)
+        checkpoint(env.now // step)
 
     env.process(_scenario_events(env, plan, state))
     env.process(_at_ticks(env, step, plan.progress_ticks(), report))
     env.process(_at_ticks(env, step, plan.batch_limit_ticks(), lambda: None))
-    env.process(_at_ticks(env, step, plan.checkpoint_ticks(checkpoint_every_ns), save))
+    env.process(_at_ticks(env, step, plan.checkpoint_ticks(controls.checkpoint_every_ns), save))
 
 
 __all__ = ["apply", "start"]

@@ -28,7 +28,7 @@ time as one batch of the stepping loop.
 from __future__ import annotations
 
 import time as wallclock
-from collections.abc import Callable, Generator, Sequence
+from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,6 +37,7 @@ import simpy
 from twin.config.spec import Scenario
 from twin.cosim import events
 from twin.cosim.checkpoint import restore, snapshot
+from twin.cosim.controls import RunControls
 from twin.cosim.instances import close_slots, initialize, open_slots
 from twin.cosim.native import NativeLoop
 from twin.cosim.plan import Plan, make_plan
@@ -47,8 +48,6 @@ from twin.errors import FMUError, RunError
 from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 from twin.signals.table import SignalTable
-
-ProgressFn = Callable[[int, int], None]
 
 #: how the clock process ends: ("completed", None), ("failed", error) or ("interrupted", why)
 _Outcome = tuple[str, Any]
@@ -72,49 +71,40 @@ class RunResult:
 
 
 class Master:
-    """Runs one :class:`~twin.config.spec.Scenario`.
+    """Runs the :class:`~twin.cosim.plan.Plan` of a scenario.
 
-    ``loop`` chooses the stepping loop ("fast": compiled; "python": the same ticks in Python).
-    ``stop`` is polled between batches: a signal name when the run must stop. With
-    ``checkpoint_every_ns``, ``on_checkpoint`` receives a snapshot of the whole master at that
-    interval; ``resume`` continues from such a snapshot. ``plan`` reuses a plan already made
-    from ``scenario``. With a ``pool`` the FMU instances come from it and go back to it after
-    a run that completed (:mod:`twin.fmu.pool`: a sweep's points on one worker).
+    Rows go to ``recorder`` (default: kept in memory). ``controls`` steer the run: asked to
+    stop between batches, told the progress, saving the whole master at their interval
+    (:class:`~twin.cosim.controls.RunControls`). ``loop`` chooses the stepping loop ("fast":
+    compiled; "python": the same ticks in Python). ``resume`` continues from a state that
+    ``controls.on_checkpoint`` received. With a ``pool`` the FMU instances come from it and go
+    back to it after a run that completed (:mod:`twin.fmu.pool`: a sweep's points on one worker).
     """
 
     def __init__(
         self,
-        scenario: Scenario,
-        *,
-        progress: ProgressFn | None = None,
-        loop: Loop = "fast",
+        plan: Plan,
         recorder: Recorder | None = None,
-        stop: Callable[[], str | None] | None = None,
-        checkpoint_every_ns: int | None = None,
-        on_checkpoint: Callable[[dict[str, Any]], None] | None = None,
+        controls: RunControls = RunControls(),  # noqa: B008 (frozen: one shared default is safe)
+        *,
+        loop: Loop = "fast",
         resume: dict[str, Any] | None = None,
-        plan: Plan | None = None,
         pool: SlotPool | None = None,
     ) -> None:
-        self.scenario = scenario
+        self.plan = plan
+        self.scenario = plan.scenario
         self.pool = pool
-        self.progress = progress
+        self.controls = controls
         self.loop = check_loop(loop)
         self.recorder = recorder if recorder is not None else MemoryRecorder()
-        self.stop = stop
-        self.checkpoint_every_ns = checkpoint_every_ns
-        self.on_checkpoint = on_checkpoint
         self.resume = resume
-        self.plan = plan
         self.state: State | None = None
         self.slots: list[FMUSlot] = []
 
     # ------------------------------------------------------------------ set-up
 
     def _create(self) -> None:
-        """The plan (unless given), the exchange state and the FMU instances."""
-        if self.plan is None:
-            self.plan = make_plan(self.scenario)
+        """The exchange state and the FMU instances."""
         self.state = make_state(self.plan)
         self.slots = open_slots(self.plan, self.pool)
 
@@ -146,14 +136,7 @@ class Master:
         self.recorder.open([c.meta for c in plan.columns])
         self._open_s = wallclock.perf_counter() - start - self._setup_s
         env = simpy.Environment(initial_time=tick * plan.step_ns)
-        events.start(
-            env,
-            plan,
-            self.state,
-            progress=self.progress,
-            checkpoint=self._checkpoint if self.on_checkpoint else None,
-            checkpoint_every_ns=self.checkpoint_every_ns,
-        )
+        events.start(env, plan, self.state, self.controls, self._checkpoint)
         clock = env.process(self._clock(env, stepping, tick))  # started last: see twin.cosim.events
         outcome: _Outcome = ("failed", None)
         try:
@@ -177,7 +160,7 @@ class Master:
                 self._batch(stepping, k, k1)
                 yield env.timeout((k1 - k) * step)
                 k = k1
-                if self.stop and (why := self.stop()):
+                if why := self.controls.stopped():
                     return "interrupted", why
             last = final_tick(self.plan, self.state)
             if last is not None:
@@ -192,7 +175,8 @@ class Master:
             stepping.ticks(k0, k1, driven, rows)
 
     def _checkpoint(self, tick: int) -> None:
-        self.on_checkpoint(snapshot(self.plan, self.state, self.slots, tick))
+        if self.controls.on_checkpoint is not None:
+            self.controls.on_checkpoint(snapshot(self.plan, self.state, self.slots, tick))
 
     def _result(self, outcome: _Outcome, start: float) -> RunResult:
         status, detail = outcome
@@ -226,9 +210,18 @@ def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]
     return NativeLoop(plan, state, slots)
 
 
-def run_scenario(scenario: Scenario, *, progress: ProgressFn | None = None, loop: Loop = "fast") -> RunResult:
+def run_scenario(scenario: Scenario, *, loop: Loop = "fast") -> RunResult:
     """Convenience: run a scenario with a fresh master, every row kept in memory."""
-    return Master(scenario, progress=progress, loop=loop).run()
+    return Master(make_plan(scenario), loop=loop).run()
 
 
-__all__ = ["FMUError", "Loop", "Master", "MemoryRecorder", "Recorder", "RunResult", "run_scenario"]
+__all__ = [
+    "FMUError",
+    "Loop",
+    "Master",
+    "MemoryRecorder",
+    "Recorder",
+    "RunControls",
+    "RunResult",
+    "run_scenario",
+]

@@ -23,6 +23,7 @@ from typing import Any
 
 from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
 from twin.errors import ConfigError
+from twin.fmu.catalog import roles as model_roles
 from twin.fmu.catalog import variables as model_variables
 from twin.seeds import instance_seed
 from twin.signals.table import Signal as SignalMeta
@@ -142,6 +143,31 @@ class Plan:
     def out_every(self) -> int:
         """Ticks between two recorded rows."""
         return self.scenario.output_interval_ns // self.scenario.step_ns
+
+    def column_names(self) -> set[str]:
+        """The names of every recorded column."""
+        return {c.meta.name for c in self.columns}
+
+    def role_columns(self, role: str) -> list[str]:
+        """The recorded outputs that play ``role`` for the twin (:func:`twin.fmu.catalog.roles`:
+        the swing-cycle counter, a body's true thermal displacement), one per instance whose
+        model has it; a model is never named."""
+        out = []
+        for inst in self.instances:
+            variable = model_roles(inst.model).get(role)
+            if variable is not None and variable in inst.outputs:
+                out.append(f"{inst.name}.{variable}")
+        return out
+
+    def roles(self, roles: Sequence[str]) -> dict[str, str]:
+        """The recorded column that plays each of ``roles`` (the first instance's that has
+        it); a role no instance has is left out."""
+        out = {}
+        for role in roles:
+            columns = self.role_columns(role)
+            if columns:
+                out[role] = columns[0]
+        return out
 
     def progress_ticks(self) -> list[int]:
         """The ticks after which the run reports its progress (the last one is the end)."""

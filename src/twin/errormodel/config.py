@@ -14,7 +14,7 @@ of it are kept apart.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Set
 from pathlib import Path
 from typing import Any
 
@@ -78,11 +78,7 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     column and the factors.
     """
     em = {k: p.value for k, p in scenario.errormodel.items()}
-    cfg = errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
-    # here, so every command that runs a scenario (validate, run, sweep, heldout) refuses a
-    # misspelt column before the run, not after it as a run without errormodel.csv
-    check_recorded_columns(scenario)
-    return cfg
+    return errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
 
 
 def errormodel_config(
@@ -215,26 +211,20 @@ def _column_hint(column: str, recorded: set[str]) -> str:
     )
 
 
-def check_recorded_columns(scenario: Scenario) -> None:
-    """Every column the scenario's ``[errormodel]`` names is one the run records (an output or a
-    driven input of one of its FMU instances): a misspelt column would otherwise let the run
-    complete without an error model. Checked before the run (``twin validate`` and ``twin run``)."""
-    from twin.cosim.plan import make_plan
-
+def check_recorded_columns(scenario: Scenario, recorded: Set[str]) -> None:
+    """Every column the scenario's ``[errormodel]`` names is one the run records (``recorded``:
+    an output or a driven input of one of its FMU instances): a misspelt column would otherwise
+    let the run complete without an error model. Checked before the run
+    (:func:`twin.pipeline.prepare.prepare`)."""
     em = {k: p.value for k, p in scenario.errormodel.items()}
-    named = _named_columns(em)
-    if not named:
-        return
-    recorded = {c.meta.name for c in make_plan(scenario).columns}
-    problems = []
-    for key, column in named:
-        if column not in recorded:
-            problems.append(
-                ConfigError(
-                    f"column {column!r} is not recorded by this scenario{_column_hint(column, recorded)}",
-                    source=scenario.source_path,
-                    key=key,
-                )
-            )
+    problems = [
+        ConfigError(
+            f"column {column!r} is not recorded by this scenario{_column_hint(column, set(recorded))}",
+            source=scenario.source_path,
+            key=key,
+        )
+        for key, column in _named_columns(em)
+        if column not in recorded
+    ]
     if problems:
         raise problems[0] if len(problems) == 1 else ConfigErrors(problems)

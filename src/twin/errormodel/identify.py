@@ -1,13 +1,15 @@
-"""``twin identify``: the error model's coefficients from calibration experiments, as a lab finds them.
+"""The error model's coefficients fitted to calibration records, as a lab finds them.
 
 A lab does not know its tester's expansion coefficients, lengths, compliances or runout; it
-measures what they do. So does this module, on the twin: it runs the calibration experiments of
-``scenarios/calibration/`` (:data:`EXPERIMENTS`: a thermal soak with the drive off, gauge blocks
-under the pole, static load steps, a runout check, a slow oscillation at light load, a static
-load hold for the liner's creep, the long pole heated alone), records
-only the channels a lab's DAQ records (:class:`LabRecorder`: the ``sensors.*`` readings the
-error model reads, never a true or internal FMU value), and fits the error model's own form to
-them, one experiment after the other, each fit using what the ones before found.
+measures what they do. The calibration experiments of ``scenarios/calibration/``
+(:data:`EXPERIMENTS`: a thermal soak with the drive off, gauge blocks under the pole, static
+load steps, a runout check, a slow oscillation at light load, a static load hold for the
+liner's creep, the long pole heated alone) are recorded with only the channels a lab's DAQ
+records (:func:`lab_channels`: the ``sensors.*`` readings the error model reads, never a true
+or internal FMU value; :mod:`twin.pipeline.lab` records them on the twin,
+:mod:`twin.calibration.identify` runs them), and this module fits the error model's own form
+to those records (:func:`fit_records`), one calibration after the other, each fit using what
+the ones before found.
 
 The fit of an experiment (:func:`fit_experiment`): the model is the sum of the error model's
 factors (:data:`~twin.errormodel.factors.FACTORS`, interference aside: the target is the
@@ -33,17 +35,13 @@ better than the priors, and the condition number with the priors.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from twin.config.load import apply_overrides, load_scenario_data, read_scenario_data, scenarios_dir
 from twin.config.spec import Scenario
 from twin.errormodel.coefficients import Coefficient, Coefficients, Fit, Prior, coefficient_units
 from twin.errormodel.factors import FACTORS, Measured
@@ -51,20 +49,17 @@ from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import CREEP_COEFFICIENTS, Columns, MechanicalCoefficients, ThermalCoefficients
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError, RunError
-from twin.signals.table import Signal, SignalTable
+from twin.signals.table import SignalTable
 
 __all__ = [
     "CALIBRATIONS",
     "EXPERIMENTS",
     "Calibration",
     "Experiment",
-    "LabRecorder",
     "Record",
     "fit_calibration",
     "fit_records",
-    "identify",
     "lab_channels",
-    "run_experiment",
 ]
 
 #: relative rank tolerance: a direction of the scaled Jacobian below it is not seen at all
@@ -154,40 +149,6 @@ def lab_channels(columns: Columns | None = None) -> frozenset[str]:
     return frozenset(name for f in LAB_FIELDS for name in columns.names(f))
 
 
-class LabRecorder:
-    """A master's recorder that keeps the lab's channels and nothing else, so no fit can see a
-    true or internal value of the twin."""
-
-    def __init__(self, keep: Iterable[str]) -> None:
-        self.keep = frozenset(keep)
-        self.signals: list[Signal] = []
-        self._index: list[int] = []
-        self._times: list[np.ndarray] = []
-        self._rows: list[np.ndarray] = []
-
-    def open(self, signals: list[Signal]) -> None:
-        self._index = [i for i, s in enumerate(signals) if s.name in self.keep]
-        self.signals = [signals[i] for i in self._index]
-        missing = sorted(self.keep - {s.name for s in self.signals})
-        if missing:
-            raise ConfigError(f"the experiment records no {', '.join(missing)}", source="twin identify")
-
-    def append(self, times: np.ndarray, rows: np.ndarray) -> None:
-        self._times.append(np.array(times, dtype=np.float64))
-        self._rows.append(np.array(rows[:, self._index], dtype=np.float64))
-
-    def close(self) -> None:
-        """Nothing to release: the rows stay in memory."""
-
-    def table(self) -> SignalTable:
-        """The recorded lab channels."""
-        rows = np.concatenate(self._rows) if self._rows else np.zeros((0, len(self.signals)))
-        table = SignalTable(np.concatenate(self._times) if self._times else np.zeros(0))
-        for c, meta in enumerate(self.signals):
-            table.add(meta, rows[:, c])
-        return table
-
-
 @dataclass(frozen=True)
 class Record:
     """One experiment's DAQ record: the lab's channels, the known displacement at each sample
@@ -198,50 +159,6 @@ class Record:
     known: np.ndarray
     used: np.ndarray
     scenario_sha256: str = ""
-
-
-def experiment_scenario(
-    experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
-) -> tuple[Scenario, str]:
-    """The experiment's checked scenario with ``overrides``, and a sha256 of what it runs: its
-    resolved data (``extends`` and overrides applied), with each parameter file's name replaced
-    by its content's hash, so the digest does not depend on where the checkout lies."""
-    path = (folder or scenarios_dir() / "calibration") / experiment.scenario
-    data = read_scenario_data(path)
-    apply_overrides(data, overrides, f"{path}: --set")
-    scenario = load_scenario_data(data, str(path), path.resolve().parent)
-    return scenario, _fingerprint(data, path.resolve().parent)
-
-
-def _fingerprint(data: Mapping[str, Any], folder: Path) -> str:
-    fmus = {}
-    for name, spec in data.get("fmu", {}).items():
-        files = spec.get("parameter_files", [])
-        hashed = [hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files]
-        fmus[name] = {**spec, "parameter_files": hashed} if files else spec
-    text = json.dumps({**data, "fmu": fmus}, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def run_experiment(
-    experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
-) -> Record:
-    """Run one calibration experiment on the twin and keep what a lab's DAQ records."""
-    scenario, digest = experiment_scenario(experiment, overrides, folder)
-    return lab_record(experiment, scenario, digest)
-
-
-def lab_record(experiment: Experiment, scenario: Scenario, digest: str = "") -> Record:
-    """Run ``experiment``'s (already built) ``scenario`` and keep what a lab's DAQ records."""
-    from twin.cosim.master import Master
-
-    recorder = LabRecorder(lab_channels())
-    result = Master(scenario, recorder=recorder).run()
-    if result.status != "completed":
-        raise RunError(f"calibration experiment {experiment.name!r} {result.status}: {result.error}")
-    table = recorder.table()
-    known, used = known_displacement(scenario, experiment, table.time)
-    return Record(experiment, table, known, used, digest)
 
 
 def known_displacement(
@@ -571,55 +488,3 @@ def fit_records(
         found.setdefault(name, Coefficient(prior.value, prior.sigma or 0.0, prior.unit, "prior", prior))
     ordered = {n: found[n] for n in coefficient_units()}
     return Coefficients(ordered, fits, dict(identified or {}))
-
-
-def _fmu_versions() -> dict[str, str]:
-    """The content hash of every FMU's sources (what ``twin build`` caches them by)."""
-    from twin.fmu.build import source_hash
-    from twin.fmu.catalog import model_names
-
-    return {name: source_hash(name) for name in model_names()}
-
-
-def identify(
-    overrides: Sequence[str] = (),
-    *,
-    priors: Mapping[str, Prior] | None = None,
-    calibrations: Sequence[Calibration] = CALIBRATIONS,
-    experiments: Sequence[Experiment] = EXPERIMENTS,
-    per_experiment: Mapping[str, Sequence[str]] | None = None,
-    folder: Path | None = None,
-) -> Coefficients:
-    """Run the calibration experiments on the twin and fit the error model's coefficients.
-
-    ``overrides`` (``--set KEY=VALUE``) make the tester as built: they apply to every
-    experiment (each is the whole tester), ``per_experiment`` adds some to one experiment
-    only (by name). ``priors`` default to ``scenarios/calibration/priors.toml``. In process
-    and without files, so a sweep can run it once per simulated tester.
-    """
-    from twin import __version__
-    from twin.errormodel.coefficients import load_priors
-
-    priors = load_priors() if priors is None else priors
-    per_experiment = per_experiment or {}
-    needed = {e for cal in calibrations for e in cal.experiments}
-    records = {
-        e.name: run_experiment(e, [*overrides, *per_experiment.get(e.name, ())], folder)
-        for e in experiments
-        if e.name in needed
-    }
-    identified = {
-        "by": "twin identify",
-        "twin_version": __version__,
-        "overrides": list(overrides),
-        "fmu_sources": _fmu_versions(),
-        "experiments": {
-            name: {
-                "scenario": r.experiment.scenario,
-                "sha256": r.scenario_sha256,
-                "overrides": list(per_experiment.get(name, ())),
-            }
-            for name, r in records.items()
-        },
-    }
-    return fit_records(records, priors, identified, calibrations)

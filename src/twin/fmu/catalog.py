@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from functools import cache
 from pathlib import Path
 
+from twin.errors import ConfigError, did_you_mean
 from twin.fmu import external
 from twin.fmu.build import ensure_fmu
 from twin.fmu.description import Description, Variable, describe
@@ -27,6 +28,7 @@ __all__ = [
     "Variable",
     "describe",
     "fmu",
+    "inspectable",
     "model",
     "model_names",
     "roles",
@@ -57,6 +59,19 @@ def roles(name: str) -> Mapping[str, str]:
     """What model ``name``'s variables mean to the twin: role -> variable name (the
     ``io.github.twin`` annotation of its modelDescription.xml; none for most FMUs)."""
     return description(name).roles
+
+
+def inspectable(target: str) -> Description:
+    """The description ``twin inspect`` lists: an FMU file's, or a model of the twin's by name."""
+    path = Path(target)
+    if not path.exists() and path.suffix != ".fmu" and len(path.parts) == 1:
+        names = model_names()
+        if target not in names:
+            raise ConfigError(
+                f"no FMU file or model named {target!r}{did_you_mean(target, names)}", source="inspect"
+            )
+        return description(target)
+    return describe(path)
 
 
 def fmu(name: str) -> Path:

@@ -17,6 +17,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from twin.errors import ConfigError
+
 __all__ = ["Description", "Variable", "describe"]
 
 
@@ -50,6 +52,12 @@ class Description:
     variables: Mapping[str, Variable]
     #: what variables mean to the twin, role -> variable (see :func:`_roles`)
     roles: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    model_name: str = ""
+    fmi_version: str = ""
+    #: the model's own description text
+    text: str = ""
+    #: the FMI interfaces it offers: "co-simulation", "model exchange"
+    kinds: tuple[str, ...] = ()
 
 
 def _declared(sv: Any, attribute: str) -> Any:
@@ -102,13 +110,46 @@ def _description_bytes(path: Path) -> bytes:
 
 def describe(path: str | Path) -> Description:
     """Read a ``modelDescription.xml``, an extracted FMU folder or an ``.fmu`` file (validated
-    by fmpy; once per content and process)."""
-    xml = _description_bytes(Path(path))
+    by fmpy; once per content and process). A file that is none of these, or whose description
+    fmpy refuses, is one :class:`~twin.errors.ConfigError` line naming it."""
+    path = Path(path)
+    if path.exists() and not path.is_file() and not path.is_dir():  # /dev/zero, a FIFO: it could block
+        raise ConfigError(
+            "is not a regular file (a device, FIFO or socket), expected an FMU", source=str(path)
+        )
+    try:
+        xml = _description_bytes(path)
+    except FileNotFoundError:
+        raise ConfigError("file not found", source=str(path)) from None
+    except (OSError, KeyError, zipfile.BadZipFile) as exc:
+        raise ConfigError(f"not a readable FMI model description: {exc}", source=str(path)) from None
     key = hashlib.sha256(xml).digest()
     found = _BY_CONTENT.get(key)
     if found is None:
-        found = _BY_CONTENT[key] = _parse(xml)
+        try:
+            found = _parse(xml)
+        except (AttributeError, TypeError, KeyError, IndexError):
+            # fmpy reads the document's attributes before it validates: one it lacks ends in
+            # "'NoneType' object has no attribute ...", which says nothing of the file
+            raise ConfigError(
+                "not a readable FMI model description: modelDescription.xml lacks an element or "
+                'attribute FMI requires (its root must be <fmiModelDescription fmiVersion="2.0" ...>)',
+                source=str(path),
+            ) from None
+        except Exception as exc:  # fmpy raises several kinds for a document that is not FMI's
+            raise ConfigError(
+                f"not a readable FMI model description: {_first_problem(exc)}", source=str(path)
+            ) from None
+        _BY_CONTENT[key] = found
     return found
+
+
+def _first_problem(exc: Exception) -> str:
+    """The first problem fmpy names (its validation lists them one per line), on one line."""
+    lines = [ln.strip().lstrip("- ").strip() for ln in str(exc).splitlines()]
+    lines = [ln for ln in lines if ln and not ln.startswith("Failed to validate")]
+    more = f" (and {len(lines) - 1} more)" if len(lines) > 1 else ""
+    return (" ".join(lines[0].split()) + more) if lines else type(exc).__name__
 
 
 def _parse(xml: bytes) -> Description:
@@ -123,7 +164,19 @@ def _parse(xml: bytes) -> Description:
     md = read_model_description(archive)
     identifier = md.coSimulation.modelIdentifier if md.coSimulation is not None else ""
     variables = {sv.name: _variable(sv) for sv in md.modelVariables}
-    return Description(md.guid, identifier, MappingProxyType(variables), _roles(xml, variables))
+    kinds = tuple(
+        k for k, i in (("co-simulation", md.coSimulation), ("model exchange", md.modelExchange)) if i
+    )
+    return Description(
+        md.guid,
+        identifier,
+        MappingProxyType(variables),
+        _roles(xml, variables),
+        md.modelName or "",
+        md.fmiVersion or "",
+        md.description or "",
+        kinds,
+    )
 
 
 #: the tool name of the twin's own annotations in a modelDescription.xml

@@ -76,17 +76,18 @@ def _check(path: Path, size: int, mtime_ns: int) -> ExternalFMU:
 
     if not zipfile.is_zipfile(path):
         raise ConfigError("not an FMU (not a zip file)", source=str(path))
-    version = _fmi_version(path)
+    version, co_simulation = _fmi_version(path)
     if version != "2.0":
         raise ConfigError(f"FMI {version}: the twin runs FMI 2.0 co-simulation FMUs", source=str(path))
-    try:
-        md = fmpy.read_model_description(str(path), validate=False)
-    except Exception as exc:  # fmpy raises several kinds for a file that is not an FMU
-        raise ConfigError(
-            f"no readable modelDescription.xml: {exc}".splitlines()[0], source=str(path)
-        ) from None
-    if md.coSimulation is None:
+    if not co_simulation:
         raise ConfigError("model exchange only: the twin runs co-simulation FMUs", source=str(path))
+    try:
+        description = describe(path)
+    except ConfigError as exc:
+        raise ConfigError(
+            exc.message.replace("not a readable FMI model description", "no readable modelDescription.xml"),
+            source=str(path),
+        ) from None
     problems = validate_fmu(str(path))
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
@@ -97,12 +98,13 @@ def _check(path: Path, size: int, mtime_ns: int) -> ExternalFMU:
         raise ConfigError(
             f"no binary for {fmpy.platform} (it has: {', '.join(platforms) or 'none'})", source=str(path)
         )
-    return ExternalFMU(path, file_sha256(path), describe(path), md.modelName)
+    return ExternalFMU(path, file_sha256(path), description, description.model_name)
 
 
-def _fmi_version(path: Path) -> str:
-    """The ``fmiVersion`` of an FMU's modelDescription.xml, read before fmpy parses it as a
-    version it may not be (an FMI 3.0 file fails fmpy's FMI 2.0 reading with a KeyError)."""
+def _fmi_version(path: Path) -> tuple[str, bool]:
+    """The ``fmiVersion`` of an FMU's modelDescription.xml and whether it offers co-simulation,
+    read before fmpy parses it as a version it may not be (an FMI 3.0 file fails fmpy's FMI 2.0
+    reading with a KeyError)."""
     from xml.etree import ElementTree as ET
 
     try:
@@ -113,7 +115,8 @@ def _fmi_version(path: Path) -> str:
             data = zf.read(info)
         if b"<!DOCTYPE" in data or b"<!ENTITY" in data:
             raise ConfigError("modelDescription.xml with a document type declaration", source=str(path))
-        return ET.fromstring(data).get("fmiVersion", "?")
+        root = ET.fromstring(data)
+        return root.get("fmiVersion", "?"), root.find("CoSimulation") is not None
     except KeyError:
         raise ConfigError("no modelDescription.xml in the archive", source=str(path)) from None
     except (ET.ParseError, zipfile.BadZipFile, OSError) as exc:

@@ -23,33 +23,13 @@ if TYPE_CHECKING:
     from twin.outputs.rerun_rec import RecordingWriter
     from twin.outputs.scene3d import TesterScene
 
-__all__ = ["RecordingSink", "settle_when_rerun_loads"]
-
-#: whether loading rerun also settles the process (:func:`settle_when_rerun_loads`); reset
-#: once done
-_SETTLE_ON_LOAD = False
-
-
-def settle_when_rerun_loads() -> None:
-    """For a process that is the ``twin run`` command's own (:func:`twin.cli._settle_the_run_process`):
-    when the first recording loads rerun, pyarrow's one lookup of pandas is made with pandas out
-    of reach (:func:`twin.outputs.rerun_rec.arrow_without_pandas_lookup`), and the modules
-    imported by then are frozen out of the garbage collector's walks, as those before it were."""
-    global _SETTLE_ON_LOAD
-    _SETTLE_ON_LOAD = True
+__all__ = ["RecordingSink"]
 
 
 def _rerun_rec() -> ModuleType:
     """:mod:`twin.outputs.rerun_rec`, imported (rerun and pyarrow with it) on the first call."""
-    global _SETTLE_ON_LOAD
     from twin.outputs import rerun_rec
 
-    if _SETTLE_ON_LOAD:
-        _SETTLE_ON_LOAD = False
-        import gc
-
-        rerun_rec.arrow_without_pandas_lookup()
-        gc.freeze()
     return rerun_rec
 
 

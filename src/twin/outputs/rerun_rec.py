@@ -29,9 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import importlib.abc
 import os
-import sys
 import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -44,7 +42,6 @@ import numpy as np
 # those two loggers keep quiet, unless the user sets RUST_LOG
 os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd=off,re_sdk::recording_stream=off")
 
-import pyarrow as pa  # rerun's own dependency; see arrow_without_pandas_lookup
 import rerun as rr  # after RUST_LOG is set
 import rerun.blueprint as rrb
 
@@ -73,44 +70,6 @@ _DISPLAY_UNITS = {"m": ("µm", 1e6)}
 #: a long chunk is sent in slices of this many rows (RecordingWriter.append), each written before
 #: the next is sent: 196,608 rows x 79 signals peaked at 203 MB (509 MB sent whole), in 2.1 s (1.9 s)
 CHUNK_ROWS = 8192
-
-
-def arrow_without_pandas_lookup() -> None:
-    """Have pyarrow take this process for one without pandas until pandas is asked for by
-    name: for a process that is the ``twin run`` command's alone
-    (:func:`twin.cli._settle_the_run_process`), not a program's that calls the twin.
-
-    rerun hands pyarrow a Python list for every string it records (names, the blueprint's
-    views), and pyarrow's ``pa.array`` then imports pandas, once, only to ask whether the list
-    is a pandas object: 0.17 s and 43 MB, a sixth of the paper replay's whole run and a fifth of
-    its memory, for objects the twin never passes. pyarrow remembers the answer of that first
-    lookup; made with pandas out of reach (for that one call), the answer is "no pandas", the
-    way rerun runs where pandas is not installed (rerun-sdk does not depend on it).
-    ``import pandas`` works as before, and pyarrow imports pandas as soon as it is asked for
-    pandas by name (``to_pandas``, ``Table.from_pandas``, which pandas' ``to_parquet`` calls).
-    What differs until then: ``pa.array`` of a pandas object converts it as a plain sequence
-    (a NaN stays a NaN, not a null; a categorical loses its dictionary; some pandas string
-    arrays are refused), which is why a calling program's process is left alone.
-    Where pandas is already imported, there is nothing to save and nothing is done.
-    """
-    if "pandas" in sys.modules:
-        return
-    sys.meta_path.insert(0, _NO_PANDAS)
-    try:
-        pa.array(["twin"])
-    finally:
-        sys.meta_path.remove(_NO_PANDAS)
-
-
-class _NoPandas(importlib.abc.MetaPathFinder):
-    """An import finder under which ``import pandas`` fails as if pandas were not installed."""
-
-    def find_spec(self, fullname: str, path: object = None, target: object = None) -> None:
-        if fullname == "pandas":
-            raise ModuleNotFoundError("pandas is kept out of pyarrow's first lookup", name=fullname)
-
-
-_NO_PANDAS = _NoPandas()
 
 
 def _variable(signal: Signal) -> str:

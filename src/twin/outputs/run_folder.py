@@ -25,7 +25,6 @@ import errno
 import hashlib
 import json
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -53,6 +52,7 @@ __all__ = [
     "Checkpoint",
     "RunFolder",
     "RunMeta",
+    "RunOutputs",
 ]
 
 SIGNALS_CSV = "signals.csv"
@@ -123,11 +123,12 @@ def check_output_folder(path: Path, option: str) -> None:
         raise ConfigError(f"{existing} is not writable", source=option)
 
 
-def check_output_file(path: Path, option: str, suffix: str) -> Path:
+def check_output_file(path: Path, option: str, suffix: str, *, in_a_folder: bool = False) -> Path:
     """Refuse an output file no command can write (before anything is computed): a name without
     ``suffix``, something other than a regular file in its place, a place on /proc, /sys or
     /dev, or a folder that cannot be made or written. Missing folders above it are allowed
-    (the command makes them)."""
+    (the command makes them), unless ``in_a_folder`` asks for an existing one (a file written
+    beside itself, then renamed)."""
     if path.suffix != suffix:
         raise ConfigError(f"expected a file name ending in {suffix}, got {path}", source=option)
     resolved = path.resolve()
@@ -141,10 +142,26 @@ def check_output_file(path: Path, option: str, suffix: str) -> Path:
     existing = next(p for p in resolved.parents if p.exists())
     if not existing.is_dir():
         raise ConfigError(f"{existing} is a file, so {path} cannot be made", source=option)
+    if in_a_folder and existing != resolved.parent:
+        raise ConfigError(f"no folder {resolved.parent}", source=option)
     read_only = (os.statvfs(existing).f_flag & os.ST_RDONLY) != 0
     if read_only or not os.access(existing, os.W_OK | os.X_OK):
         raise ConfigError(f"{existing} is not writable", source=option)
     return path
+
+
+@dataclass(frozen=True)
+class RunOutputs:
+    """What a run's outputs show: ``name`` names the recording and titles the plots;
+    ``late_signals`` are the columns the error model adds after the run (declared to the
+    recording up front), ``budget_view`` those of the recording's error-budget view; ``plot``
+    what the plots draw; ``scene`` the recording's 3D view of the tester (none when None)."""
+
+    name: str
+    late_signals: tuple[Signal, ...]
+    budget_view: tuple[str, ...]
+    plot: BudgetColumns
+    scene: TesterScene | None = None
 
 
 @dataclass(frozen=True)
@@ -329,25 +346,12 @@ class RunFolder:
     # -- the sinks -----------------------------------------------------------------------
 
     def run_sinks(
-        self,
-        *,
-        name: str,
-        late_signals: Sequence[Signal],
-        budget_view: Sequence[str],
-        plot: BudgetColumns,
-        resume: Checkpoint | None = None,
-        scene: TesterScene | None = None,
-        plot_process: PlotProcess | None = None,
+        self, outputs: RunOutputs, resume: Checkpoint | None = None, plot_process: PlotProcess | None = None
     ) -> list[Sink]:
-        """Every output of a twin run, in the order they close.
-
-        ``name`` names the recording and titles the plot; ``late_signals`` are the columns
-        the error model adds after the run (declared to the recording up front) and
-        ``budget_view`` those of the recording's error-budget view; ``plot`` the plot's;
-        ``scene`` the recording's 3D view of the tester (none when None); ``plot_process``
-        draws the plots (in this process when None).
-        With ``resume``, signals.csv is cut back to the checkpoint and continued, and the
-        recording is written anew from the rows the CSV kept.
+        """Every output of a twin run, in the order they close: what ``outputs`` says they
+        show, the plots drawn by ``plot_process`` (in this process when None). With
+        ``resume``, signals.csv is cut back to the checkpoint and continued, and the recording
+        is written anew from the rows the CSV kept.
         """
         from twin.outputs.csv import SignalsCsvSink
         from twin.outputs.recording_sink import RecordingSink
@@ -362,13 +366,13 @@ class RunFolder:
             SignalsCsvSink(csv_path, resume_at=position),
             RecordingSink(
                 self.file(RECORDING),
-                recording_name=name,
-                late_signals=late_signals,
-                budget_columns=budget_view,
+                recording_name=outputs.name,
+                late_signals=outputs.late_signals,
+                budget_columns=outputs.budget_view,
                 replay=csv_path if resume is not None else None,
-                scene=scene,
+                scene=outputs.scene,
             ),
-            *self.result_sinks(name=name, plot=plot, plot_process=plot_process),
+            *self.result_sinks(name=outputs.name, plot=outputs.plot, plot_process=plot_process),
         ]
 
     def result_sinks(

@@ -29,8 +29,7 @@ import numpy as np
 if TYPE_CHECKING:
     import rerun as rr
 
-    from twin.config.spec import Scenario
-    from twin.geometry import Geometry
+    from twin.config.drawing import Geometry
 
 __all__ = ["EXAGGERATION", "MAX_FRAMES", "ROOT", "Body", "TesterScene", "tester_scene"]
 
@@ -60,7 +59,7 @@ class Body:
 
 def _boxes(g: Geometry) -> list[tuple[str, tuple[float, float, float], tuple[float, float, float]]]:
     """(name, centre, half size) of each body at the start, from the geometry source."""
-    from twin.geometry import positions
+    from twin.config.drawing import positions
 
     pos = {k: v.value for k, v in positions(g).items()}
     d = g.dim
@@ -115,48 +114,36 @@ def _boxes(g: Geometry) -> list[tuple[str, tuple[float, float, float], tuple[flo
     ]
 
 
-#: body -> (ThermalNetwork output, FixtureMechanics output of its Z displacement, Z down)
-_COLUMNS: dict[str, tuple[str, str | None]] = {
-    "base": ("t_base", None),
-    "heel_block": ("t_heel_block", None),
-    "bearing_block": ("t_bearing_block", "dz_bearing_block"),
-    "spindle": ("t_spindle", "dz_bearing_block"),
-    "t_plate": ("t_t_plate", "z_t_plate"),
-    "long_pole": ("t_pole_lower", "z_pole_top"),
-    "clamp": ("t_clamp", "z_clamp"),
-    "detecting_frame": ("t_detecting_frame", "z_sensor"),
-    "sensor": ("t_sensor", "z_sensor"),
+#: body -> (the role of its temperature, the role of its Z displacement (Z down)): what the
+#: tester's FMUs declare those outputs as (twin.fmu.catalog.roles)
+_ROLES: dict[str, tuple[str, str | None]] = {
+    "base": ("temperature.base", None),
+    "heel_block": ("temperature.heel_block", None),
+    "bearing_block": ("temperature.bearing_block", "thermal_dz.bearing_block"),
+    "spindle": ("temperature.spindle", "thermal_dz.bearing_block"),
+    "t_plate": ("temperature.t_plate", "z.t_plate"),
+    "long_pole": ("temperature.long_pole", "z.pole_top"),
+    "clamp": ("temperature.clamp", "z.clamp"),
+    "detecting_frame": ("temperature.detecting_frame", "z.sensor"),
+    "sensor": ("temperature.sensor", "z.sensor"),
 }
+#: every role the 3D view reads: the bodies', the swing angle and the radial load
+ROLES = tuple(sorted({r for pair in _ROLES.values() for r in pair if r} | {"swing_angle", "radial_load"}))
 
 
-def tester_scene(scenario: Scenario) -> TesterScene | None:
-    """The 3D scene of a run of ``scenario``, or None when it has no ThermalNetwork and no
-    FixtureMechanics (a system that is not the tester)."""
+def tester_scene(columns: Mapping[str, str]) -> TesterScene | None:
+    """The 3D scene of a run whose recorded columns play the roles of :data:`ROLES` (role ->
+    column); None when none of the bodies' does (a system that is not the tester)."""
+    from twin.config.drawing import load_geometry
     from twin.config.load import default_scenario_path
-    from twin.geometry import load_geometry
 
-    by_model = {f.model: f.name for f in scenario.fmus}
-    thermal, mechanics = by_model.get("ThermalNetwork"), by_model.get("FixtureMechanics")
-    if thermal is None and mechanics is None:
+    if not any(columns.get(r) for pair in _ROLES.values() for r in pair if r):
         return None
     bodies = []
     for name, centre, half in _boxes(load_geometry(default_scenario_path().parent)):
-        temp, disp = _COLUMNS[name]
-        bodies.append(
-            Body(
-                name,
-                centre,
-                half,
-                f"{thermal}.{temp}" if thermal else None,
-                f"{mechanics}.{disp}" if mechanics and disp else None,
-            )
-        )
-    drive, loader = by_model.get("OscillationDrive"), by_model.get("HydraulicLoader")
-    return TesterScene(
-        bodies,
-        angle=f"{drive}.angle" if drive else None,
-        load=f"{loader}.radial_load" if loader else None,
-    )
+        temp, disp = _ROLES[name]
+        bodies.append(Body(name, centre, half, columns.get(temp), columns.get(disp) if disp else None))
+    return TesterScene(bodies, angle=columns.get("swing_angle"), load=columns.get("radial_load"))
 
 
 class TesterScene:

@@ -1,26 +1,34 @@
-"""A run from scenario to files, as stages with typed hand-offs.
+"""From input to a run's files: one place that checks, the stages of one run, and many runs.
 
 ::
 
-    Scenario ──simulate──> Simulation ──evaluate_run──> Evaluated ──summarize──> RunSummary
-       │           │                                        │                        │
-       │      rows stream to the sinks                      └──────write_outputs─────┘
-       │      (signals.csv, recording.rrd)                   (errormodel.csv, PNG, summary.json)
-       └── twin.config.load.load_scenario
+    source, --set ──prepare──> PreparedRun ──run──> the run folder (+ its Monte Carlo)
+                                   │
+                                   ├──simulate─> Simulation ─evaluate_run─> Evaluated ─summarize─> RunSummary
+                                   └──run_point (a study's point, in memory; many on Dask)
 
-:func:`run` composes them into a run folder (:mod:`twin.outputs.run_folder`),
-:func:`resume_run` continues one from its checkpoint, :func:`run_point` simulates and
-evaluates in memory (a sweep's point), :func:`compensate` evaluates a CSV of measurements.
+- :mod:`~twin.pipeline.prepare`: :func:`prepare` turns input into a checked
+  :class:`PreparedRun` (``twin validate`` is this alone), :func:`prepare_resume` a killed run;
+- :mod:`~twin.pipeline.stages`: the stages of one run, composed into a run folder or in memory;
+- :mod:`~twin.pipeline.run`: :func:`run`, what ``twin run`` is (the run, its Monte Carlo);
+- :mod:`~twin.pipeline.montecarlo`: the uncertainty of a run's prediction;
+- :mod:`~twin.pipeline.cluster`, :mod:`~twin.pipeline.shipping`, :mod:`~twin.pipeline.point`,
+  :mod:`~twin.pipeline.results`: many runs on Dask (the client, the binaries shipped to the
+  workers, what a worker runs for a point, the results table);
+- :mod:`~twin.pipeline.compensation` (:func:`compensate`): the error model on a CSV of
+  measurements, a lab's or a run's.
 """
 
+from twin.cosim.controls import RunControls
 from twin.pipeline.compensation import compensate
+from twin.pipeline.prepare import PreparedRun, RunOptions, prepare, prepare_resume, prepare_scenario
+from twin.pipeline.run import run
 from twin.pipeline.run_summary import RunSummary, Timing
 from twin.pipeline.stages import (
     Evaluated,
     Simulation,
     evaluate_run,
-    resume_run,
-    run,
+    run_into_folder,
     run_point,
     simulate,
     summarize,
@@ -29,13 +37,19 @@ from twin.pipeline.stages import (
 
 __all__ = [
     "Evaluated",
+    "PreparedRun",
+    "RunControls",
+    "RunOptions",
     "RunSummary",
     "Simulation",
     "Timing",
     "compensate",
     "evaluate_run",
-    "resume_run",
+    "prepare",
+    "prepare_resume",
+    "prepare_scenario",
     "run",
+    "run_into_folder",
     "run_point",
     "simulate",
     "summarize",

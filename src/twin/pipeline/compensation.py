@@ -10,20 +10,29 @@ import csv
 import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
 from twin.config.spec import NS_PER_S
+from twin.cosim.controls import RunControls
 from twin.errormodel.config import errormodel_config, input_columns, model_defaults
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.streaming import CHUNK_ROWS, Block, StreamingEvaluation
 from twin.errors import ConfigError
 from twin.outputs.csv import SignalsCsvWriter, units_sidecar_path
-from twin.outputs.run_folder import ERROR_BUDGET_PNG, ERRORMODEL_CSV, SUMMARY_JSON, RunFolder
+from twin.outputs.run_folder import (
+    ERROR_BUDGET_PNG,
+    ERRORMODEL_CSV,
+    SUMMARY_JSON,
+    RunFolder,
+    check_output_folder,
+)
+from twin.outputs.sink import Outcome
 from twin.pipeline.measurements import BLOCK_BYTES, Flag, MeasurementReader
-from twin.pipeline.stages import Evaluated, budget_columns, write_outputs
+from twin.pipeline.stages import OutputsLog, budget_columns, write_outputs
 from twin.signals.table import Signal
 
 __all__ = ["FLAGGED_CSV", "compensate", "compensation_config"]
@@ -104,7 +113,7 @@ def compensate(
         ErrorBudgetSink(folder.file(ERROR_BUDGET_PNG), budget_columns(cfg), title),
         SummarySink(folder.file(SUMMARY_JSON)),
     ]
-    write_outputs(sinks, Evaluated(evaluation.plot_table(), (), summary), lambda: summary)
+    write_outputs(sinks, Outcome(evaluation.plot_table(), (), lambda: summary), RunControls(), OutputsLog())
     return summary
 
 
@@ -251,6 +260,66 @@ def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
             f"expected a table [errormodel], got {type(table).__name__}", source=source, key="errormodel"
         )
     return dict(table)
+
+
+@dataclass(frozen=True)
+class Job:
+    """What ``twin compensate`` is asked for, checked: the CSV, the error model (a run's own,
+    or None for the LAB.toml ``config_path`` names, or the twin's names), the output folder."""
+
+    csv: Path
+    config_path: Path | None
+    config: tuple[EvaluationConfig, str] | None
+    out: Path
+
+
+def job(target: Path, config_path: Path | None, out: Path | None, force: bool) -> Job:
+    """The job of ``twin compensate TARGET``: a CSV, or a run folder (its signals.csv with its own
+    run's error model). The output folder (default: ``<stem>-compensated`` beside it) must be
+    writable; one holding another command's outputs is written over only with ``force``."""
+    config = None
+    if target.is_dir():
+        if config_path is not None:
+            raise ConfigError(
+                "a run folder brings its own error model: leave out --config", source="--config"
+            )
+        csv, config = run_folder_config(target)
+        default = target.with_name(target.name + "-compensated")
+    else:
+        csv, default = target, target.with_name(target.stem + "-compensated")
+    out = out if out is not None else default
+    check_output_folder(out, "--out")
+    _refuse_another_commands_outputs(out, force)
+    return Job(csv, config_path, config, out)
+
+
+def _refuse_another_commands_outputs(out: Path, force: bool) -> None:
+    """compensate writes into its own earlier output folder as it is (its files replace
+    theirs), but over a run's, a sweep's or a held-out test's outputs (run.json, or a
+    summary.json that is not a compensation's) only with ``force``: their summary.json and
+    errormodel.csv would be lost without a word."""
+    import json
+
+    from twin.outputs.run_folder import RUN_FILE
+
+    if force or not out.is_dir():
+        return
+    found = [RUN_FILE] if (out / RUN_FILE).exists() else []
+    summary = out / SUMMARY_JSON
+    if summary.exists():
+        try:
+            # a compensation's summary has input_rows; a run's, a sweep's or a test's has none
+            own = "input_rows" in json.loads(summary.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError, TypeError):
+            own = False  # unreadable: not known to be a compensation's, so not overwritten
+        if not own:
+            found.append(SUMMARY_JSON)
+    if found:
+        raise ConfigError(
+            f"{out} holds another command's outputs ({', '.join(found)}): --force writes over "
+            "them, or name another --out",
+            source="--out",
+        )
 
 
 def run_folder_config(run_dir: Path) -> tuple[Path, tuple[EvaluationConfig, str]]:

@@ -135,7 +135,7 @@ def summarise(spec: Spec, table: pd.DataFrame, total: int, timing: dict[str, Any
     summary: dict[str, Any] = {
         "sweep": spec.name,
         "spec_file": str(spec.path),
-        "base": str(spec.base),
+        "base": spec.scenario.source_path,
         "design": spec.design,
         "seed": spec.seed,
         "points": total,

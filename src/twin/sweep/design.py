@@ -23,10 +23,9 @@ from typing import Any
 import numpy as np
 
 from twin import seeds
+from twin.config.spec import SEED_KEY, Scenario
 from twin.seeds import Key, scenario_seed
-from twin.sweep.spec import Spec, toml_value
-
-SEED_KEY = "scenario.seed"
+from twin.sweep.spec import Spec
 
 
 def point_seed(sweep_seed: int, index: int) -> int:
@@ -45,12 +44,19 @@ class Design:
     def __len__(self) -> int:
         return len(self.rows)
 
-    def overrides(self, index: int) -> list[str]:
-        """The ``--set`` strings of point ``index`` (after the spec's fixed ones)."""
-        out = [f"{n}={toml_value(v)}" for n, v in zip(self.names, self.rows[index], strict=True)]
+    def values(self, index: int) -> dict[str, Any]:
+        """What point ``index`` sets, by key (its seed last, unless the design varies it)."""
+        out = dict(zip(self.names, self.rows[index], strict=True))
         if SEED_KEY not in self.names:
-            out.append(f"{SEED_KEY}={self.seeds[index]}")
+            out[SEED_KEY] = self.seeds[index]
         return out
+
+    def point(self, base: Scenario, index: int) -> Scenario:
+        """The scenario of point ``index``: ``base`` with its values set."""
+        scenario = base
+        for key, value in self.values(index).items():
+            scenario = scenario.with_value(key, int(value) if key == SEED_KEY else value)
+        return scenario
 
 
 def _unit_samples(spec: Spec, rng: np.random.Generator) -> np.ndarray:
@@ -94,15 +100,15 @@ def make_design(spec: Spec) -> Design:
     elif spec.vary_seed:
         seeds = [point_seed(spec.seed, i) for i in range(len(rows))]
     else:
-        seeds = [int(spec.base_data.get("scenario", {}).get("seed", 0))] * len(rows)
+        seeds = [spec.scenario.seed] * len(rows)
     return Design(names, rows, seeds)
 
 
 def fingerprint(design: Design) -> str:
-    """A hash of every point's overrides: a resumed sweep must be the very same design."""
+    """A hash of every point's values: a resumed sweep must be the very same design."""
     import hashlib
 
     h = hashlib.sha256()
     for i in range(len(design)):
-        h.update("\0".join(design.overrides(i)).encode() + b"\n")
+        h.update(repr(sorted(design.values(i).items())).encode() + b"\n")
     return h.hexdigest()[:16]

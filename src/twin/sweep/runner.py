@@ -13,11 +13,15 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from twin.cosim.controls import RunControls
 from twin.errors import ConfigError
+from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
+from twin.pipeline.point import point_task
+from twin.pipeline.prepare import prepare_scenario
+from twin.pipeline.results import ResultStore
+from twin.pipeline.shipping import BinariesPlugin, collect
 from twin.sweep.design import Design, fingerprint, make_design
-from twin.sweep.execute import Payload, Record, execute, failed, one_line, open_client, run_task
-from twin.sweep.results import ResultStore
-from twin.sweep.spec import Spec, build_scenario
+from twin.sweep.spec import Spec
 
 #: called after every point: (points done, of which failed, total)
 Progress = Callable[[int, int, int], None]
@@ -108,29 +112,27 @@ class SweepInterrupted(Exception):
 def run_sweep(
     spec: Spec,
     out: Path,
+    controls: RunControls = RunControls(),  # noqa: B008 (frozen: one shared default is safe)
+    options: StudyOptions = StudyOptions(),  # noqa: B008
     *,
-    scheduler: str | None = None,
-    workers: int | None = None,
-    resume: bool = False,
-    progress: Progress | None = None,
-    echo: Callable[[str], None] = lambda _: None,
-    task: Callable[[Payload], Record] = run_task,
+    task: Callable[[Payload], Record] = point_task,
     on_record: Callable[[Record], None] | None = None,
-    stop: Callable[[], str | None] | None = None,
 ) -> dict[str, Any]:
     """Run ``spec`` into ``out`` and return the summary (also written to summary.json).
 
-    ``task`` is what workers run per point (tests and the benchmark swap it);
-    ``on_record`` sees every record as it arrives (the benchmark reads timings from it);
-    ``stop`` returning a signal's name ends the sweep after the points that finished (their
-    table is kept) with :class:`SweepInterrupted`.
+    ``options`` say where the points run and whether only the missing ones; ``controls``
+    where to say what happens (``echo``) and when to stop: a signal's name from
+    ``controls.stop`` ends the sweep after the points that finished (their table is kept)
+    with :class:`SweepInterrupted`. ``task`` is what workers run per point (tests and the
+    benchmark swap it); ``on_record`` sees every record as it arrives (the benchmark reads
+    timings from it).
     """
     from twin.outputs.summary import write_summary
-    from twin.sweep import shipping
     from twin.sweep.analysis import summarise
     from twin.sweep.plots import draw_all
 
     design = make_design(spec)
+    base = prepare_scenario(spec.scenario)  # the error model's configuration, checked once
     if len(design) == 0:
         raise ConfigError("empty design: no point", source=str(spec.path))
     meta = {
@@ -139,34 +141,36 @@ def run_sweep(
         "points": len(design),
         "fingerprint": fingerprint(design),
     }
-    store = ResultStore(out, design.names, meta, resume=resume)
+    store = ResultStore(out, design.names, meta, resume=options.resume)
     todo = [i for i in range(len(design)) if i not in store.done]
     collector = _Collector(spec, design, store, out)
-    echo(f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}")
+    controls.echo(
+        f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}"
+    )
 
     def payload(i: int) -> Payload | Record:
         try:
-            scenario = build_scenario(spec.base_data, spec.base, design.overrides(i))
+            point = prepare_scenario(design.point(spec.scenario, i), base.evaluation)
         except ConfigError as exc:
             return failed(i, one_line(exc))
-        return {"index": i, "scenario": scenario, "folders": spec.run_folders}
+        return {"index": i, "run": point, "folders": spec.run_folders}
 
     threads = 0
     if not todo:
         store.start()
     try:
         if todo:
-            with open_client(scheduler, workers) as client:
-                threads = _announce(client, echo, local=scheduler is None)
-                client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
+            with open_client(options.scheduler, options.workers) as client:
+                threads = _announce(client, controls.echo, local=options.scheduler is None)
+                client.register_plugin(BinariesPlugin(collect()))
                 store.start()
                 collector.started()
                 records = execute(client, todo, payload, task)
-                _take(records, collector, store, on_record, progress, stop)
+                _take(records, collector, on_record, options.progress, controls)
     finally:
         store.flush(force=True)
-    if stop is not None and stop():
-        raise SweepInterrupted(str(stop()))
+    if controls.stopped():
+        raise SweepInterrupted(str(controls.stopped()))
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
@@ -177,26 +181,25 @@ def run_sweep(
 def _take(
     records: Iterable[Record],
     collector: _Collector,
-    store: ResultStore,
     on_record: Callable[[Record], None] | None,
     progress: Progress | None,
-    stop: Callable[[], str | None] | None,
+    controls: RunControls,
 ) -> None:
-    """Collect the records as they arrive, until the last or until ``stop`` says a signal came."""
+    """Collect the records as they arrive, until the last or until a signal came."""
     for record in records:
         collector.take(record)
         if on_record is not None:
             on_record(record)
         if progress is not None:
             progress(collector.done, collector.failed, collector.total)
-        store.flush()
-        if stop is not None and stop():
+        collector.store.flush()
+        if controls.stopped():
             return  # the caller's client closes the cluster on the way out
 
 
 def _announce(client: Any, echo: Callable[[str], None], local: bool) -> int:
     """Print where the sweep runs; returns the number of worker threads."""
-    from twin.sweep.execute import dashboard
+    from twin.pipeline.cluster import dashboard
 
     threads = client.nthreads()
     link = dashboard(client)
@@ -205,3 +208,17 @@ def _announce(client: Any, echo: Callable[[str], None], local: bool) -> int:
         link += " (its pages need bokeh>=3.1: pip install bokeh)"
     echo(f"dashboard: {link}" if link else "dashboard: none (the scheduler serves none)")
     return max(1, sum(threads.values()))
+
+
+def summary_line(summary: dict[str, Any], out: Path) -> str:
+    """The sweep's last line: points, failures, time, and its main output's quantiles."""
+    t = summary["timing"]
+    line = (
+        f"sweep {summary['sweep']}: {summary['points']} points, {summary['ok']} ok, {summary['failed']} failed"
+        f" ({t['points_run']} run in {t['elapsed_s']:.1f} s)"
+    )
+    main = summary.get("main_output")
+    stats = summary["outputs"].get(main, {}) if main else {}
+    if stats.get("n"):
+        line += f"; {main}: median {stats['q50']:.4g}, 5-95 % [{stats['q05']:.4g}, {stats['q95']:.4g}]"
+    return f"{line}; outputs: {out}"

@@ -1,13 +1,12 @@
-"""Validation of the error model beyond one nominal tester.
+"""Validation of the twin beyond one nominal run.
 
-- :mod:`twin.validation.draws`: testers as built drawn from the spreads file
-  (``scenarios/validation/testers-as-built.toml``, facts.md section 6) and room curves;
-- :mod:`twin.validation.heldout`: ``twin heldout``, identify each drawn tester on the
+- :mod:`twin.validation.heldout`: ``twin heldout``, identify each tester as built on the
   calibration experiments, then compensate operating scenarios the identification never saw,
   beside the group's MLR + AR baseline (:mod:`twin.errormodel.baselines`);
-- :mod:`twin.validation.replay`: the paper replay's uncertainty (a Monte Carlo over its
-  uncertain inputs, nominal, sigma and 90 % interval in the run's summary.json).
-
-Everything runs on Dask through :mod:`twin.sweep`'s client, executor, shipping and results
-modules.
+- :mod:`twin.validation.paper_report`: the paper's thermal experiment beside its replay
+  (:func:`reports` is what ``twin run`` hands the pipeline).
 """
+
+from twin.validation.paper_report import reports
+
+__all__ = ["reports"]

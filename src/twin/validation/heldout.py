@@ -21,19 +21,24 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from twin.config.load import load_scenario
 from twin.config.spec import Scenario
+from twin.cosim.controls import RunControls
 from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
-from twin.errormodel.identify import Experiment, Record, lab_record
+from twin.errormodel.identify import Experiment, Record
 from twin.errors import ConfigError, ConfigErrors, RunError
+from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, generator, scenario_seed
+from twin.uncertainty import rooms
+from twin.uncertainty.testers import Testers, apply, load_testers
 
 __all__ = ["HeldOut", "load_heldout", "run_heldout", "run_tester", "summarise"]
 
@@ -82,11 +87,10 @@ def _number(p: list[ConfigError], src: str, key: str, v: Any, lo: float) -> floa
 def _loads(src: str, key: str, path: Path, sets: Sequence[str]) -> list[ConfigError]:
     """The problems of a scenario file the held-out file names, loaded with its overrides as
     every tester's run will be: found before any tester runs, not by every tester's worker."""
-    from twin.config.load import read_scenario_data
-    from twin.sweep.spec import build_scenario
+    from twin.pipeline.prepare import prepare_scenario
 
     try:
-        build_scenario(read_scenario_data(path), path, list(sets))
+        prepare_scenario(load_scenario(path, list(sets)))
     except ConfigError as exc:
         problems = getattr(exc, "problems", [exc])
         first = problems[0]
@@ -223,16 +227,16 @@ def _figures(before: np.ndarray, after: np.ndarray) -> dict[str, float]:
 def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: MlrAr) -> dict[str, float]:
     """Run a held-out scenario, compensate it with the identified ``values`` (MBS) and with the
     baseline; the figures of both against the twin's true wear."""
-    from twin.errormodel.config import evaluation_config, input_columns
     from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
-    from twin.pipeline import evaluate_run, simulate
+    from twin.pipeline import evaluate_run, prepare_scenario, simulate
 
+    prepared = prepare_scenario(scenario)
     cfg = replace(
-        evaluation_config(scenario),
+        prepared.evaluation,
         thermal=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
         mechanics=MechanicalCoefficients.from_values(values, source="twin heldout: identified"),
     )
-    sim = simulate(scenario, keep=input_columns(cfg))
+    sim = simulate(prepared)
     if sim.result.status != "completed":
         raise RunError(f"{scenario.name} {sim.result.status}: {sim.result.error}")
     ev = evaluate_run(sim, cfg)
@@ -258,6 +262,7 @@ def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
     Returns one row of figures per held-out scenario and the timings.
     """
     from twin.errormodel.identify import fit_records
+    from twin.pipeline.lab import lab_record
 
     start = time.perf_counter()
     records = {e.name: lab_record(e, s) for e, s in job.calibration}
@@ -279,12 +284,12 @@ def tester_task(payload: dict[str, Any]) -> dict[str, Any]:
     """What a worker runs for one tester: never raises, a failure is a failed record."""
     import os
 
-    from twin.sweep import shipping
-    from twin.sweep.execute import one_line
+    from twin.pipeline.cluster import one_line
+    from twin.pipeline.shipping import check_worker
 
     record: dict[str, Any] = {"index": payload["index"], "status": "ok", "error": "", "rows": []}
     try:
-        shipping.check_worker()
+        check_worker()
         record["rows"], record["timing"] = run_tester(payload["scenario"])
     except Exception as exc:
         record.update(status="failed", error=one_line(exc))
@@ -300,35 +305,25 @@ def _heldout_scenario(
 ) -> Scenario:
     """Held-out scenario ``j`` of tester ``i``: its file, its overrides, the tester's values,
     a seed of its own and the room's slow drift."""
-    from twin.config.load import read_scenario_data
-    from twin.config.overrides import apply_overrides
-    from twin.sweep.spec import build_scenario
-    from twin.validation.draws import overrides_for, smooth_drift, with_room_drift
-
-    data = read_scenario_data(ho.path)
-    apply_overrides(data, ho.overrides, f"{cfg.path}: {ho.name}: set")
-    sets = [*overrides_for(values, data), f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, i, j)}"]
-    scenario = build_scenario(data, ho.path, sets)
+    scenario = apply(load_scenario(ho.path, list(ho.overrides)), values)
+    scenario = scenario.with_seed(scenario_seed(cfg.seed, Key.RUN, i, j))
     if cfg.room_drift_K > 0:
-        rng = generator(cfg.seed, Key.ROOM, i, j)
-        with_room_drift(data, scenario, cfg.room, smooth_drift(rng, cfg.room_drift_K))
-        scenario = build_scenario(data, ho.path, sets)
+        drift = rooms.smooth_drift(generator(cfg.seed, Key.ROOM, i, j), cfg.room_drift_K)
+        target = cfg.room.split(".", 1)[1]
+        scenario = scenario.with_input(rooms.drifted(scenario, target, drift))
     return scenario
 
 
-def make_job(cfg: HeldOut, testers: Any, priors: Mapping[str, Prior], i: int) -> TesterJob:
+def make_job(cfg: HeldOut, testers: Testers, priors: Mapping[str, Prior], i: int) -> TesterJob:
     """Tester ``i``'s job: its drawn values applied to every calibration experiment and
     every held-out scenario (scenarios built and checked here, on the client)."""
-    from twin.config.load import read_scenario_data
-    from twin.errormodel.identify import EXPERIMENTS, experiment_scenario
-    from twin.validation.draws import overrides_for
+    from twin.errormodel.identify import EXPERIMENTS
 
     values = testers.draw(i)
     calibration = []
     for k, e in enumerate(EXPERIMENTS):
-        data = read_scenario_data(cfg.calibration / e.scenario)
-        sets = [*overrides_for(values, data), f"scenario.seed={scenario_seed(cfg.seed, Key.RUN, i, 1000 + k)}"]
-        calibration.append((e, experiment_scenario(e, sets, cfg.calibration)[0]))
+        scenario = apply(load_scenario(cfg.calibration / e.scenario), values)
+        calibration.append((e, scenario.with_seed(scenario_seed(cfg.seed, Key.RUN, i, 1000 + k))))
     heldout = tuple((ho, _heldout_scenario(cfg, ho, values, i, j)) for j, ho in enumerate(cfg.scenarios))
     return TesterJob(i, values, tuple(calibration), heldout, priors)
 
@@ -349,23 +344,20 @@ def rows_of(cfg: HeldOut, values: Mapping[str, float], record: Mapping[str, Any]
 def run_heldout(
     cfg: HeldOut,
     out: Path,
-    *,
-    scheduler: str | None = None,
-    workers: int | None = None,
-    resume: bool = False,
-    echo: Callable[[str], None] = lambda _: None,
+    controls: RunControls = RunControls(),  # noqa: B008 (frozen: one shared default is safe)
+    options: StudyOptions = StudyOptions(),  # noqa: B008
 ) -> dict[str, Any]:
-    """Run every tester on Dask into ``out`` (``results.parquet``, ``results.csv``,
-    ``summary.json``); returns the summary. ``resume``: run only the testers the folder's
-    table lacks (the same files and settings, else refused)."""
+    """Run every tester on Dask (``options``: where, whether only the testers the folder's
+    table lacks, with the same files and settings) into ``out`` (``results.parquet``,
+    ``results.csv``, ``summary.json``); returns the summary. ``controls.echo`` is told each
+    tester as it finishes."""
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.summary import write_summary
-    from twin.sweep import shipping
-    from twin.sweep.execute import execute, failed, one_line, open_client
-    from twin.sweep.results import ResultStore
-    from twin.validation.draws import Testers, load_testers
+    from twin.pipeline.cluster import execute, failed, one_line, open_client
+    from twin.pipeline.results import ResultStore
+    from twin.pipeline.shipping import BinariesPlugin, collect
 
-    testers = Testers(load_testers(cfg.spreads), cfg.seed)
+    testers = Testers(tuple(load_testers(cfg.spreads)), cfg.seed)
     priors = load_priors()
     meta = {
         "heldout": str(cfg.path),
@@ -373,7 +365,9 @@ def run_heldout(
         "seed": cfg.seed,
         "fingerprint": fingerprint(cfg),
     }
-    store = ResultStore(out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=resume)
+    store = ResultStore(
+        out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=options.resume
+    )
     todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
     timings: list[dict[str, float]] = []
 
@@ -384,12 +378,12 @@ def run_heldout(
             return failed(i, one_line(exc)) | {"rows": []}
 
     start = time.perf_counter()
-    with open_client(scheduler, workers) as client:
+    with open_client(options.scheduler, options.workers) as client:
         threads = max(1, sum(client.nthreads().values()))
-        echo(
+        controls.echo(
             f"heldout: {cfg.testers} testers x {len(cfg.scenarios)} scenarios on {threads} workers; results in {out}"
         )
-        client.register_plugin(shipping.BinariesPlugin(shipping.collect()))
+        client.register_plugin(BinariesPlugin(collect()))
         store.start()
         begin = time.perf_counter()
         for record in execute(client, todo, payload, tester_task):
@@ -397,7 +391,9 @@ def run_heldout(
                 store.add(row)
             timings.append(record.get("timing", {}))
             store.flush()
-            echo(f"tester {record['index']}: {record['status']} {record['error']}".rstrip())
+            controls.echo(f"tester {record['index']}: {record['status']} {record['error']}".rstrip())
+            if controls.stopped():
+                break
         elapsed = time.perf_counter() - begin
     store.flush(force=True)
     table = store.table()
@@ -500,3 +496,27 @@ def summarise(cfg: HeldOut, table: Any) -> dict[str, Any]:
         "models": models,
         "goals": _goals(cfg, models),
     }
+
+
+def report_lines(summary: dict[str, Any]) -> list[str]:
+    """The figures and goals, one line each."""
+    lines = []
+    for model, m in summary["models"].items():
+        a, th = m["all"], m["thermal_only"]
+        if not a.get("rows"):
+            lines.append(f"{model}: no row")
+            continue
+        thermal = f"{th['largest_residual_um']:.2f} um" if th.get("rows") else "no thermal-only row"
+        lines.append(
+            f"{model}: % of RMS removed median {a['removed_pct_median']:.1f}, 10th percentile "
+            f"{a['removed_pct_p10']:.1f}; largest residual {a['largest_residual_um']:.2f} um; "
+            f"thermal-only largest {thermal}"
+        )
+    for goal, g in summary["goals"].items():
+        parts = ", ".join(
+            f"{m} {v['value']:.2f} ({'met' if v['met'] else 'not met'})"
+            for m, v in g.items()
+            if isinstance(v, dict) and v.get("value") is not None
+        )
+        lines.append(f"goal {goal} {g['goal']}: {parts}")
+    return lines

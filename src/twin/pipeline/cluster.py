@@ -35,6 +35,7 @@ import warnings
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 from twin.errors import ConfigError, RunError
@@ -60,31 +61,6 @@ def one_line(exc: BaseException) -> str:
     return text[:MAX_ERROR]
 
 
-def run_task(payload: Payload) -> Record:
-    """What a worker runs for one point: never raises, a failure is a failed record.
-
-    Returns the figures, the run folder's files when asked, and for the benchmark the
-    seconds the point took and the worker process's peak resident memory.
-    """
-    from twin.sweep import shipping
-    from twin.sweep.point import run_point, run_point_folder
-
-    start = time.perf_counter()
-    record: Record = {"index": payload["index"], "status": "ok", "error": "", "figures": {}, "files": {}}
-    try:
-        shipping.check_worker()
-        if payload.get("folders"):
-            record["figures"], record["files"] = run_point_folder(payload["scenario"])
-        else:
-            record["figures"] = run_point(payload["scenario"])
-    except Exception as exc:
-        record.update(status="failed", error=one_line(exc))
-    record["point_s"] = time.perf_counter() - start
-    record["pid"] = os.getpid()
-    record["peak_rss_mb"] = peak_rss_mb()
-    return record
-
-
 def peak_rss_mb() -> float:
     """This process's peak resident memory in MB: Linux's ``VmHWM``, not ``ru_maxrss``, which
     starts from the peak of the process that started this one (measured: a Dask worker whose
@@ -104,6 +80,19 @@ def peak_rss_mb() -> float:
 def failed(index: int, error: str) -> Record:
     """The record of a point that did not run (or whose worker died)."""
     return {"index": index, "status": "failed", "error": error[:MAX_ERROR], "figures": {}, "files": {}}
+
+
+@dataclass(frozen=True)
+class StudyOptions:
+    """Where and how a study's many runs go: an existing Dask scheduler's address (None: a
+    local cluster of ``workers`` processes, default one per core), whether to run only what
+    its output folder lacks (``resume``), and where to tell its progress (points done, of
+    which failed, of how many)."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+    resume: bool = False
+    progress: Callable[[int, int, int], None] | None = None
 
 
 @contextmanager
@@ -262,10 +251,10 @@ class _Tasks:
             payloads = []
             for index in self._next_batch():
                 item = self.payload(index)
-                if "scenario" in item:
-                    payloads.append(item)
-                else:
+                if "status" in item:  # a record: the point cannot run
                     yield item
+                else:
+                    payloads.append(item)
             if payloads:
                 self._submit(payloads)
 
@@ -299,7 +288,7 @@ def execute(
     client: Any,
     indices: Iterable[int],
     payload: Callable[[int], Payload | Record],
-    task: Callable[[Payload], Record] = run_task,
+    task: Callable[[Payload], Record],
 ) -> Iterator[Record]:
     """Run the points, yielding each record as it finishes (in any order).
 

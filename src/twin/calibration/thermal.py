@@ -18,7 +18,6 @@ part: it is validation data.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import json
 from collections.abc import Mapping
@@ -29,9 +28,12 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from twin.config.spec import NS_PER_S, Parameter, Scenario
+from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
 from twin.paper import EXPERIMENT_S, NODE_OUTPUTS, TEMPERATURE_RISE_K
+from twin.pipeline.prepare import prepare_scenario
+from twin.pipeline.stages import simulate
+from twin.uncertainty import rooms
 
 #: the fitted values and their prior relative spread (sigma of the log-factor) with its reason
 PRIORS: dict[str, tuple[float, str]] = {
@@ -58,13 +60,13 @@ TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"
 #: offset, not its local placement on the body]
 SIGMA_MEAS_K = 0.3
 BODIES = ("bearing_block", "heel_block", "bearing", "t_plate", "base", "long_pole", "detecting_frame")
-#: the room shapes the fit is repeated under (twin.validation.draws.shape)
-ROOM_SHAPES = ("exponential", "ramp", "s-curve")
+#: the room shapes the fit is repeated under (the scenario's own first)
+ROOM_SHAPES = rooms.ROOM_SHAPES
 ROOM_KEY = "input.thermal.t_room"
 
 
 @dataclass(frozen=True)
-class Calibration:
+class ThermalFit:
     """One fit: values, their estimates, posterior standard errors (relative), rises, diagnostics."""
 
     values: dict[str, float]
@@ -89,10 +91,8 @@ def thermal_instance(scenario: Scenario) -> str:
 def thermal_only(scenario: Scenario, params: Mapping[str, float]) -> Scenario:
     """The scenario cut down to its thermal network, with ``params`` overriding its parameters."""
     name = thermal_instance(scenario)
+    scenario = scenario.with_parameters(name, params, "calibration trial")
     spec = scenario.fmu(name)
-    merged = dict(spec.parameters)
-    merged.update({k: Parameter(v, "calibration trial") for k, v in params.items()})
-    spec = dataclasses.replace(spec, parameters=merged)
     return dataclasses.replace(
         scenario,
         fmus=(spec,),
@@ -106,12 +106,10 @@ def thermal_only(scenario: Scenario, params: Mapping[str, float]) -> Scenario:
 
 def node_rises(scenario: Scenario, params: Mapping[str, float]) -> dict[str, float]:
     """Rise of each measured node over the run."""
-    from twin.pipeline import simulate
-
     sub = thermal_only(scenario, params)
     name = sub.fmus[0].name
     columns = {body: f"{name}.{NODE_OUTPUTS[body]}" for body in BODIES}
-    simulation = simulate(sub, keep=columns.values())
+    simulation = simulate(prepare_scenario(sub), keep=columns.values())
     if simulation.result.error:
         raise simulation.result.error
     table = simulation.table
@@ -130,7 +128,7 @@ def _estimates(scenario: Scenario) -> dict[str, float]:
     return {k: float(spec.parameters[k].value) for k in names}
 
 
-def calibrate(scenario: Scenario) -> Calibration:
+def calibrate(scenario: Scenario) -> ThermalFit:
     """The regularised fit of :data:`PRIORS` to the paper's rises under the scenario's room."""
     if scenario.duration_ns != EXPERIMENT_S * NS_PER_S:
         raise ConfigError(
@@ -164,7 +162,7 @@ def calibrate(scenario: Scenario) -> Calibration:
     # more than the priors do
     sv = np.linalg.svd(j_data * sigma, compute_uv=False)
     values = params_of(sol.x)
-    return Calibration(
+    return ThermalFit(
         values=values,
         estimates=est,
         rel_std_error={k: float(np.sqrt(cov[i, i])) for i, k in enumerate(names)},
@@ -176,26 +174,13 @@ def calibrate(scenario: Scenario) -> Calibration:
     )
 
 
-def _with_room_shape(data: dict[str, Any], scenario: Scenario, name: str) -> dict[str, Any]:
-    """The scenario's data with its room rise in shape ``name`` (same start, rise and rise time)."""
-    from twin.config.profiles import profile_function
-    from twin.validation.draws import room_profile, sample_times, set_room, shape
-
-    profile = room_profile(scenario, ROOM_KEY.split(".", 1)[1])
-    f = profile_function(profile)
-    rise_at = float(profile.params.get("rise_at", EXPERIMENT_S))
-    start = float(f(np.array([0.0]))[0])
-    rise = float(f(np.array([rise_at]))[0]) - start
-    tau_ratio = float(profile.params.get("time_constant", rise_at / 4.0)) / rise_at
-    t = sample_times(scenario, [rise_at])
-    out = copy.deepcopy(data)
-    set_room(
-        out, ROOM_KEY, t, start + rise * shape(name, t / rise_at, tau_ratio), f"twin calibrate: room {name}"
-    )
-    return out
+def _with_room_shape(scenario: Scenario, name: str) -> Scenario:
+    """The scenario with its room rise in shape ``name`` (same start, rise and rise time)."""
+    target = ROOM_KEY.split(".", 1)[1]
+    return scenario.with_input(rooms.shaped(scenario, target, name, source=f"twin calibrate: room {name}"))
 
 
-def write_parameter_file(path: Path, cal: Calibration, by_shape: Mapping[str, Calibration]) -> None:
+def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, ThermalFit]) -> None:
     """The calibrated values with their source and standard error, as a scenario parameter file."""
     lines = [
         "# Thermal network: the drawing's values (base/geometry-thermal.toml) updated by the paper's seven",
@@ -227,7 +212,7 @@ def write_parameter_file(path: Path, cal: Calibration, by_shape: Mapping[str, Ca
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def report(cal: Calibration, by_shape: Mapping[str, Calibration]) -> dict[str, Any]:
+def report(cal: ThermalFit, by_shape: Mapping[str, ThermalFit]) -> dict[str, Any]:
     """The fit as JSON-able data (written beside the parameter file)."""
     return {
         "rises_K": {b: {"twin": cal.rises[b], "paper": TEMPERATURE_RISE_K[b]} for b in BODIES},
@@ -277,10 +262,7 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
     cal = calibrate(scenario)
     # the scenario's own room is the first shape; the others keep its start, rise and rise time
     by_shape = {ROOM_SHAPES[0]: cal} | {
-        name: calibrate(
-            load_scenario_data(_with_room_shape(data, scenario, name), str(path), path.resolve().parent)
-        )
-        for name in ROOM_SHAPES[1:]
+        name: calibrate(_with_room_shape(scenario, name)) for name in ROOM_SHAPES[1:]
     }
     write_parameter_file(target, cal, by_shape)
     target.with_suffix(".json").write_text(

@@ -1,0 +1,98 @@
+"""``twin identify``: the error model's coefficients from calibration experiments run on the
+twin, as a lab runs them on its tester.
+
+Each experiment of :data:`twin.errormodel.identify.EXPERIMENTS` (``scenarios/calibration/``)
+runs on the tester as built (``--set`` values apply to every experiment: each is the whole
+tester), recording only a lab's DAQ channels (:func:`twin.pipeline.lab.lab_record`); the fits
+(:func:`twin.errormodel.identify.fit_records`) make the coefficients file, with each
+experiment's provenance (the hash of the scenario it ran) and the FMUs' source hashes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from twin import __version__
+from twin.config.load import load_scenario, scenarios_dir
+from twin.errormodel.coefficients import Coefficients, Prior, load_priors
+from twin.errormodel.identify import CALIBRATIONS, EXPERIMENTS, Calibration, Experiment, Record, fit_records
+from twin.fmu.build import source_hash
+from twin.fmu.catalog import model_names
+from twin.outputs.run_folder import scenario_fingerprint
+from twin.pipeline.lab import lab_record
+
+__all__ = ["HEADER", "identify", "report_lines", "run_experiment"]
+
+HEADER = """Coefficients of the error model, identified by `twin identify` from the calibration
+experiments in scenarios/calibration/ (DAQ channels only; priors from priors.toml).
+Made by a program: rerun `twin identify` to reproduce, do not edit by hand.
+Each coefficient: value, one standard error, unit, the experiment it came from and the prior
+that entered its fit; each fit: rank and condition numbers, residual and correlation."""
+
+
+def run_experiment(
+    experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
+) -> Record:
+    """Run one calibration experiment on the twin (its scenario in ``folder``, default the
+    shipped ``calibration/``, with ``overrides``) and keep what a lab's DAQ records."""
+    scenario = load_scenario((folder or scenarios_dir() / "calibration") / experiment.scenario, overrides)
+    return lab_record(experiment, scenario, scenario_fingerprint(scenario))
+
+
+def identify(
+    overrides: Sequence[str] = (),
+    *,
+    priors: Mapping[str, Prior] | None = None,
+    calibrations: Sequence[Calibration] = CALIBRATIONS,
+    per_experiment: Mapping[str, Sequence[str]] | None = None,
+    folder: Path | None = None,
+) -> Coefficients:
+    """Run the calibration experiments on the twin and fit the error model's coefficients.
+
+    ``overrides`` (``--set KEY=VALUE``) make the tester as built: they apply to every
+    experiment, ``per_experiment`` adds some to one experiment only (by name). ``priors``
+    default to ``scenarios/calibration/priors.toml``. In process and without files.
+    """
+    priors = load_priors() if priors is None else priors
+    per_experiment = per_experiment or {}
+    needed = {e for cal in calibrations for e in cal.experiments}
+    records = {
+        e.name: run_experiment(e, [*overrides, *per_experiment.get(e.name, ())], folder)
+        for e in EXPERIMENTS
+        if e.name in needed
+    }
+    identified = {
+        "by": "twin identify",
+        "twin_version": __version__,
+        "overrides": list(overrides),
+        "fmu_sources": {name: source_hash(name) for name in model_names()},
+        "experiments": {
+            name: {
+                "scenario": r.experiment.scenario,
+                "sha256": r.scenario_sha256,
+                "overrides": list(per_experiment.get(name, ())),
+            }
+            for name, r in records.items()
+        },
+    }
+    return fit_records(records, priors, identified, calibrations)
+
+
+def report_lines(c: Coefficients) -> list[str]:
+    """One line per fit and per coefficient, for the terminal."""
+    lines = []
+    for name, fit in c.fits.items():
+        residuals = ", ".join(
+            f"{e} {n} samples, residual {r * 1e6:.3f} um"
+            for e, n, r in zip(fit.experiments, fit.samples, fit.residual_rms, strict=True)
+        )
+        lines.append(
+            f"{name}: {residuals}; rank {fit.rank} of {len(fit.parameters)}, "
+            f"{fit.informative_directions} beyond the priors, condition "
+            f"{fit.condition_number_identifiable:.3g} (with priors {fit.condition_number_regularised:.3g})"
+        )
+    for name, x in c.coefficients.items():
+        prior = f" (prior {x.prior.value:.4g} +- {x.prior.sigma:.2g})" if x.prior and x.prior.sigma else ""
+        lines.append(f"  {name} = {x.value:.6g} +- {x.std_error:.2g} {x.unit} [{x.experiment}]{prior}")
+    return lines

@@ -1,0 +1,37 @@
+"""``twin calibrate [SCENARIO]``: fit the thermal network to the paper's measured temperature rises."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+NAME = "calibrate"
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(NAME, help="fit the thermal network to the paper's measured temperature rises")
+    p.add_argument(
+        "scenario", nargs="?", help="scenario whose thermal network is calibrated (default: the paper's)"
+    )
+    p.add_argument(
+        "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
+    )
+    p.add_argument(
+        "--write",
+        action="store_true",
+        help="replace the calibration file the scenario includes (the committed one)",
+    )
+    p.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from twin.calibration.thermal import calibrate_file
+    from twin.outputs.run_folder import check_output_file
+
+    # checked before the fits (seconds): a parameter file .toml, its report beside it as .json
+    out = check_output_file(Path(args.out), "--out", ".toml") if args.out is not None else None
+    path = calibrate_file(Path(args.scenario) if args.scenario else None, out, write=args.write)
+    print(f"calibrated thermal network written to {path}")
+    return 0

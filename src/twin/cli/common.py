@@ -1,0 +1,111 @@
+"""What every command shares: the parser that refuses in one line, the signals that ask a run
+to stop, the progress bar, and the exit code of a run's outcome."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import signal
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from twin.errors import ConfigError
+
+__all__ = ["EXIT_ON_SIGNAL", "Parser", "finish", "progress_bar", "stop_on_signals"]
+
+#: a run stopped by a signal ends the command with the shell's code for it
+EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that reports bad arguments as one line and exit code 2, and refuses an empty
+    argument (the commands read a missing one as "the default", and ``--out ""`` once
+    rewrote the committed coefficients file)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        # the line starts "twin: " already: name the subcommand, not "twin" a second time
+        raise ConfigError(message, source=self.prog.removeprefix("twin").strip() or None)
+
+    def parse_known_args(
+        self, args: Any = None, namespace: Any = None
+    ) -> tuple[argparse.Namespace, list[str]]:  # type: ignore[override]
+        parsed, extras = super().parse_known_args(args, namespace)
+        for action in self._actions:
+            value = getattr(parsed, action.dest, None)
+            values = value if isinstance(value, list) else [value]
+            if any(isinstance(v, str) and not v.strip() for v in values):
+                if action.option_strings:
+                    raise ConfigError("is empty", source=max(action.option_strings, key=len))
+                command = self.prog.removeprefix("twin").strip() or None
+                raise ConfigError(f"the {action.dest.replace('_', ' ')} is empty", source=command)
+        return parsed, extras
+
+
+def add_set(p: argparse.ArgumentParser) -> None:
+    """The ``--set KEY=VALUE`` option of a command that loads a scenario."""
+    p.add_argument(
+        "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
+    )
+
+
+def stop_on_signals() -> Callable[[], str | None]:
+    """SIGINT and SIGTERM ask the run to stop at its next batch (it keeps everything recorded
+    and says "interrupted"); the function returned names the signal that came, if one did. A
+    flag, not an exception: raised from a handler, it could land in a library's callback."""
+    caught: dict[str, str] = {}
+
+    def handler(signum: int, frame: object) -> None:
+        caught.setdefault("name", signal.Signals(signum).name)
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return lambda: caught.get("name")
+
+
+@contextmanager
+def progress_bar(quiet: bool) -> Iterator[Callable[[int, int], None] | None]:
+    """A progress bar on a terminal (tqdm) for a run's co-simulation and outputs; nothing with
+    ``quiet`` or without a terminal. Yields the run's progress callback."""
+    if quiet or not sys.stderr.isatty():
+        yield None
+        return
+    import shutil
+
+    from tqdm import tqdm
+
+    # a pseudo-terminal may report 0 columns and rows, with which tqdm draws nothing
+    size = shutil.get_terminal_size((80, 24))
+    bar = tqdm(total=100, unit="%", desc="loading FMUs", leave=False, file=sys.stderr,
+               ncols=size.columns or 80, nrows=size.lines or 24)  # fmt: skip
+
+    def update(now_ns: int, total_ns: int) -> None:
+        bar.n = round(100 * now_ns / total_ns)
+        desc = "writing outputs" if now_ns >= total_ns else "simulating"
+        if bar.desc != desc:
+            bar.set_description_str(desc, refresh=False)
+        bar.refresh()
+
+    try:
+        yield update
+    finally:
+        bar.close()
+
+
+def finish(summary: Any, out: Path, quiet: bool, caught: str | None = None) -> int:
+    """Print a run's summary line and say where its outputs are; the exit code of its outcome
+    (130/143 for a run a signal stopped)."""
+    if not quiet:
+        print(summary.line())
+        print(f"outputs: {out}")
+    if summary.status == "interrupted":
+        why = summary.error or "interrupted"
+        print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
+        name = re.search(r"\bby (SIG[A-Z]+)", why)
+        return EXIT_ON_SIGNAL.get(name.group(1) if name else "", 130)
+    if caught is not None:  # after everything was written: the outputs are complete
+        print(f"twin: interrupted by {caught}; the run's outputs are complete in {out}", file=sys.stderr)
+        return EXIT_ON_SIGNAL.get(caught, 130)
+    return 0

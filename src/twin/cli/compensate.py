@@ -1,0 +1,73 @@
+"""``twin compensate CSV|RUN_DIR [--config LAB.toml]``: the error model on a lab's record or a
+run's signals (``--template DIR`` writes a commented LAB.toml and an example lab.csv)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from twin.errors import ConfigError
+
+NAME = "compensate"
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(NAME, help="run the error model on a CSV of measurements (a lab's or a run's)")
+    p.add_argument(
+        "csv",
+        nargs="?",
+        help="CSV with a time column (s) and named columns in SI units, or a run folder (its own error model)",
+    )
+    p.add_argument(
+        "--template", metavar="DIR", help="write a commented LAB.toml and an example lab.csv into DIR"
+    )
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="[errormodel] column map and coefficients (default: the twin's names)",
+    )
+    p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="write into an --out folder that holds another command's outputs (a run's, a sweep's)",
+    )
+    p.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from twin.pipeline import compensation
+
+    if args.template is not None:
+        for path in compensation.write_template(Path(args.template)):
+            print(f"written: {path}")
+        print(
+            f"try: twin compensate {Path(args.template) / 'lab.csv'} --config {Path(args.template) / 'LAB.toml'}"
+        )
+        return 0
+    if args.csv is None:
+        raise ConfigError("name a CSV or a run folder (or --template DIR)", source="compensate")
+    job = compensation.job(
+        Path(args.csv),
+        Path(args.config) if args.config else None,
+        Path(args.out) if args.out else None,
+        args.force,
+    )
+    summary = compensation.compensate(job.csv, job.config_path, job.out, job.config)
+    flagged = summary["input_rows"]["flagged"]
+    if flagged:
+        first = summary["input_rows"]["first_flagged"][0]
+        print(
+            f"twin: {job.csv}: {flagged} row(s) flagged and left out, the rest computed (first: {first}); "
+            f"every one in {job.out / summary['input_rows']['flagged_rows']}",
+            file=sys.stderr,
+        )
+    parts = summary["error_parts_mm"]
+    print(
+        f"{job.csv}: predicted error over the record {parts['total']:+.4f} mm "
+        f"(thermal {parts['thermal']:+.4f}); outputs: {job.out}"
+    )
+    return 0

@@ -1,0 +1,38 @@
+"""``twin export-ssp SCENARIO -o tester.ssp``: a scenario's system as an SSP 1.0 archive."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from twin.cli.common import add_set
+
+NAME = "export-ssp"
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        NAME, help="write a scenario's system (FMUs, parameters, connections) as an SSP 1.0 archive"
+    )
+    p.add_argument("scenario", nargs="?", help="scenario TOML file or a shipped scenario's name")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.ssp", help="the archive to write")
+    add_set(p)
+    p.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from twin.config.load import find_scenario, load_scenario
+    from twin.exchange.ssp import export_ssp
+    from twin.outputs.run_folder import check_output_file
+
+    out = check_output_file(
+        Path(args.output), "-o", ".ssp", in_a_folder=True
+    )  # checked before the scenario's FMUs are built
+    done = export_ssp(load_scenario(find_scenario(args.scenario), args.set or []), out)
+    for what in done.left_out:
+        print(f"twin: export-ssp: not in the archive: {what}", file=sys.stderr)
+    print(f"{out}: {done.components} components, {done.connections} connections (SSP 1.0)")
+    return 0

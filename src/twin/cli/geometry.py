@@ -1,0 +1,27 @@
+"""``twin geometry``: derive the FMUs' lengths, capacities and conductances from the drawing."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+NAME = "geometry"
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        NAME, help="derive the FMUs' lengths, capacities and conductances from base/tester-geometry.toml"
+    )
+    p.add_argument("--scenarios", metavar="DIR", help="scenarios folder (default: the shipped one)")
+    p.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from twin.calibration.geometry import write_derived_files
+    from twin.config.load import scenarios_dir
+
+    for path in write_derived_files(Path(args.scenarios) if args.scenarios else scenarios_dir()):
+        print(f"derived parameters written to {path}")
+    return 0

@@ -1,0 +1,27 @@
+"""Settings of a process that runs the twin alone (``twin run`` from the console script or
+``python -m twin``, not a program that calls :func:`twin.cli.main`): the one place where the
+process is tuned for speed. Each is measured with ``python benchmarks/bench_phases.py``; the
+run's outputs do not change.
+
+* pyarrow's buffers from the system allocator (``ARROW_DEFAULT_MEMORY_POOL=system``), and
+  mimalloc, which rerun allocates with, handing freed memory back at once
+  (``MIMALLOC_PURGE_DELAY=0``): both allocators otherwise keep the blocks a flush of rows freed
+  for a while, and the next flush comes before they are given back (the MIL endurance run's
+  peak memory). A setting the user has made in the environment stays theirs.
+* What is imported by now lives as long as the process: it is frozen out of the garbage
+  collector's walks (each full collection, and the one at exit).
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+
+__all__ = ["settle"]
+
+
+def settle() -> None:
+    """Tune this process for one run (see the module); made before rerun and pyarrow load."""
+    os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
+    os.environ.setdefault("MIMALLOC_PURGE_DELAY", "0")
+    gc.freeze()

@@ -1,0 +1,82 @@
+"""``twin run [SCENARIO]``: a scenario into its run folder, with its uncertainty (default: the
+paper's 480 min thermal experiment)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Any
+
+from twin.cli.common import add_set, finish, progress_bar, stop_on_signals
+
+NAME = "run"
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(NAME, help="run a scenario (default: the paper's 480 min thermal experiment)")
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        help="scenario TOML file, an SSP archive (.ssp), or a shipped scenario's name, e.g. sine-load "
+        "(default: li2017-thermal-experiment)",
+    )
+    p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
+    p.add_argument(
+        "--force", action="store_true", help="replace the outputs of an earlier run in the run folder"
+    )
+    add_set(p)
+    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    p.add_argument(
+        "--uncertainty",
+        type=int,
+        metavar="N",
+        help="Monte Carlo samples of the prediction's uncertainty (default: the scenario's "
+        "[uncertainty] samples; 0: none)",
+    )
+    p.add_argument(
+        "--checkpoint-every",
+        metavar="DURATION",
+        help="save the whole twin every DURATION of simulated time (e.g. '1 h')",
+    )
+    p.set_defaults(func=command, process_start=None)
+
+
+def command(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from twin.cli import process
+    from twin.pipeline import RunControls, RunOptions, prepare, run
+    from twin.validation import reports
+
+    started = args.process_start or time.perf_counter()
+    # from here a Ctrl-C asks the command to stop; the run folder, once made, then holds
+    # everything recorded and a summary saying "interrupted"
+    stop = stop_on_signals()
+    options = RunOptions(
+        folder=True,
+        out=Path(args.out) if args.out is not None else None,
+        force=args.force,
+        checkpoint_every=args.checkpoint_every,
+        samples=args.uncertainty,
+        reports=reports,
+        started=started,
+    )
+    with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
+        if args.own_process:
+            process.settle()
+        with progress_bar(args.quiet) as update:
+            summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
+        assert prepared.folder is not None
+        return finish(summary, prepared.folder.path, args.quiet, stop())
+
+
+def _echo(quiet: bool) -> Any:
+    def echo(line: str) -> None:
+        if not quiet:
+            print(line, file=sys.stdout, flush=True)
+
+    return echo
+
+
+__all__ = ["add_parser", "command"]

@@ -1,0 +1,84 @@
+"""What a Dask worker runs for one point of a study: a prepared run, in memory, to its figures.
+
+A point is a :class:`~twin.pipeline.prepare.PreparedRun` without a folder (a sweep's point, a
+Monte Carlo's sample); its figures are the numbers of its summary's results, flattened to
+dotted names (``compensation.residual_rms_um.after``; :meth:`RunSummary.figures`), timings
+left out. A sweep that asks for run folders gets each point's folder back as bytes, so a
+worker on another machine can send them.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from twin.errors import RunError
+from twin.fmu.pool import sweep_pool
+from twin.pipeline.cluster import Payload, Record, one_line, peak_rss_mb
+from twin.pipeline.prepare import PreparedRun, RunOptions, prepare
+from twin.pipeline.run_summary import RunSummary
+from twin.pipeline.shipping import check_worker
+from twin.pipeline.stages import run_into_folder, run_point
+
+__all__ = ["figures", "point_task"]
+
+
+def figures(summary: RunSummary) -> dict[str, float]:
+    """A point's figures: its summary's numbers, without the timings."""
+    return {k: v for k, v in summary.figures().items() if not k.startswith("timing.") and k != "sim_end_s"}
+
+
+def _in_memory(prepared: PreparedRun) -> dict[str, float]:
+    """Run the point in memory with the worker's pooled FMU instances (a worker's points after
+    the first reuse the instances of the point before, reset); a failed run raises."""
+    summary = run_point(prepared, pool=sweep_pool())
+    if summary.status == "failed":
+        raise RunError(summary.error or "the run failed")
+    return figures(summary)
+
+
+def _with_folder(prepared: PreparedRun) -> tuple[dict[str, float], dict[str, bytes]]:
+    """Run the point through the whole pipeline into a temporary run folder; its figures and
+    its files (name -> bytes)."""
+    with tempfile.TemporaryDirectory(prefix="twin-point-") as tmp:
+        options = RunOptions(folder=True, out=Path(tmp), force=True, check_fmus=False)
+        with prepare(prepared.scenario, (), options) as point:
+            summary = run_into_folder(point)
+        files = {
+            p.name: p.read_bytes()
+            for p in sorted(Path(tmp).iterdir())
+            if p.is_file() and not p.name.startswith(".")
+        }
+    return figures(summary), files
+
+
+def point_task(payload: Payload) -> Record:
+    """What a worker runs for one point (``payload``: its ``index``, the prepared ``run`` and
+    whether it wants its ``folders``): never raises, a failure is a failed record.
+
+    Returns the figures, the run folder's files when asked, and for the benchmark the seconds
+    the point took and the worker process's peak resident memory.
+    """
+    start = time.perf_counter()
+    record: dict[str, Any] = {
+        "index": payload["index"],
+        "status": "ok",
+        "error": "",
+        "figures": {},
+        "files": {},
+    }
+    try:
+        check_worker()
+        if payload.get("folders"):
+            record["figures"], record["files"] = _with_folder(payload["run"])
+        else:
+            record["figures"] = _in_memory(payload["run"])
+    except Exception as exc:
+        record.update(status="failed", error=one_line(exc))
+    record["point_s"] = time.perf_counter() - start
+    record["pid"] = os.getpid()
+    record["peak_rss_mb"] = peak_rss_mb()
+    return record

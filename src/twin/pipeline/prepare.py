@@ -1,0 +1,296 @@
+"""The one place where input becomes a checked run: :func:`prepare` -> :class:`PreparedRun`.
+
+Everything a run could refuse is found here, before anything runs and before any file is
+touched (bad input runs nothing and makes no run folder)::
+
+    source, --set ──load──> Scenario ──make_plan──> Plan (made once, handed to the master)
+                               │
+                               ├─ [errormodel]  checked into its EvaluationConfig once, the
+                               │                columns it reads checked against the plan
+                               ├─ [uncertainty] the run's Monte Carlo, checked
+                               ├─ [reference]   the measured experiment it replays (reports)
+                               ├─ the checkpoint interval, a multiple of the step
+                               ├─ the FMUs built (cache) and initialized once: what they refuse
+                               │  of their parameters is bad input
+                               └─ the run folder checked, an earlier run refused without
+                                  force, the folder locked (once) for the command's life
+
+``twin validate`` is :func:`prepare` without a folder; ``twin run`` is :func:`prepare` then
+:func:`twin.pipeline.stages.run`; ``twin resume`` is :func:`prepare_resume` then the same run;
+a study's points (sweeps, the Monte Carlo, held-out testers) are prepared without a folder and
+without the FMUs' check (a point the FMUs refuse is a failed point, not bad input).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Self
+
+from twin.config.durations import parse_duration
+from twin.config.load import find_scenario, load_scenario
+from twin.config.spec import Scenario
+from twin.cosim.controls import RunControls
+from twin.cosim.instances import check_initialization
+from twin.cosim.plan import Plan, make_plan
+from twin.cosim.stepping import Loop, check_loop
+from twin.errormodel.config import check_recorded_columns, evaluation_config
+from twin.errormodel.settings import EvaluationConfig
+from twin.errors import ConfigError, FMUError, TwinError
+from twin.fmu import catalog
+from twin.outputs.plot_process import PlotProcess
+from twin.outputs.run_folder import (
+    RUN_FILE,
+    RUN_OUTPUTS,
+    Checkpoint,
+    RunFolder,
+    check_output_folder,
+    scenario_fingerprint,
+)
+from twin.pipeline.montecarlo import Uncertainty, parse_uncertainty
+from twin.pipeline.report import Report, Reports
+
+__all__ = ["PreparedRun", "RunOptions", "prepare", "prepare_resume", "prepare_scenario"]
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How a run is asked for (the command line's choices, or a study's).
+
+    ``folder``: whether the run writes a run folder (``out``: which one, by default
+    ``runs/<scenario name>``; ``force``: replacing an earlier run's files); without one the
+    run stays in memory. ``checkpoint_every``: how often the whole twin is saved (a duration).
+    ``samples``: Monte Carlo samples of the prediction's uncertainty (None: the scenario's
+    ``[uncertainty] samples``; 0: none). ``check_fmus``: the FMUs built and initialized once
+    before the run (what they refuse is bad input). ``reports``: what a measured experiment
+    the scenario replays adds to its summary (:mod:`twin.pipeline.report`). ``started``: when
+    the command began (``time.perf_counter()``; the summary's total time counts from it).
+    """
+
+    folder: bool = False
+    out: Path | None = None
+    force: bool = False
+    checkpoint_every: str | None = None
+    samples: int | None = None
+    loop: Loop = "fast"
+    check_fmus: bool = True
+    reports: Reports | None = None
+    started: float | None = None
+
+
+@dataclass
+class PreparedRun:
+    """A checked run, ready to go: what :func:`twin.pipeline.stages.run` takes.
+
+    Holds the run folder's lock (when it has a folder) until :meth:`close`; use it as a
+    context manager.
+    """
+
+    scenario: Scenario
+    plan: Plan
+    evaluation: EvaluationConfig
+    options: RunOptions
+    overrides: tuple[str, ...] = ()
+    folder: RunFolder | None = None
+    checkpoint_every_ns: int | None = None
+    uncertainty: Uncertainty | None = None
+    reports: tuple[Report, ...] = ()
+    resume: Checkpoint | None = None
+    plots: PlotProcess | None = None
+    started: float = field(default_factory=time.perf_counter)
+
+    def keep(self) -> set[str]:
+        """The columns a run keeps in memory: those the error model reads, the reports', and
+        the swing-cycle counter (the axis of the wear plot)."""
+        from twin.errormodel.config import input_columns
+
+        keep = set(input_columns(self.evaluation)) | set(self.plan.role_columns("swing_cycles"))
+        for report in self.reports:
+            keep |= report.columns(self.plan)
+        return keep
+
+    def close(self) -> None:
+        """Release the run folder and stop a plot helper that drew nothing (idempotent)."""
+        if self.plots is not None:
+            self.plots.close()
+            self.plots = None
+        if self.folder is not None:
+            self.folder.unlock()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+def prepare(
+    source: str | Path | Scenario | None,
+    overrides: Sequence[str] = (),
+    options: RunOptions = RunOptions(),
+    controls: RunControls = RunControls(),  # noqa: B008
+) -> PreparedRun:
+    """Turn ``source`` (a scenario file, an SSP archive, a shipped scenario's name, None for
+    the paper's experiment, or a scenario value) and ``overrides`` (``--set KEY=VALUE``) into
+    a checked run (see the module). ``controls.stop`` is asked after the FMUs' build: a signal
+    during it ends the command as interrupted, with nothing written."""
+    started = options.started if options.started is not None else time.perf_counter()
+    plots = PlotProcess.started() if options.folder else None  # imports matplotlib meanwhile
+    try:
+        prepared = _prepare(source, overrides, options, controls, plots)
+    except BaseException:
+        if plots is not None:
+            plots.close()
+        raise
+    prepared.started = started
+    return prepared
+
+
+def prepare_scenario(scenario: Scenario, evaluation: EvaluationConfig | None = None) -> PreparedRun:
+    """A study's point: ``scenario`` in memory, no folder, no FMU check (a point the FMUs
+    refuse fails as a point); ``evaluation`` reuses the error model's configuration of the
+    study's base scenario (a point changes no ``[errormodel]``)."""
+    plan = make_plan(scenario)
+    if evaluation is None:
+        evaluation = evaluation_config(scenario)
+        check_recorded_columns(scenario, plan.column_names())
+    return PreparedRun(scenario, plan, evaluation, RunOptions(check_fmus=False))
+
+
+def _prepare(
+    source: str | Path | Scenario | None,
+    overrides: Sequence[str],
+    options: RunOptions,
+    controls: RunControls,
+    plots: PlotProcess | None,
+) -> PreparedRun:
+    scenario = source if isinstance(source, Scenario) else load_scenario(find_scenario(source), overrides)
+    plan = make_plan(scenario)
+    evaluation = evaluation_config(scenario)
+    check_recorded_columns(scenario, plan.column_names())
+    uncertainty = parse_uncertainty(scenario, options.samples)
+    reports = options.reports(scenario) if options.reports is not None else ()
+    every = _checkpoint_every(options.checkpoint_every, scenario.step_ns)
+    check_loop(options.loop)
+    out = (options.out or Path("runs") / scenario.name) if options.folder else None
+    if out is not None:
+        check_output_folder(out, "--out")
+    if options.check_fmus:
+        _fmus_accept(scenario, plan, controls)
+    folder = _take_folder(out, options.force) if out is not None else None
+    return PreparedRun(
+        scenario,
+        plan,
+        evaluation,
+        options,
+        tuple(overrides),
+        folder,
+        every,
+        uncertainty,
+        tuple(reports),
+        plots=plots,
+    )
+
+
+def prepare_resume(
+    run_dir: Path,
+    options: RunOptions = RunOptions(),
+) -> PreparedRun:
+    """A killed or interrupted run, ready to continue from its last checkpoint: its folder
+    locked before the checkpoint is read, its scenario loaded as ``run.json`` says it was
+    started, and the checkpoint checked against that scenario as it is now."""
+    check_output_folder(run_dir, "resume")  # a folder it can write in
+    if not run_dir.is_dir():
+        raise ConfigError("no such folder (no run.json): not a run folder", source=str(run_dir))
+    folder = RunFolder(run_dir)
+    folder.lock()  # before its checkpoint is read: no other process may write there meanwhile
+    try:
+        meta = folder.resumable()
+        scenario = load_scenario(Path(meta.scenario), list(meta.overrides))
+        plan = make_plan(scenario)
+        evaluation = evaluation_config(scenario)
+        every = meta.checkpoint_every_ns
+        if every is not None and (every <= 0 or every % scenario.step_ns):
+            raise ConfigError(
+                f"must be null or a positive multiple of scenario.step ({scenario.step_ns} ns), got {every}",
+                source=str(folder.file(RUN_FILE)),
+                key="checkpoint_every_ns",
+            )
+        resume = folder.load_checkpoint(scenario.name, scenario_fingerprint(scenario))
+        options = RunOptions(
+            folder=True,
+            out=run_dir,
+            loop=meta.loop,
+            check_fmus=False,
+            reports=options.reports,
+            started=options.started,
+        )
+        reports = options.reports(scenario) if options.reports is not None else ()
+    except BaseException:
+        folder.unlock()
+        raise
+    return PreparedRun(
+        scenario, plan, evaluation, options, meta.overrides, folder, every, None, tuple(reports), resume
+    )
+
+
+def _checkpoint_every(text: str | None, step_ns: int) -> int | None:
+    """``--checkpoint-every`` as nanoseconds of simulated time, a multiple of the scenario's step."""
+    if text is None:
+        return None
+    try:
+        every = parse_duration(text)
+    except ValueError as exc:
+        raise ConfigError(str(exc), source="--checkpoint-every") from None
+    if every <= 0 or every % step_ns:
+        raise ConfigError("must be a positive multiple of scenario.step", source="--checkpoint-every")
+    return every
+
+
+def _fmus_accept(scenario: Scenario, plan: Plan, controls: RunControls) -> None:
+    """Build (or find in the cache) the scenario's FMUs, then instantiate and initialize each
+    once (none stepped): what they refuse of their parameters is bad input, one line naming
+    the instance's parameters and the FMU's reason. A signal during the build (a Ctrl-C on a
+    terminal reaches cmake too) ends the command as interrupted: the build it broke is not a
+    build error."""
+    try:
+        for model in sorted({f.model for f in scenario.fmus}):
+            catalog.fmu(model)
+    except TwinError:
+        if controls.stopped() is not None:
+            raise KeyboardInterrupt from None
+        raise
+    if controls.stopped() is not None:
+        raise KeyboardInterrupt
+    try:
+        check_initialization(plan)
+    except FMUError as exc:
+        raise ConfigError(
+            f"the FMU refuses them in {exc.call}: {exc.detail}",
+            source=scenario.source_path,
+            key=f"fmu.{exc.instance}.parameters",
+        ) from None
+
+
+def _take_folder(out: Path, force: bool) -> RunFolder:
+    """The run folder, locked for the command's whole life (Monte Carlo included: one process
+    per folder); one holding an earlier run's outputs is replaced only with ``force``."""
+    folder = RunFolder(out)
+    folder.lock()
+    try:
+        earlier = sorted(n for n in RUN_OUTPUTS if (out / n).exists())
+        if earlier and not force:
+            more = ", ..." if len(earlier) > 3 else ""
+            raise ConfigError(
+                f"{out} holds an earlier run ({', '.join(earlier[:3])}{more}): --force replaces it, or name another --out",
+                source="--out",
+            )
+    except BaseException:
+        folder.unlock()
+        raise
+    return folder
