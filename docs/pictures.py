@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Draw the README's pictures (docs/*.png) from real runs, small: ``python docs/pictures.py``.
+"""Draw the docs' pictures (docs/*.png) from real runs, small: ``python docs/pictures.py``.
 
 Runs the paper's replay and the MIL endurance test into a temporary folder and draws their
 error budget and wear plots with the twin's own figure builders at a lower resolution (the
-README shows them about 700 px wide). Nothing here is drawn by hand.
+README and the docs show them about 700 px wide). Nothing here is drawn by hand.
 """
 
 from __future__ import annotations
