@@ -11,7 +11,7 @@ from fmpy.util import read_csv
 
 from twin.errors import ConfigError
 from twin.outputs.csv import SignalsCsvWriter, read_signals_csv, units_sidecar_path, write_signals_csv
-from twin.signals.table import SignalTable
+from twin.signals.table import Signal, SignalTable
 
 from .sample import make_table
 
@@ -60,7 +60,7 @@ def test_chunked_writing_equals_one_shot_byte_for_byte(table: SignalTable, tmp_p
     one_shot = write_signals_csv(table, tmp_path / "a.csv")
     signals = [table.meta[n] for n in table.names()]
     bounds = [0, 1, 101, 101, 350, 720, len(table)]  # includes an empty chunk and a 1-row chunk
-    with SignalsCsvWriter.for_signals(tmp_path / "b.csv", signals) as writer:
+    with SignalsCsvWriter(tmp_path / "b.csv", signals) as writer:
         for lo, hi in itertools.pairwise(bounds):
             writer.append(table.time[lo:hi], {n: v[lo:hi] for n, v in table.columns.items()})
     assert writer.rows == len(table)
@@ -79,7 +79,7 @@ def test_rows_are_on_disk_after_each_append(table: SignalTable, tmp_path: Path) 
     # A run killed after an append keeps those rows: read while the writer is still open.
     path = tmp_path / "signals.csv"
     signals = [table.meta[n] for n in table.names()]
-    with SignalsCsvWriter.for_signals(path, signals) as writer:
+    with SignalsCsvWriter(path, signals) as writer:
         assert read_signals_csv(path).time.size == 0  # header only
         writer.append(table.time[:10], {n: v[:10] for n, v in table.columns.items()})
         partial = read_signals_csv(path)
@@ -169,11 +169,11 @@ def test_corrupt_sidecar_raises_config_error(table: SignalTable, tmp_path: Path)
 @pytest.mark.parametrize("name", ["a,b", 'a"b', "a b", "time", ""])
 def test_writer_refuses_names_fmpy_cannot_read(tmp_path: Path, name: str) -> None:
     with pytest.raises(ValueError):
-        SignalsCsvWriter(tmp_path / "s.csv", [name], ["m"])
+        SignalsCsvWriter(tmp_path / "s.csv", [Signal(name, "m", "x")])
 
 
 def test_writer_refuses_time_going_back_across_chunks(tmp_path: Path) -> None:
-    with SignalsCsvWriter(tmp_path / "s.csv", ["x.a"], ["m"]) as writer:
+    with SignalsCsvWriter(tmp_path / "s.csv", [Signal("x.a", "m", "x")]) as writer:
         writer.append(np.array([0.0, 1.0]), {"x.a": np.array([1.0, 2.0])})
         with pytest.raises(ValueError, match="strictly increasing"):
             writer.append(np.array([1.0, 2.0]), {"x.a": np.array([1.0, 2.0])})

@@ -25,15 +25,10 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def _draw(table: SignalTable, path: Path) -> Path:
-    return error_budget_png(
-        table,
-        path,
-        reading="probe.reading",
-        predicted="errormodel.e_total",
-        parts=PARTS,
-        temperatures=["thermal.t_base", "thermal.t_spindle"],
-        title="Paper experiment: error budget",
+    columns = BudgetColumns(
+        "probe.reading", "errormodel.e_total", PARTS, ["thermal.t_base", "thermal.t_spindle"]
     )
+    return error_budget_png(table, path, columns, "Paper experiment: error budget")
 
 
 def test_png_signature_and_size(table: SignalTable, tmp_path: Path) -> None:
@@ -71,11 +66,8 @@ def test_missing_column_is_named(table: SignalTable, tmp_path: Path) -> None:
         error_budget_png(
             table,
             tmp_path / "x.png",
-            reading="probe.reading",
-            predicted="errormodel.e_total",
-            parts=PARTS,
-            temperatures=["thermal.nope"],
-            title="x",
+            BudgetColumns("probe.reading", "errormodel.e_total", PARTS, ["thermal.nope"]),
+            "x",
         )
     assert not (tmp_path / "x.png").exists()
 

@@ -162,9 +162,9 @@ def _anchor(base: dict[str, Any], folder: Path) -> None:
     for spec in base.get("fmu", {}).values():
         if isinstance(spec, dict) and isinstance(spec.get("parameter_files"), list):
             spec["parameter_files"] = [absolute(f) for f in spec["parameter_files"]]
-    for table, key in (("errormodel", "coefficients"), ("uncertainty", "spreads")):
-        if isinstance(base.get(table), dict) and isinstance(base[table].get(key), str):
-            base[table][key] = absolute(base[table][key])
+    for name, key in (("errormodel", "coefficients"), ("uncertainty", "spreads")):
+        if isinstance(base.get(name), dict) and isinstance(base[name].get(key), str):
+            base[name][key] = absolute(base[name][key])
 
 
 def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:

@@ -242,10 +242,10 @@ class BranchModel:
                 params[kind][q] = x
                 given[kind] = True
             if given[1]:
-                v = apply(error_matrix(*params[1], exact=exact), v)
+                v = apply(error_matrix(params[1], exact=exact), v)
             v = apply(kins[j], v)
             if given[0]:
-                v = apply(error_matrix(*params[0], exact=exact), v)
+                v = apply(error_matrix(params[0], exact=exact), v)
             v = apply(self._positioning[j], v)
         return v
 

@@ -10,6 +10,8 @@ nothing here loops over samples in Python.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -85,17 +87,9 @@ def rotation_z(angle: ArrayLike) -> Matrix:
     return _rotation(angle, 0, 1)
 
 
-def error_matrix(
-    dx: ArrayLike = 0.0,
-    dy: ArrayLike = 0.0,
-    dz: ArrayLike = 0.0,
-    ex: ArrayLike = 0.0,
-    ey: ArrayLike = 0.0,
-    ez: ArrayLike = 0.0,
-    *,
-    exact: bool = False,
-) -> Matrix:
-    """An error characteristic matrix (the paper's dT_ijp or dT_ijs) from its six parameters.
+def error_matrix(params: Sequence[ArrayLike], *, exact: bool = False) -> Matrix:
+    """An error characteristic matrix (the paper's dT_ijp or dT_ijs) from its six parameters
+    ``(dx, dy, dz, ex, ey, ez)`` (:data:`ERROR_PARAMETERS`).
 
     ``exact=False``, the paper's first-order matrix (small-angle rotation, as in the MBS
     literature): ``[[1, -ez, ey, dx], [ez, 1, -ex, dy], [-ey, ex, 1, dz], [0, 0, 0, 1]]``. Exactly
@@ -106,7 +100,7 @@ def error_matrix(
     agrees with the first-order matrix to first order; use it to check how much the dropped
     higher-order terms matter.
     """
-    (dx, dy, dz, ex, ey, ez), m = _stack(dx, dy, dz, ex, ey, ez)
+    (dx, dy, dz, ex, ey, ez), m = _stack(*params)
     (_exact_rotation if exact else _small_rotation)(m, ex, ey, ez)
     m[..., 0, 3] = dx
     m[..., 1, 3] = dy
@@ -141,18 +135,27 @@ def _exact_rotation(m: Matrix, ex: Matrix, ey: Matrix, ez: Matrix) -> None:
     m[..., 2, 2] = cb * ca
 
 
+def _six(params: Sequence[ArrayLike], named: Mapping[str, ArrayLike]) -> list[ArrayLike]:
+    """The six parameters given by position and by name (:data:`ERROR_PARAMETERS`), 0 for the rest."""
+    six: list[ArrayLike] = [*params, *[0.0] * (6 - len(params))]
+    for name, value in named.items():
+        six[ERROR_PARAMETERS.index(name)] = value
+    return six
+
+
 def small_error_matrix(*params: ArrayLike, **named: ArrayLike) -> Matrix:
-    """The first-order error matrix: :func:`error_matrix` with ``exact=False``."""
-    return error_matrix(*params, **named)
+    """The first-order error matrix (:func:`error_matrix` with ``exact=False``) of the six
+    parameters by position or by name (``dz=...``)."""
+    return error_matrix(_six(params, named))
 
 
 def exact_error_matrix(*params: ArrayLike, **named: ArrayLike) -> Matrix:
-    """The error matrix with a full rotation: :func:`error_matrix` with ``exact=True``."""
-    return error_matrix(*params, exact=True, **named)
+    """The error matrix with a full rotation (:func:`error_matrix` with ``exact=True``)."""
+    return error_matrix(_six(params, named), exact=True)
 
 
 def error_generators() -> Matrix:
-    """The six 4x4 generators ``G_q`` with ``error_matrix(*x) = I + sum_q x_q G_q``.
+    """The six 4x4 generators ``G_q`` with ``error_matrix(x) = I + sum_q x_q G_q``.
 
     Shape ``(6, 4, 4)``, ordered as :data:`ERROR_PARAMETERS`.
     """
@@ -160,7 +163,7 @@ def error_generators() -> Matrix:
     for q in range(6):
         x = np.zeros(6)
         x[q] = 1.0
-        g[q] = error_matrix(*x) - np.eye(4)
+        g[q] = error_matrix(x) - np.eye(4)
     return g
 
 

@@ -89,45 +89,26 @@ class SignalsCsvWriter(ClosesOnExit):
     writes its rows and flushes them to the OS, so a killed run keeps every appended row.
     Use as a context manager or call :meth:`close`.
 
-    ``units`` is one unit per name (or a mapping name -> unit); ``subsystems`` and
-    ``descriptions`` are optional and default to the name's prefix and ``""``. With
-    ``fsync=True`` each append also waits for the disk (survives a power cut, costs time).
+    With ``fsync=True`` each append also waits for the disk (survives a power cut, costs time).
     """
 
     def __init__(
         self,
         path: str | os.PathLike[str],
-        names: Sequence[str],
-        units: Sequence[str] | Mapping[str, str],
+        signals: Sequence[Signal],
         *,
-        subsystems: Sequence[str] | None = None,
-        descriptions: Sequence[str] | None = None,
         sidecar: bool = True,
         fsync: bool = False,
         resume_at: tuple[int, float] | None = None,
     ) -> None:
-        """``resume_at = (byte offset, last time)`` continues a file written before (a resumed
-        run): it is cut back to that offset, and rows are appended after it."""
+        """The columns, units and subsystems come from ``signals`` (in order). ``resume_at =
+        (byte offset, last time)`` continues a file written before (a resumed run): it is cut
+        back to that offset, and rows are appended after it."""
         self.path = Path(path)
-        self.names = list(names)
+        self.signals = list(signals)
+        self.names = [s.name for s in self.signals]
         _check_names(self.names)
         self._name_set = frozenset(self.names)
-        unit_list = [units[n] for n in self.names] if isinstance(units, Mapping) else list(units)
-        subsystem_list = (
-            list(subsystems) if subsystems is not None else [_default_subsystem(n) for n in self.names]
-        )
-        description_list = list(descriptions) if descriptions is not None else [""] * len(self.names)
-        for label, values in (
-            ("units", unit_list),
-            ("subsystems", subsystem_list),
-            ("descriptions", description_list),
-        ):
-            if len(values) != len(self.names):
-                raise ValueError(f"{len(values)} {label} for {len(self.names)} names")
-        self.signals = [
-            Signal(n, u, s, d)
-            for n, u, s, d in zip(self.names, unit_list, subsystem_list, description_list, strict=True)
-        ]
         self._fsync = fsync
         self._last_time = -math.inf
         self.rows = 0
@@ -154,20 +135,6 @@ class SignalsCsvWriter(ClosesOnExit):
         assert self._file is not None
         self._file.flush()
         return self._file.tell(), self._last_time
-
-    @classmethod
-    def for_signals(
-        cls, path: str | os.PathLike[str], signals: Sequence[Signal], **kwargs: Any
-    ) -> SignalsCsvWriter:
-        """A writer whose columns, units and subsystems come from ``signals`` (in order)."""
-        return cls(
-            path,
-            [s.name for s in signals],
-            [s.unit for s in signals],
-            subsystems=[s.subsystem for s in signals],
-            descriptions=[s.description for s in signals],
-            **kwargs,
-        )
 
     def append(self, time_chunk: np.ndarray, columns_chunk: Mapping[str, np.ndarray]) -> None:
         """Write the rows of one chunk: ``time_chunk`` (s) and one array per signal name.
@@ -268,7 +235,7 @@ def write_units_sidecar(csv_path: str | os.PathLike[str], signals: Sequence[Sign
 def write_signals_csv(table: SignalTable, path: str | os.PathLike[str], *, sidecar: bool = True) -> Path:
     """Write a whole :class:`SignalTable` to ``path`` (and its units sidecar); returns ``path``."""
     signals = [table.meta[n] for n in table.names()]
-    with SignalsCsvWriter.for_signals(path, signals, sidecar=sidecar) as writer:
+    with SignalsCsvWriter(path, signals, sidecar=sidecar) as writer:
         writer.append(table.time, table.columns)
     return Path(path)
 
@@ -285,7 +252,7 @@ class SignalsCsvSink(Sink):
         self._writer: SignalsCsvWriter | None = None
 
     def open(self, signals: list[Signal]) -> None:
-        self._writer = SignalsCsvWriter.for_signals(self.path, signals, resume_at=self.resume_at)
+        self._writer = SignalsCsvWriter(self.path, signals, resume_at=self.resume_at)
 
     def write(self, block: Block) -> None:
         assert self._writer is not None, "write before open"

@@ -135,21 +135,11 @@ class BudgetColumns:
 
 
 def error_budget_png(
-    table: SignalTable,
-    path: str | os.PathLike[str],
-    *,
-    reading: str,
-    predicted: str,
-    parts: Mapping[str, str],
-    temperatures: Mapping[str, str] | Sequence[str],
-    title: str,
+    table: SignalTable, path: str | os.PathLike[str], columns: BudgetColumns, title: str
 ) -> Path:
-    """Draw the error budget of ``table`` to the PNG ``path``; returns ``path``.
-
-    The columns are those of :class:`BudgetColumns`; all lengths are shown in µm.
-    Raises ``KeyError`` naming a column the table lacks.
+    """Draw the error budget of ``table`` (its ``columns``) to the PNG ``path``; returns
+    ``path``. All lengths are shown in µm. Raises ``KeyError`` naming a column the table lacks.
     """
-    columns = BudgetColumns(reading, predicted, parts, temperatures)
     return save_png(budget_figure(table, columns, title), Path(path))
 
 

@@ -176,7 +176,7 @@ class _LazyCsv:
     def append(self, block: Block) -> None:
         if self._writer is None:
             self.created |= {self.path, units_sidecar_path(self.path)}
-            self._writer = SignalsCsvWriter.for_signals(self.path, self.evaluation.outputs)
+            self._writer = SignalsCsvWriter(self.path, self.evaluation.outputs)
         self._pending.append(self._pool.submit(self._writer.append, block.time, block.columns))
         while len(self._pending) > 2:
             self._pending.popleft().result()  # a failed write (a full disk) is raised here
