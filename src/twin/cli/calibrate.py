@@ -3,30 +3,25 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
+
+from twin.cli.common import flag, optional
 
 NAME = "calibrate"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="fit the thermal network to the paper's measured temperature rises")
-    p.add_argument(
-        "scenario", nargs="?", help="scenario whose thermal network is calibrated (default: the paper's)"
-    )
+    optional(p, "scenario", "scenario whose thermal network is calibrated (default: the paper's)")
     p.add_argument(
         "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
     )
-    p.add_argument(
-        "--write",
-        action="store_true",
-        help="replace the calibration file the scenario includes (the committed one)",
-    )
-    p.set_defaults(func=command)
+    flag(p, "--write", "replace the calibration file the scenario includes (the committed one)")
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.calibration.thermal import calibrate_file
     from twin.outputs.run_folder import check_output_file
 

@@ -44,6 +44,16 @@ class Parser(argparse.ArgumentParser):
         return parsed, extras
 
 
+def flag(p: argparse.ArgumentParser, name: str, help: str) -> None:
+    """A true-or-false option ``name`` (``--force``, ``--quiet``)."""
+    p.add_argument(name, action="store_true", help=help)
+
+
+def optional(p: argparse.ArgumentParser, name: str, help: str) -> None:
+    """A positional argument that may be left out."""
+    p.add_argument(name, nargs="?", help=help)
+
+
 def add_set(p: argparse.ArgumentParser) -> None:
     """The ``--set KEY=VALUE`` option of a command that loads a scenario."""
     p.add_argument(

@@ -5,19 +5,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
+from twin.cli.common import flag, optional
 from twin.errors import ConfigError
 
 NAME = "compensate"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="run the error model on a CSV of measurements (a lab's or a run's)")
-    p.add_argument(
+    optional(
+        p,
         "csv",
-        nargs="?",
-        help="CSV with a time column (s) and named columns in SI units, or a run folder (its own error model)",
+        "CSV with a time column (s) and named columns in SI units, or a run folder (its own error model)",
     )
     p.add_argument(
         "--template", metavar="DIR", help="write a commented LAB.toml and an example lab.csv into DIR"
@@ -28,17 +30,11 @@ def add_parser(sub: Any) -> None:
         help="[errormodel] column map and coefficients (default: the twin's names)",
     )
     p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="write into an --out folder that holds another command's outputs (a run's, a sweep's)",
-    )
-    p.set_defaults(func=command)
+    flag(p, "--force", "write into an --out folder that holds another command's outputs (a run's, a sweep's)")
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.pipeline import compensation
 
     if args.template is not None:

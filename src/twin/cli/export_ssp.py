@@ -4,26 +4,25 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import add_set
+from twin.cli.common import add_set, optional
 
 NAME = "export-ssp"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         NAME, help="write a scenario's system (FMUs, parameters, connections) as an SSP 1.0 archive"
     )
-    p.add_argument("scenario", nargs="?", help="scenario TOML file or a shipped scenario's name")
+    optional(p, "scenario", "scenario TOML file or a shipped scenario's name")
     p.add_argument("-o", "--output", required=True, metavar="FILE.ssp", help="the archive to write")
     add_set(p)
-    p.set_defaults(func=command)
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.config.load import find_scenario, load_scenario
     from twin.exchange.ssp import export_ssp
     from twin.outputs.run_folder import check_output_file

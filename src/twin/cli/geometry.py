@@ -3,22 +3,21 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 NAME = "geometry"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         NAME, help="derive the FMUs' lengths, capacities and conductances from base/tester-geometry.toml"
     )
     p.add_argument("--scenarios", metavar="DIR", help="scenarios folder (default: the shipped one)")
-    p.set_defaults(func=command)
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.calibration.geometry import write_derived_files
     from twin.config.load import scenarios_dir
 

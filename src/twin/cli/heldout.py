@@ -4,36 +4,35 @@ identified on, beside the group's MLR + AR baseline (:mod:`twin.validation.heldo
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import stop_on_signals
+from twin.cli.common import flag, stop_on_signals
 from twin.errors import ConfigError
 
 NAME = "heldout"
 DEFAULT_FILE = "validation/heldout.toml"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         NAME,
         help="identify testers as built on the calibration runs, judge the error model on held-out scenarios",
     )
-    p.add_argument("file", nargs="?", help=f"held-out file (default: scenarios/{DEFAULT_FILE})")
+    optional(p, "file", f"held-out file (default: scenarios/{DEFAULT_FILE})")
     p.add_argument("--testers", type=int, metavar="N", help="number of testers (default: the file's)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: sweeps/heldout)")
     p.add_argument(
         "--scheduler", metavar="ADDR", help="an existing Dask scheduler (default: a local cluster)"
     )
     p.add_argument("--workers", type=int, metavar="N", help="local cluster size (default: one per core)")
-    p.add_argument("--resume", action="store_true", help="run only the testers the output folder lacks")
-    p.add_argument("--quiet", action="store_true", help="print only the last line")
-    p.set_defaults(func=command)
+    flag(p, "--resume", "run only the testers the output folder lacks")
+    flag(p, "--quiet", "print only the last line")
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
     """Run the held-out validation; exit code 0 (goals missed are figures, not errors)."""
-    from pathlib import Path
-
     from twin.config.load import scenarios_dir
     from twin.outputs.run_folder import check_output_folder
     from twin.pipeline import RunControls

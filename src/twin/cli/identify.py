@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import add_set
+from twin.cli.common import add_set, flag
 
 NAME = "identify"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         NAME, help="fit the error model's coefficients to calibration experiments run on the twin"
     )
@@ -23,13 +24,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--priors", metavar="TOML", help="priors file (default: scenarios/calibration/priors.toml)"
     )
-    p.add_argument("--quiet", action="store_true", help="print only the file written")
-    p.set_defaults(func=command)
+    flag(p, "--quiet", "print only the file written")
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.calibration.identify import HEADER, identify, report_lines
     from twin.errormodel.coefficients import default_path, load_priors
     from twin.outputs.run_folder import check_output_file

@@ -14,11 +14,11 @@ from typing import Any
 NAME = "inspect"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="list an FMU's variables (causality, type, unit, start, min, max)")
     p.add_argument("target", help="an FMI 2.0 .fmu file, or a model of the twin (e.g. FixtureMechanics)")
     p.add_argument("--width", type=int, default=60, help="characters of each description shown (default 60)")
-    p.set_defaults(func=command)
+    return p
 
 
 def _text(value: Any) -> str:

@@ -52,7 +52,7 @@ def make_parser() -> Parser:
     parser.add_argument("--version", action="version", version=f"twin {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=Parser)
     for command in COMMANDS:
-        command.add_parser(sub)
+        command.add_parser(sub).set_defaults(func=command.command)
     return parser
 
 

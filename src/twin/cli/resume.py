@@ -4,23 +4,22 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import finish, progress_bar, stop_on_signals
+from twin.cli.common import finish, flag, progress_bar, stop_on_signals
 
 NAME = "resume"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="continue a killed or interrupted run from its last checkpoint")
     p.add_argument("run_dir", help="the run folder (holds run.json and checkpoint.npz)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
-    p.set_defaults(func=command)
+    flag(p, "--quiet", "no progress bar, no summary line")
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.pipeline import RunControls, RunOptions, prepare_resume, run
     from twin.validation import reports
 

@@ -6,27 +6,26 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import add_set, finish, progress_bar, stop_on_signals
+from twin.cli.common import add_set, finish, flag, optional, progress_bar, stop_on_signals
 
 NAME = "run"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="run a scenario (default: the paper's 480 min thermal experiment)")
-    p.add_argument(
+    optional(
+        p,
         "scenario",
-        nargs="?",
-        help="scenario TOML file, an SSP archive (.ssp), or a shipped scenario's name, e.g. sine-load "
+        "scenario TOML file, an SSP archive (.ssp), or a shipped scenario's name, e.g. sine-load "
         "(default: li2017-thermal-experiment)",
     )
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
-    p.add_argument(
-        "--force", action="store_true", help="replace the outputs of an earlier run in the run folder"
-    )
+    flag(p, "--force", "replace the outputs of an earlier run in the run folder")
     add_set(p)
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    flag(p, "--quiet", "no progress bar, no summary line")
     p.add_argument(
         "--uncertainty",
         type=int,
@@ -39,12 +38,11 @@ def add_parser(sub: Any) -> None:
         metavar="DURATION",
         help="save the whole twin every DURATION of simulated time (e.g. '1 h')",
     )
-    p.set_defaults(func=command, process_start=None)
+    p.set_defaults(process_start=None)
+    return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.cli import process
     from twin.pipeline import RunControls, RunOptions, prepare, run
     from twin.validation import reports

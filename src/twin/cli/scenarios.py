@@ -8,11 +8,11 @@ from typing import Any
 NAME = "list"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         NAME, help="the shipped scenarios and calibration experiments, with their descriptions"
     )
-    p.set_defaults(func=command)
+    return p
 
 
 def command(args: argparse.Namespace) -> int:

@@ -12,9 +12,10 @@ import argparse
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
-from twin.cli.common import EXIT_ON_SIGNAL, stop_on_signals
+from twin.cli.common import EXIT_ON_SIGNAL, flag, stop_on_signals
 from twin.errors import ConfigError
 
 NAME = "sweep"
@@ -30,7 +31,7 @@ def _positive(text: str) -> int:
     return n
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="run a sweep, Monte Carlo or sensitivity analysis of a scenario on Dask")
     p.add_argument("spec", help="sweep file (TOML): a base scenario and a design (see scenarios/sweeps/)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: sweeps/<sweep name>)")
@@ -42,11 +43,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--workers", type=_positive, metavar="N", help="workers of the local cluster (default: one per core)"
     )
-    p.add_argument(
-        "--resume", action="store_true", help="complete the sweep in --out: run only the missing points"
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bar, no messages")
-    p.set_defaults(func=command)
+    flag(p, "--resume", "complete the sweep in --out: run only the missing points")
+    flag(p, "--quiet", "no progress bar, no messages")
+    return p
 
 
 @contextmanager
@@ -83,8 +82,6 @@ def _progress_bar(quiet: bool) -> Iterator[Callable[[int, int, int], None] | Non
 
 
 def command(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from twin.outputs.run_folder import check_output_folder
     from twin.pipeline import RunControls
     from twin.pipeline.cluster import StudyOptions

@@ -10,11 +10,11 @@ from twin.cli.common import add_set
 NAME = "validate"
 
 
-def add_parser(sub: Any) -> None:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="check a scenario without running it")
     p.add_argument("scenario", help="scenario TOML file, SSP archive (.ssp) or shipped scenario's name")
     add_set(p)
-    p.set_defaults(func=command)
+    return p
 
 
 def command(args: argparse.Namespace) -> int:

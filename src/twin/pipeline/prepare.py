@@ -27,8 +27,6 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
-from typing import Self
 
 from twin.config.durations import parse_duration
 from twin.config.load import find_scenario, load_scenario
@@ -50,6 +48,7 @@ from twin.outputs.run_folder import (
     check_output_folder,
     scenario_fingerprint,
 )
+from twin.outputs.sink import ClosesOnExit
 from twin.pipeline.montecarlo import Uncertainty, parse_uncertainty
 from twin.pipeline.report import Report, Reports
 
@@ -82,7 +81,7 @@ class RunOptions:
 
 
 @dataclass
-class PreparedRun:
+class PreparedRun(ClosesOnExit):
     """A checked run, ready to go: what :func:`twin.pipeline.stages.run` takes.
 
     Holds the run folder's lock (when it has a folder) until :meth:`close`; use it as a
@@ -120,13 +119,6 @@ class PreparedRun:
         if self.folder is not None:
             self.folder.unlock()
 
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
 
 def prepare(
