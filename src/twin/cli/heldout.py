@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import flag, stop_on_signals
+from twin.cli.common import flag, optional, stop_on_signals
 from twin.errors import ConfigError
 
 NAME = "heldout"
