@@ -492,7 +492,7 @@ CASES = [
         setv("input.thermal.t_oil", {"profile": "constant", "value": 300.0}),
     ),
     # --- error model
-    Case("errormodel-unknown-key", "errormodel", "unknown", setv("errormodel.gain", 2.0)),
+    Case("errormodel-unknown-key", "errormodel.gain", "unknown key", setv("errormodel.gain", 2.0)),
     # --- --set
     Case("set-without-equals", "--set", "KEY=VALUE", sets=("scenario.step",)),
     Case("set-into-non-table", "--set: scenario.step.x", "not a table", sets=("scenario.step.x=1",)),
@@ -875,7 +875,7 @@ CLASS_CASES = [
     ),
     Case("em-factors-empty", "errormodel.factors", "expected a list", setv("errormodel.factors", [])),
     Case("em-factors-string", "errormodel.factors", "expected a list", setv("errormodel.factors", "thermal")),
-    Case("em-unknown-key", "errormodel", "unknown key", setv("errormodel.readings", "sensors.probe_meas")),
+    Case("em-unknown-key", "errormodel.readings", "did you mean 'reading'", setv("errormodel.readings", "sensors.probe_meas")),
     Case(
         "em-coefficients-number", "errormodel.coefficients", "file name", setv("errormodel.coefficients", 5)
     ),

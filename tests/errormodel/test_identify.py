@@ -3,7 +3,6 @@ it runs end to end on the lab's channels only and writes a valid coefficients fi
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Mapping
 from dataclasses import replace
@@ -276,12 +275,9 @@ def test_the_experiments_record_only_the_labs_channels() -> None:
 
 @pytest.mark.slow
 def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path) -> None:
-    from twin.cli.identify import add_parser
+    from twin.cli import main
 
-    parser = argparse.ArgumentParser()
-    add_parser(parser.add_subparsers())
-    args = parser.parse_args(["identify", "--out", str(tmp_path / "c.toml"), "--quiet"])
-    assert args.func(args) == 0
+    assert main(["identify", "--out", str(tmp_path / "c.toml"), "--quiet"]) == 0
     c = load_coefficients(tmp_path / "c.toml")
     assert list(c.coefficients) == list(coefficient_units())
     for name, x in c.coefficients.items():

@@ -13,12 +13,11 @@ comparison.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from twin.config.reader import read_toml
+from twin.config.reader import number_problem, read_toml
 from twin.errors import ConfigError
 
 __all__ = ["GEOMETRY_FILE", "Derived", "Geometry", "load_geometry", "positions"]
@@ -51,8 +50,9 @@ class Geometry:
         if not isinstance(node, dict) or "value" not in node or "source" not in node:
             raise ConfigError("must be a table { value = ..., source = ... }", source=self.source, key=dotted)
         v = node["value"]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
-            raise ConfigError(f"must be a finite number >= 0, got {v!r}", source=self.source, key=dotted)
+        why = number_problem(v, lo=0.0)
+        if why is not None:
+            raise ConfigError(why, source=self.source, key=dotted)
         return node
 
     def dim(self, dotted: str) -> float:

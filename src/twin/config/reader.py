@@ -33,6 +33,20 @@ from twin.errors import ConfigError, ConfigErrors, did_you_mean
 INT_LIMIT = 2**63 - 1
 
 
+def number_problem(v: Any, lo: float = -math.inf, hi: float = math.inf) -> str | None:
+    """Why ``v`` is not a finite number in [``lo``, ``hi``] (None when it is one): the one
+    number check of every file the twin reads."""
+    if not finite_number(v):
+        return f"expected a finite number, got {v!r}"
+    if lo <= v <= hi:
+        return None
+    if hi == math.inf:
+        return f"expected a finite number >= {lo:g}{' (not negative)' if lo == 0 else ''}, got {v!r}"
+    if lo == -math.inf:
+        return f"expected a finite number <= {hi:g}, got {v!r}"
+    return f"expected a finite number within [{lo:g}, {hi:g}], got {v!r}"
+
+
 def finite_number(v: Any) -> bool:
     """``v`` is an int or float a float can hold: not a bool, NaN, inf, or an integer beyond 64
     bits (``math.isfinite`` raises OverflowError on an integer beyond the float range)."""
@@ -92,17 +106,14 @@ class Problems:
         hi: float = math.inf,
     ) -> float | None:
         """``table[key]`` as a finite float in [``lo``, ``hi``], or None and a problem."""
-        v = table.get(key)
-        if isinstance(v, bool) or not isinstance(v, int | float):
-            self.add(prefix + key, f"expected a number, got {v!r}" if key in table else "missing (a number)")
+        if key not in table:
+            self.add(prefix + key, "missing (a number)")
             return None
-        if not finite_number(v):
-            self.add(prefix + key, f"expected a finite number, got {v!r}")
+        why = number_problem(table[key], lo, hi)
+        if why is not None:
+            self.add(prefix + key, why)
             return None
-        if not lo <= v <= hi:
-            self.add(prefix + key, f"expected a number in [{lo:g}, {hi:g}], got {v!r}")
-            return None
-        return float(v)
+        return float(table[key])
 
     def integer(
         self, table: Mapping[str, Any], key: str, prefix: str, *, default: int, lo: int, hi: int

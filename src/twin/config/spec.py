@@ -24,6 +24,7 @@ from typing import Any, Literal
 
 from twin.config.checks import ParameterValue, parameter_value, range_problem
 from twin.config.durations import NS_PER_S, parse_duration
+from twin.config.reader import number_problem
 from twin.errors import ConfigError
 from twin.fmu.catalog import variables as model_variables
 
@@ -170,8 +171,9 @@ def _profile_number(profile: Profile, name: str, value: Any) -> float:
             return parse_duration(value) / NS_PER_S
         except ValueError as exc:
             raise ConfigError(str(exc), key=key) from None
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ConfigError(f"expected a finite number, got {value!r}", key=key)
+    why = number_problem(value)
+    if why is not None:
+        raise ConfigError(why, key=key)
     return float(value)
 
 

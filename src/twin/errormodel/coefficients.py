@@ -48,8 +48,8 @@ from typing import Any
 
 import numpy as np
 
+from twin.config.reader import Problems, number_problem
 from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
-from twin.errors import ConfigError, ConfigErrors
 
 __all__ = [
     "DEFAULT_FILE",
@@ -281,43 +281,49 @@ def _load_unchanged(resolved: str, shown: str, inode: int, size: int, mtime_ns: 
     return parse_coefficients(read_toml_file(resolved), shown)
 
 
-def _finite(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _number(raw: Mapping[str, Any], k: str, source: str, key: str, *, positive: bool = False) -> float:
-    if k not in raw:
-        raise ConfigError("missing", source=source, key=f"{key}.{k}")
-    v = raw[k]
-    if not _finite(v):
-        raise ConfigError(f"must be a finite number, got {v!r}", source=source, key=f"{key}.{k}")
-    if positive and v < 0:
-        raise ConfigError(f"must not be negative, got {v!r}", source=source, key=f"{key}.{k}")
-    return float(v)
-
-
-def _text(raw: Mapping[str, Any], k: str, source: str, key: str, default: str | None = None) -> str:
-    v = raw.get(k, default)
-    if not isinstance(v, str):
-        raise ConfigError("missing" if v is None else "must be a string", source=source, key=f"{key}.{k}")
-    return v
-
-
-def _table(raw: Any, source: str, key: str, allowed: set[str]) -> Mapping[str, Any]:
+def _table(p: Problems, raw: Any, key: str, allowed: set[str]) -> Mapping[str, Any] | None:
+    """``raw`` when it is a table with only ``allowed`` keys (unknown ones are problems)."""
     if not isinstance(raw, Mapping):
-        raise ConfigError("expected a table", source=source, key=key)
-    unknown = sorted(set(raw) - allowed)
-    if unknown:
-        raise ConfigError(f"unknown key(s) {unknown}", source=source, key=key)
+        p.add(key, "expected a table")
+        return None
+    p.unknown_keys(raw, allowed, f"{key}." if key else "")
     return raw
 
 
-def _prior(raw: Any, unit: str, source: str, key: str) -> Prior:
-    raw = _table(raw, source, key, {"value", "sigma", "source", "unit"})
-    sigma = None if "sigma" not in raw else _number(raw, "sigma", source, key, positive=True)
+def _text(p: Problems, raw: Mapping[str, Any], k: str, key: str, default: str | None = None) -> str | None:
+    v = raw.get(k, default)
+    if not isinstance(v, str):
+        p.add(f"{key}.{k}", "missing" if v is None else "must be a string")
+        return None
+    return v
+
+
+def _prior(p: Problems, raw: Any, unit: str, key: str) -> Prior | None:
+    """A prior: its value within :data:`PRIOR_MAX`, its sigma (where it is a prior, not only a
+    start value) between :data:`PRIOR_SIGMA_MIN` and :data:`PRIOR_MAX`, its unit the declared one."""
+    raw = _table(p, raw, key, {"value", "sigma", "source", "unit"})
+    if raw is None:
+        return None
     if "unit" in raw and raw["unit"] != unit:
-        raise ConfigError(f"unit must be {unit!r}, got {raw['unit']!r}", source=source, key=f"{key}.unit")
-    return Prior(_number(raw, "value", source, key), sigma, unit, _text(raw, "source", source, key, ""))
+        p.add(f"{key}.unit", f"unit must be {unit!r}, got {raw['unit']!r}")
+        return None
+    n = len(p.items)
+    value = p.number(raw, "value", f"{key}.", lo=-PRIOR_MAX, hi=PRIOR_MAX)
+    sigma = None
+    if "sigma" in raw:
+        why = number_problem(raw["sigma"], PRIOR_SIGMA_MIN, PRIOR_MAX)
+        if why is not None:
+            p.add(
+                f"{key}.sigma",
+                f"must be a finite number > 0, from {PRIOR_SIGMA_MIN:g} to {PRIOR_MAX:g} {unit} "
+                f"(leave it out for a start value only), got {raw['sigma']!r}",
+            )
+        else:
+            sigma = float(raw["sigma"])
+    text = _text(p, raw, "source", key, "")
+    if len(p.items) > n or value is None or text is None:
+        return None
+    return Prior(value, sigma, unit, text)
 
 
 #: the largest magnitude a coefficient (and its standard error) may have, by unit: far past any
@@ -329,30 +335,39 @@ def _prior(raw: Any, unit: str, source: str, key: str) -> Prior:
 PLAUSIBLE = {"m/K": 1e-3, "m/N": 1e-6, "m": 1e-2, "rad": 1e3, "1": 10.0, "rad/(N.m)": 1.0}
 
 
-def _plausible(value: float, unit: str, source: str, key: str) -> float:
+def _plausible(p: Problems, raw: Mapping[str, Any], k: str, unit: str, key: str) -> float | None:
+    """``raw[k]``: a finite number (not negative for a standard error) no larger than any
+    tester of this kind has (:data:`PLAUSIBLE`)."""
+    value = p.number(raw, k, f"{key}.", lo=0.0 if k == "std_error" else -math.inf)
+    if value is None:
+        return None
     bound = PLAUSIBLE.get(unit, math.inf)
     if abs(value) > bound:
-        raise ConfigError(
+        p.add(
+            f"{key}.{k}",
             f"{value!r} {unit} is beyond any tester of this kind (|value| <= {bound:g} {unit})".replace(
                 " 1 ", " "
             ),
-            source=source,
-            key=key,
         )
+        return None
     return value
 
 
-def _coefficient(raw: Any, unit: str, source: str, key: str) -> Coefficient:
-    raw = _table(raw, source, key, {"value", "std_error", "unit", "experiment", "prior", "meaning"})
+def _coefficient(p: Problems, raw: Any, unit: str, key: str) -> Coefficient | None:
+    raw = _table(p, raw, key, {"value", "std_error", "unit", "experiment", "prior", "meaning"})
+    if raw is None:
+        return None
     if raw.get("unit") != unit:
         got = "no unit" if "unit" not in raw else repr(raw["unit"])
-        raise ConfigError(f"unit must be {unit!r}, got {got}", source=source, key=f"{key}.unit")
-    value = _plausible(_number(raw, "value", source, key), unit, source, f"{key}.value")
-    std_error = _plausible(
-        _number(raw, "std_error", source, key, positive=True), unit, source, f"{key}.std_error"
-    )
-    prior = _prior(raw["prior"], unit, source, f"{key}.prior") if "prior" in raw else None
-    return Coefficient(value, std_error, unit, _text(raw, "experiment", source, key), prior)
+        p.add(f"{key}.unit", f"unit must be {unit!r}, got {got}")
+        return None
+    value = _plausible(p, raw, "value", unit, key)
+    std_error = _plausible(p, raw, "std_error", unit, key)
+    prior = _prior(p, raw["prior"], unit, f"{key}.prior") if "prior" in raw else None
+    experiment = _text(p, raw, "experiment", key)
+    if value is None or std_error is None or experiment is None or ("prior" in raw and prior is None):
+        return None
+    return Coefficient(value, std_error, unit, experiment, prior)
 
 
 def _is_number(v: Any) -> bool:
@@ -403,19 +418,21 @@ _FIT_KINDS = {
 }
 
 
-def _fit(raw: Any, source: str, key: str) -> Fit:
-    raw = _table(raw, source, key, set(_FIT_KINDS))
+def _fit(p: Problems, raw: Any, key: str) -> Fit | None:
+    raw = _table(p, raw, key, set(_FIT_KINDS))
+    if raw is None:
+        return None
     values = {}
     for k, kind in _FIT_KINDS.items():
         check, convert, what = _FIT_FIELDS[kind]
         if k not in raw or not check(raw[k]):
-            raise ConfigError(f"must be {what}", source=source, key=f"{key}.{k}")
+            p.add(f"{key}.{k}", f"must be {what}")
+            return None
         values[k] = convert(raw[k])
     n = len(values["parameters"])
     if n == 0 or any(len(row) != n for row in values["correlation"]) or len(values["correlation"]) != n:
-        raise ConfigError(
-            f"must be {n} x {n}, one row per parameter", source=source, key=f"{key}.correlation"
-        )
+        p.add(f"{key}.correlation", f"must be {n} x {n}, one row per parameter")
+        return None
     return Fit(**values)
 
 
@@ -423,28 +440,34 @@ def parse_coefficients(data: Mapping[str, Any], source: str) -> Coefficients:
     """Check a coefficients file's data (or a lab's inline table with ``coefficients`` only).
 
     Every coefficient the error model declares must be there, with a finite value, a finite
-    non-negative standard error, the declared unit and the experiment it came from.
+    non-negative standard error, the declared unit and the experiment it came from; every
+    problem is reported at once, one line each.
     """
-    _table(data, source, "", {"identified", "coefficients", "fit"})
+    p = Problems(source)
+    _table(p, data, "", {"identified", "coefficients", "fit"})
     units = coefficient_units()
-    raw = _table(data.get("coefficients"), source, "coefficients", set(units))
+    raw = _table(p, data.get("coefficients"), "coefficients", set(units)) or {}
     missing = [name for name in units if name not in raw]
-    if missing:
-        raise ConfigError(
+    if missing and raw and not set(raw) - set(units):  # a misspelt name is the first thing to say
+        p.add(
+            "coefficients",
             f"missing coefficient(s): {', '.join(missing)} (`twin identify` writes every one the "
             "error model declares; a file from an older twin lacks the newer ones)",
-            source=source,
-            key="coefficients",
         )
     coefficients = {
-        name: _coefficient(raw[name], unit, source, f"coefficients.{name}") for name, unit in units.items()
+        name: _coefficient(p, raw[name], unit, f"coefficients.{name}")
+        for name, unit in units.items()
+        if name in raw
     }
-    fits = {
-        name: _fit(f, source, f"fit.{name}")
-        for name, f in _table(data.get("fit", {}), source, "fit", set(data.get("fit", {}))).items()
-    }
-    identified = _table(data.get("identified", {}), source, "identified", set(data.get("identified", {})))
-    return Coefficients(coefficients, fits, dict(identified))
+    fit_tables = p.table(data, "fit")
+    fits = {name: _fit(p, f, f"fit.{name}") for name, f in fit_tables.items()}
+    identified = p.table(data, "identified")
+    p.check()
+    return Coefficients(
+        {k: v for k, v in coefficients.items() if v is not None},
+        {k: v for k, v in fits.items() if v is not None},
+        dict(identified),
+    )
 
 
 #: the largest magnitude of a prior's value and sigma, in the coefficient's SI unit. Every
@@ -470,49 +493,23 @@ def load_priors(path: str | Path | None = None) -> dict[str, Prior]:
     path = priors_path() if path is None else Path(path)
     source = str(path)
     data = read_toml_file(path)
-    _table(data, source, "", {"priors"})
+    p = Problems(source)
+    _table(p, data, "", {"priors"})
     units = coefficient_units()
-    raw = _table(data.get("priors"), source, "priors", set(units))
-    problems: list[ConfigError] = []
+    raw = _table(p, data.get("priors"), "priors", set(units)) or {}
     missing = [name for name in units if name not in raw]
     if missing:
-        problems.append(ConfigError(f"missing prior(s): {', '.join(missing)}", source=source, key="priors"))
+        p.add("priors", f"missing prior(s): {', '.join(missing)}")
     priors = {}
     for name, unit in units.items():
         if name not in raw:
             continue
         key = f"priors.{name}"
         if not isinstance(raw[name], Mapping) or raw[name].get("unit") != unit:
-            problems.append(ConfigError(f"unit must be {unit!r}", source=source, key=f"{key}.unit"))
+            p.add(f"{key}.unit", f"unit must be {unit!r}")
             continue
-        found = [ConfigError(m, source=source, key=f"{key}.{k}") for k, m in _prior_bounds(raw[name], unit)]
-        try:
-            prior = _prior(raw[name], unit, source, key)
-        except ConfigError as exc:
-            found = found or [exc]
-        problems += found
-        if not found:
+        prior = _prior(p, raw[name], unit, key)
+        if prior is not None:
             priors[name] = prior
-    if problems:
-        raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
+    p.check()
     return priors
-
-
-def _prior_bounds(raw: Mapping[str, Any], unit: str) -> list[tuple[str, str]]:
-    """(key, problem) of a prior's value and sigma beyond what the fit can use (see
-    :data:`PRIOR_MAX`); a missing value is :func:`_prior`'s to report."""
-    out = []
-    value = raw.get("value", 0.0)
-    if not _finite(value) or abs(value) > PRIOR_MAX:
-        out.append(("value", f"must be a finite number within +-{PRIOR_MAX:g} {unit}, got {value!r}"))
-    if "sigma" in raw:
-        sigma = raw["sigma"]
-        if not _finite(sigma) or not PRIOR_SIGMA_MIN <= sigma <= PRIOR_MAX:
-            out.append(
-                (
-                    "sigma",
-                    f"must be a finite number > 0, from {PRIOR_SIGMA_MIN:g} to {PRIOR_MAX:g} {unit} "
-                    f"(leave it out for a start value only), got {sigma!r}",
-                )
-            )
-    return out

@@ -18,7 +18,7 @@ from collections.abc import Mapping, Set
 from pathlib import Path
 from typing import Any
 
-from twin.config.reader import did_you_mean
+from twin.config.reader import Problems
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errormodel.coefficients import (
     Coefficients,
@@ -36,7 +36,7 @@ from twin.errormodel.sources import (
     MechanicalCoefficients,
     ThermalCoefficients,
 )
-from twin.errors import ConfigError, ConfigErrors
+from twin.errors import ConfigError, ConfigErrors, did_you_mean
 
 
 def model_defaults() -> dict[str, float]:
@@ -84,26 +84,34 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
 def errormodel_config(
     values: Mapping[str, float] | None, em: Mapping[str, Any], source: str, window_s: float
 ) -> EvaluationConfig:
-    """An :class:`EvaluationConfig` from an ``[errormodel]`` table. Its coefficients are those
-    the table names (``coefficients``), else ``values``, else (``None``) the committed ones."""
-    em = dict(em)
+    """An :class:`EvaluationConfig` from an ``[errormodel]`` table, every problem of it at once
+    (one line each). Its coefficients are those the table names (``coefficients``), else
+    ``values``, else (``None``) the committed ones."""
+    p = Problems(source)
+    p.unknown_keys(
+        em,
+        {"coefficients", "temperatures", "reading", "true_wear", "factors", *_sensor_fields()},
+        "errormodel.",
+    )
     named = coefficients_for(em, source)
-    em.pop("coefficients", None)
     if named is not None:
         values = named.values()
     elif values is None:
         values = model_defaults()
-    columns = _pop_columns(em, source)
-    factors = _factors(em.pop("factors", list(PARTS)), source)
-    if em:
-        raise ConfigError(f"unknown key(s) {sorted(em)}", source=source, key="errormodel")
-    _check_columns(columns, source)
+    temperatures = _temperatures(p, em)
+    columns = {
+        "reading": _column(p, em, "reading", DEFAULT_READING),
+        "true_wear": _column(p, em, "true_wear", DEFAULT_TRUE_WEAR),
+        **{k: _column(p, em, k, "") for k in _sensor_fields() if k in em},
+    }
+    factors = _factors(p, em.get("factors", list(PARTS)))
+    p.check()
     return EvaluationConfig(
         thermal=ThermalCoefficients.from_values(values, source=source),
         mechanics=MechanicalCoefficients.from_values(values, source=source),
         factors=tuple(factors),
         **{k: v for k, v in columns.items() if k in _sensor_fields()},
-        temperatures=columns["temperatures"],
+        temperatures=temperatures,
         reading=str(columns["reading"]),
         true_wear=str(columns["true_wear"]) if columns["true_wear"] else None,
         window_s=window_s,
@@ -117,64 +125,60 @@ def _sensor_fields() -> list[str]:
     return [name for name in COLUMN_FIELDS if name in declared]
 
 
-def _pop_columns(em: dict[str, Any], source: str) -> dict[str, Any]:
-    """Take the column names out of an ``[errormodel]`` table: the temperatures (merged over
-    the twin's), the reading, the true wear and those of the optional instruments given."""
+def _column_problem(value: Any) -> str | None:
+    """Why ``value`` cannot name a data column (a string, not empty, not ``time``)."""
+    if not isinstance(value, str):
+        return f"expected a column name (a string), got {type(value).__name__}"
+    if not value.strip() or value == "time":
+        what = "an empty name" if not value.strip() else "'time', the time axis"
+        return f"expected a data column's name, got {what}"
+    return None
+
+
+def _column(p: Problems, em: Mapping[str, Any], key: str, default: str | None) -> str | None:
+    """The column ``em[key]`` names (``default`` without one); a problem when it names none."""
+    value = em.get(key, default)
+    if key == "true_wear" and value is None:
+        return None
+    why = _column_problem(value)
+    if why is not None:
+        p.add(f"errormodel.{key}", why)
+        return default
+    return value
+
+
+def _temperatures(p: Problems, em: Mapping[str, Any]) -> dict[str, str]:
+    """The temperature columns by measuring point: the table's merged over the twin's."""
     temperatures = dict(DEFAULT_TEMPERATURES)
-    if "temperatures" in em:
-        if not isinstance(em["temperatures"], dict):
-            raise ConfigError(
-                f"expected a table point = column, got {type(em['temperatures']).__name__}",
-                source=source,
-                key="errormodel.temperatures",
+    given = em.get("temperatures", {})
+    if not isinstance(given, dict):
+        p.add("errormodel.temperatures", f"expected a table point = column, got {type(given).__name__}")
+        return temperatures
+    for point, column in given.items():
+        key = f"errormodel.temperatures.{point}"
+        if point not in DEFAULT_TEMPERATURES:  # a misspelt point would be read as nothing
+            p.add(
+                key,
+                f"unknown measuring point{did_you_mean(str(point), DEFAULT_TEMPERATURES)} "
+                f"(the points: {', '.join(DEFAULT_TEMPERATURES)})",
             )
-        for point in em["temperatures"]:
-            if point not in DEFAULT_TEMPERATURES:  # a misspelt point would be read as nothing
-                raise ConfigError(
-                    f"unknown measuring point{did_you_mean(str(point), DEFAULT_TEMPERATURES)} "
-                    f"(the points: {', '.join(DEFAULT_TEMPERATURES)})",
-                    source=source,
-                    key=f"errormodel.temperatures.{point}",
-                )
-        temperatures.update(em.pop("temperatures"))
-    return {
-        "temperatures": temperatures,
-        "reading": em.pop("reading", DEFAULT_READING),
-        "true_wear": em.pop("true_wear", DEFAULT_TRUE_WEAR),
-        **{k: em.pop(k) for k in _sensor_fields() if k in em},
-    }
+        elif (why := _column_problem(column)) is not None:
+            p.add(key, why)
+        else:
+            temperatures[point] = column
+    return temperatures
 
 
-def _factors(factors: Any, source: str) -> list[str]:
+def _factors(p: Problems, factors: Any) -> list[str]:
     """The ``factors`` list: names of :data:`PARTS`, each once, at least one."""
     ok = isinstance(factors, list) and factors and all(isinstance(f, str) and f in PARTS for f in factors)
     if not ok:
-        raise ConfigError(f"expected a list from {list(PARTS)}", source=source, key="errormodel.factors")
+        p.add("errormodel.factors", f"expected a list from {list(PARTS)}")
+        return list(PARTS)
     twice = sorted({f for f in factors if factors.count(f) > 1})
     if twice:
-        raise ConfigError(f"{twice} given twice", source=source, key="errormodel.factors")
+        p.add("errormodel.factors", f"{twice} given twice")
     return list(factors)
-
-
-def _check_columns(columns: dict[str, Any], source: str) -> None:
-    """Every column name a string naming a data column (not empty, not ``time``): one line
-    naming the key otherwise."""
-    named = [
-        (k, v) for k, v in columns.items() if k != "temperatures" and not (k == "true_wear" and v is None)
-    ]
-    named += [(f"temperatures.{p}", v) for p, v in columns["temperatures"].items()]
-    for key, value in named:
-        if not isinstance(value, str):
-            raise ConfigError(
-                f"expected a column name (a string), got {type(value).__name__}",
-                source=source,
-                key=f"errormodel.{key}",
-            )
-        if not value.strip() or value == "time":
-            what = "an empty name" if not value.strip() else "'time', the time axis"
-            raise ConfigError(
-                f"expected a data column's name, got {what}", source=source, key=f"errormodel.{key}"
-            )
 
 
 def input_columns(cfg: EvaluationConfig) -> set[str]:

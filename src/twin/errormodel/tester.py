@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.config.reader import number_problem
 from twin.errormodel.model import ErrorModel, Joint
 from twin.errormodel.topology import Body, Topology
 from twin.errormodel.transforms import rotation_x, rotation_y, rotation_z, translation
@@ -144,8 +145,9 @@ def _value(raw: Any, key: str, problems: list[ConfigError], source: str) -> Valu
         problems.append(ConfigError("must be a table { value = ..., source = ... }", source=source, key=key))
         return None
     v, src = raw["value"], raw["source"]
-    if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
-        problems.append(ConfigError(f"value must be a finite number, got {v!r}", source=source, key=key))
+    why = number_problem(v)
+    if why is not None:
+        problems.append(ConfigError(f"value: {why}", source=source, key=key))
         return None
     if src not in SOURCES:
         problems.append(

@@ -399,27 +399,26 @@ class RunFolder:
 
 
 def _run_meta(path: Path) -> RunMeta:
-    """Read ``run.json``; a malformed one is one line, exit code 2."""
+    """Read ``run.json``; a malformed one is one line per problem, exit code 2."""
+    from twin.config.reader import Problems
+
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise ConfigError(f"unreadable: {type(exc).__name__}: {exc}", source=str(path)) from None
-    ok = (
-        isinstance(data, dict)
-        and isinstance(data.get("scenario"), str)
-        and isinstance(data.get("overrides", []), list)
-        and all(isinstance(o, str) for o in data.get("overrides", []))
-        and data.get("loop", "fast") in ("fast", "python")
-        and (data.get("checkpoint_every_ns") is None or type(data.get("checkpoint_every_ns")) is int)
-    )
-    if not ok:
-        raise ConfigError(
-            "malformed: expected scenario (a path), overrides (strings), loop, checkpoint_every_ns",
-            source=str(path),
+    p = Problems(str(path))
+    if not isinstance(data, dict):
+        p.add(
+            "", "malformed: expected an object with scenario (a path), overrides, loop, checkpoint_every_ns"
         )
-    return RunMeta(
-        scenario=data["scenario"],
-        overrides=tuple(data.get("overrides", [])),
-        loop=data.get("loop", "fast"),
-        checkpoint_every_ns=data.get("checkpoint_every_ns"),
-    )
+        p.check()
+    if not isinstance(data.get("scenario"), str):
+        p.add("scenario", "malformed: expected the scenario file's path")
+    overrides = p.strings(data, "overrides", "")
+    if data.get("loop", "fast") not in ("fast", "python"):
+        p.add("loop", f"malformed: expected 'fast' or 'python', got {data.get('loop')!r}")
+    every = data.get("checkpoint_every_ns")
+    if every is not None and type(every) is not int:
+        p.add("checkpoint_every_ns", f"malformed: expected null or an integer, got {every!r}")
+    p.check()
+    return RunMeta(data["scenario"], overrides, data.get("loop", "fast"), every)

@@ -224,42 +224,31 @@ class _FlagFile:
 
 
 def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str]:
-    """The error model's configuration from ``config_path`` (the twin's defaults without
-    one), and the name problems are reported under."""
+    """The error model's configuration from a lab's ``config_path`` (LAB.toml: its
+    ``[errormodel]`` table, and ``drift_window``; the twin's defaults without one), and the name
+    problems are reported under."""
     source = str(config_path) if config_path else "compensate"
     em: dict[str, Any] = {}
-    if config_path is not None:
-        em = _read_errormodel_table(config_path, source)
     window_s = DEFAULT_WINDOW_S
-    if "drift_window" in em:
-        from twin.config.load import parse_duration
+    if config_path is not None:
+        from twin.config.reader import Problems, read_toml
 
-        try:
-            window_s = parse_duration(em.pop("drift_window")) / NS_PER_S
-        except ValueError as exc:
-            raise ConfigError(str(exc), source=source, key="errormodel.drift_window") from None
-        if window_s <= 0:
-            raise ConfigError(
-                "must be positive (the drift's ends are lines through this much of the record)",
-                source=source,
-                key="errormodel.drift_window",
-            )
+        data = read_toml(config_path, source)
+        p = Problems(source)
+        p.unknown_keys(data, {"errormodel"}, "")
+        em = dict(p.table(data, "errormodel"))
+        if "drift_window" in em:
+            window_ns = p.duration(em, "drift_window", "errormodel.")
+            if window_ns is not None and window_ns <= 0:
+                p.add(
+                    "errormodel.drift_window",
+                    "must be positive (the drift's ends are lines through this much of the record)",
+                )
+            elif window_ns is not None:
+                window_s = window_ns / NS_PER_S
+            em.pop("drift_window")
+        p.check()
     return errormodel_config(model_defaults(), em, source, window_s), source
-
-
-def _read_errormodel_table(path: Path, source: str) -> dict[str, Any]:
-    from twin.config.reader import read_toml
-
-    data = read_toml(path, source)
-    unknown = sorted(set(data) - {"errormodel"})
-    if unknown:
-        raise ConfigError(f"unknown key(s) {unknown} (expected [errormodel])", source=source)
-    table = data.get("errormodel", {})
-    if not isinstance(table, dict):
-        raise ConfigError(
-            f"expected a table [errormodel], got {type(table).__name__}", source=source, key="errormodel"
-        )
-    return dict(table)
 
 
 @dataclass(frozen=True)

@@ -120,7 +120,6 @@ class PreparedRun(ClosesOnExit):
             self.folder.unlock()
 
 
-
 def prepare(
     source: str | Path | Scenario | None,
     overrides: Sequence[str] = (),

@@ -20,7 +20,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from twin.config.reader import Problems
+from twin.config.reader import Problems, finite_number
 from twin.config.spec import Scenario
 
 __all__ = [
@@ -42,16 +42,12 @@ _SPREAD_KEYS = {"dist", "sigma", "relative", "mean", "median", "half_width", "lo
 Row = tuple[str, str, list[float]]
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def check_dist(dist: Any, bounds: Any) -> str | None:
     """Why ``bounds`` cannot parametrise SALib's ``dist`` (None when they can)."""
     if dist not in DISTS:
         return f"unknown distribution {dist!r} (expected one of: {', '.join(DISTS)})"
     n = DISTS[dist]
-    if not isinstance(bounds, list) or len(bounds) != n or not all(_is_number(b) for b in bounds):
+    if not isinstance(bounds, list) or len(bounds) != n or not all(finite_number(b) for b in bounds):
         return f"{dist} takes {n} finite numbers"
     b = [float(x) for x in bounds]
     rules = {
@@ -98,7 +94,7 @@ def _row(p: Problems, key: str, raw: Any, nominal: float | None) -> Row | None:
         p.add(where, "expected a table { dist = ..., sigma = ... }")
         return None
     p.unknown_keys(raw, _SPREAD_KEYS, where + ".")
-    bad = [k for k in sorted(_SPREAD_KEYS - {"dist", "relative"}) if k in raw and not _is_number(raw[k])]
+    bad = [k for k in sorted(_SPREAD_KEYS - {"dist", "relative"}) if k in raw and not finite_number(raw[k])]
     if bad:
         p.add(f"{where}.{bad[0]}", f"expected a finite number, got {raw[bad[0]]!r}")
         return None

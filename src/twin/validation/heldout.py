@@ -29,12 +29,13 @@ from typing import Any
 import numpy as np
 
 from twin.config.load import load_scenario
+from twin.config.reader import Problems
 from twin.config.spec import Scenario
 from twin.cosim.controls import RunControls
 from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
 from twin.errormodel.identify import Experiment, Record
-from twin.errors import ConfigError, ConfigErrors, RunError
+from twin.errors import ConfigError, RunError
 from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
@@ -77,14 +78,7 @@ class HeldOut:
     goals: Mapping[str, float] = field(default_factory=dict)
 
 
-def _number(p: list[ConfigError], src: str, key: str, v: Any, lo: float) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < lo:
-        p.append(ConfigError(f"expected a number >= {lo}, got {v!r}", source=src, key=key))
-        return lo
-    return float(v)
-
-
-def _loads(src: str, key: str, path: Path, sets: Sequence[str]) -> list[ConfigError]:
+def _loads(p: Problems, key: str, path: Path, sets: Sequence[str]) -> None:
     """The problems of a scenario file the held-out file names, loaded with its overrides as
     every tester's run will be: found before any tester runs, not by every tester's worker."""
     from twin.pipeline.prepare import prepare_scenario
@@ -96,82 +90,70 @@ def _loads(src: str, key: str, path: Path, sets: Sequence[str]) -> list[ConfigEr
         first = problems[0]
         where = ": ".join(x for x in (path.name, first.key) if x)
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-        return [ConfigError(f"{where}: {first.message or first}{more}", source=src, key=key)]
-    return []
+        p.add(key, f"{where}: {first.message or first}{more}")
 
 
-def _scenarios(p: list[ConfigError], src: str, folder: Path, raw: Any) -> list[HeldOutScenario]:
+def _scenarios(p: Problems, folder: Path, raw: Any) -> list[HeldOutScenario]:
     if not isinstance(raw, list) or not raw:
-        p.append(ConfigError("expected at least one [[scenario]]", source=src, key="scenario"))
+        p.add("scenario", "expected at least one [[scenario]]")
         return []
     out = []
     for i, s in enumerate(raw):
         where = f"scenario[{i}]"
         if not isinstance(s, dict) or not isinstance(s.get("file"), str):
-            p.append(ConfigError("expected a table with file = '...'", source=src, key=where))
+            p.add(where, "expected a table with file = '...'")
             continue
-        p += [
-            ConfigError("unknown key", source=src, key=f"{where}.{k}") for k in s if k not in _SCENARIO_KEYS
-        ]
+        p.unknown_keys(s, _SCENARIO_KEYS, f"{where}.")
         path = (folder / s["file"]).resolve()
-        sets = s.get("set", [])
-        if not isinstance(sets, list) or not all(isinstance(x, str) for x in sets):
-            p.append(ConfigError("expected a list of KEY=VALUE strings", source=src, key=f"{where}.set"))
-            sets = []
+        sets = p.strings(s, "set", f"{where}.")
         if not path.is_file():
-            p.append(ConfigError(f"no such file {s['file']!r}", source=src, key=f"{where}.file"))
+            p.add(f"{where}.file", f"no such file {s['file']!r}")
         else:
-            p += _loads(src, f"{where}.file", path, sets)
+            _loads(p, f"{where}.file", path, sets)
         name = s.get("name", path.stem)
-        out.append(HeldOutScenario(str(name), path, tuple(sets), bool(s.get("thermal_only", False))))
+        thermal = p.boolean(s, "thermal_only", f"{where}.", default=False)
+        out.append(HeldOutScenario(str(name), path, sets, thermal))
     names = [s.name for s in out]
     if len(set(names)) != len(names):
-        p.append(ConfigError("two scenarios share a name", source=src, key="scenario"))
+        p.add("scenario", "two scenarios share a name")
     return out
 
 
 def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     """Read and check a held-out file; every problem at once (:class:`ConfigErrors`)."""
     from twin.config.reader import read_toml
-
-    path = Path(path)
-    src, folder = str(path), path.resolve().parent
-    raw = read_toml(path, src)
-    p = [ConfigError("unknown table", source=src, key=k) for k in raw if k not in _TOP]
-    h = raw.get("heldout", {}) if isinstance(raw.get("heldout"), dict) else {}
-    p += [ConfigError("unknown key", source=src, key=f"heldout.{k}") for k in h if k not in _HELDOUT_KEYS]
-    spreads = (folder / str(h.get("spreads", "testers-as-built.toml"))).resolve()
-    if not spreads.is_file():
-        p.append(ConfigError(f"no such file {spreads.name!r}", source=src, key="heldout.spreads"))
-    calibration = (folder / str(h.get("calibration", "../calibration"))).resolve()
     from twin.errormodel.identify import EXPERIMENTS  # the experiments every tester runs
 
+    path = Path(path)
+    folder = path.resolve().parent
+    raw = read_toml(path, str(path))
+    p = Problems(str(path))
+    p.unknown_keys(raw, _TOP, "")
+    h = p.table(raw, "heldout")
+    p.unknown_keys(h, _HELDOUT_KEYS, "heldout.")
+    spreads = (folder / str(h.get("spreads", "testers-as-built.toml"))).resolve()
+    if not spreads.is_file():
+        p.add("heldout.spreads", f"no such file {spreads.name!r}")
+    calibration = (folder / str(h.get("calibration", "../calibration"))).resolve()
     missing = sorted({e.scenario for e in EXPERIMENTS if not (calibration / e.scenario).is_file()})
     if missing:
-        p.append(
-            ConfigError(
-                f"{calibration} lacks the calibration experiments {', '.join(missing)}",
-                source=src,
-                key="heldout.calibration",
-            )
-        )
-    n = testers if testers is not None else h.get("testers", 50)
-    goals_raw = raw.get("goals", {}) if isinstance(raw.get("goals"), dict) else {}
-    p += [ConfigError("unknown goal", source=src, key=f"goals.{k}") for k in goals_raw if k not in GOAL_KEYS]
-    goals = {k: _number(p, src, f"goals.{k}", v, 0.0) for k, v in goals_raw.items() if k in GOAL_KEYS}
+        p.add("heldout.calibration", f"{calibration} lacks the calibration experiments {', '.join(missing)}")
+    goals_raw = p.table(raw, "goals")
+    p.unknown_keys(goals_raw, set(GOAL_KEYS), "goals.")
+    goals = {k: p.number(goals_raw, k, "goals.", lo=0.0) for k in GOAL_KEYS if k in goals_raw}
+    count = {"testers": testers} if testers is not None else h
     cfg = HeldOut(
         path=path,
         spreads=spreads,
-        testers=int(_number(p, src, "heldout.testers", n, 1)),
-        seed=int(_number(p, src, "heldout.seed", h.get("seed", 0), 0)),
+        testers=p.integer(count, "testers", "heldout.", default=50, lo=1, hi=10**6),
+        seed=p.integer(h, "seed", "heldout.", default=0, lo=0, hi=2**63 - 1),
         room=str(h.get("room", "input.thermal.t_room")),
-        room_drift_K=_number(p, src, "heldout.room_drift_K", h.get("room_drift_K", 1.0), 0.0),
+        room_drift_K=p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0,
         calibration=calibration,
-        scenarios=tuple(_scenarios(p, src, folder, raw.get("scenario"))),
-        goals=goals,
+        scenarios=tuple(_scenarios(p, folder, raw.get("scenario"))),
+        goals={k: v for k, v in goals.items() if v is not None},
     )
-    if p:
-        raise p[0] if len(p) == 1 else ConfigErrors(p)
+    p.check()
     return cfg
 
 
