@@ -216,3 +216,15 @@ def test_a_description_is_parsed_once_per_content(tmp_path: Path) -> None:
     other = describe(edited)
     assert "servo_freq" in other.variables and "servo_frequency" not in other.variables
     assert "servo_frequency" in describe(source).variables
+
+
+def test_roles_name_outputs_of_their_model_and_an_fmu_from_elsewhere_has_none(lowpass_fmu: Path) -> None:
+    """What the twin reads by meaning (the swing counter, a body's true displacement, the
+    temperatures the 3D view draws) is declared by the FMUs themselves, each an output."""
+    declared = {m: dict(catalog.roles(m)) for m in catalog.model_names()}
+    assert declared["OscillationDrive"]["swing_cycles"] == "cycles"
+    assert declared["FixtureMechanics"]["thermal_dz.detecting_frame"] == "dz_detecting_frame"
+    for model, roles in declared.items():
+        variables = catalog.variables(model)
+        assert all(variables[v].causality == "output" for v in roles.values()), model
+    assert catalog.describe(lowpass_fmu).roles == {}
