@@ -71,7 +71,7 @@ def test_signals_are_readable_by_fmpy(paper_run: tuple[Path, dict]) -> None:
 
 @pytest.mark.parametrize("point", sorted(TEMPERATURE_RISE_K))
 def test_temperature_rise_within_five_sigma_of_the_paper(paper_run: tuple[Path, dict], point: str) -> None:
-    # the drawing's network under its priors does not reach every rise (src/twin/calibrate.py):
+    # the drawing's network under its priors does not reach every rise (src/twin/calibration/thermal.py):
     # each stays within five of the rises' 0.3 K measurement sigma (the frame misses by 1.3 K)
     _, summary = paper_run
     assert summary["temperature_rise_C"][point] == pytest.approx(TEMPERATURE_RISE_K[point], abs=1.5)

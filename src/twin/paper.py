@@ -1,4 +1,4 @@
-"""The seed paper's numbers the twin is calibrated to or validated against (facts.md section 2).
+"""The seed paper's numbers the twin is calibrated to or validated against (docs/reference/facts.md section 2).
 
 Li W., Hu Z., Yang Y., Fan B., Zhou H.: Modeling and verification of comprehensive errors of
 real-time wear-depth detecting for spherical plain bearing tester. J. Cent. South Univ. 2017,
@@ -32,7 +32,7 @@ PROBE_START_M = 4.805e-3
 PROBE_END_M = 4.784e-3
 DRIFT_M = PROBE_END_M - PROBE_START_M  # -0.021 mm: the reading falls
 
-#: the paper's FEM part results at the measured rises, m (Z down; facts.md section 2).
+#: the paper's FEM part results at the measured rises, m (Z down; docs/reference/facts.md section 2).
 #: 'bearing_block' is derived from the paper's arithmetic (Table 6 is not in the text).
 FEM_PARTS_M: dict[str, float] = {
     "bearing_block": -0.018e-3,  # inner ring of the roller bearing rises [derived]

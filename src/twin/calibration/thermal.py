@@ -1,13 +1,13 @@
 """Calibrate the thermal network to the paper's seven measured temperature rises, with priors.
 
-The network's capacities and conductances come from the drawing (``twin.geometry``). Seven rises
+The network's capacities and conductances come from the drawing (:mod:`twin.config.drawing`, :mod:`twin.calibration.geometry`). Seven rises
 cannot identify its 16 uncertain values, so the fit is posed as a regularised (maximum a
 posteriori) least squares in log-factors on the drawing's values:
 
     minimise  sum_b ((rise_b(theta) - measured_b) / sigma_meas)^2  +  sum_k (theta_k / sigma_k)^2
 
 with ``sigma_meas`` the rises' measurement uncertainty and ``sigma_k`` each value's documented
-spread (facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the drive
+spread (docs/reference/facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the drive
 train's mass is a guess, 50 %). No parameter has a bound, so none can end at one. The data move
 only the directions they inform: the report gives the rank of the rises' Jacobian, how many
 directions the data inform more than the priors do, each parameter's posterior standard error
@@ -184,7 +184,7 @@ def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, The
     """The calibrated values with their source and standard error, as a scenario parameter file."""
     lines = [
         "# Thermal network: the drawing's values (base/geometry-thermal.toml) updated by the paper's seven",
-        "# measured rises in a regularised least squares with documented priors (src/twin/calibrate.py).",
+        "# measured rises in a regularised least squares with documented priors (src/twin/calibration/thermal.py).",
         "# Made by `twin calibrate --write`; the probe drift is NOT used here.",
         f"# Rises at 480 min (K, twin vs paper, measurement sigma {SIGMA_MEAS_K} K): "
         + ", ".join(f"{b} {cal.rises[b]:.2f}/{TEMPERATURE_RISE_K[b]}" for b in BODIES),

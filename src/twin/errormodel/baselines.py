@@ -1,7 +1,7 @@
 """The group's own thermal compensation, as the baseline the MBS error model must beat.
 
 Hu et al., Chinese Journal of Mechanical Engineering 2018 (DOI 10.1186/s10033-018-0288-4,
-facts.md section 3): the probe's thermal drift is a multiple linear regression (MLR) on the
+docs/reference/facts.md section 3): the probe's thermal drift is a multiple linear regression (MLR) on the
 measured temperatures, and what the regression leaves is an autoregressive (AR) time series;
 their bench reached a largest residual of 1 um.
 

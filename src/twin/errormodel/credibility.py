@@ -1,4 +1,4 @@
-"""Credibility indexes of an on-line wear curve (Adv. Mech. Eng. 2016, facts.md section 3).
+"""Credibility indexes of an on-line wear curve (Adv. Mech. Eng. 2016, docs/reference/facts.md section 3).
 
 (I) the discrete Frechet distance between the on-line curve and the true (off-line) curve,
 by the Eiter and Mannila (1994) recursion; (II) the fluctuation amplitude of the on-line curve,

@@ -56,7 +56,7 @@ __all__ = [
     "factor_list",
 ]
 
-#: how the tester's bodies group into the paper's four FEM part results (facts.md 2)
+#: how the tester's bodies group into the paper's four FEM part results (docs/reference/facts.md 2)
 FEM_GROUPS: dict[str, tuple[str, ...]] = {
     "bearing_block": ("bearing_block",),
     "t_plate": ("testing_spindle", "spherical_plain_bearing", "t_plate"),

@@ -2,7 +2,7 @@
 
 Boxes for the base, heel block, bearing block, spindle, T-plate, long pole, clamp, detecting
 frame and sensor, sized from the geometry source (``scenarios/base/tester-geometry.toml``; their
-heights and the pole's and frame's lengths placed as :func:`twin.geometry.positions` derives
+heights and the pole's and frame's lengths placed as :func:`twin.config.drawing.positions` derives
 them; where along X and Y a body stands is a schematic placement, not a drawing). Over time:
 
 * each body is coloured by its temperature rise since the start (blue = the run's lowest, red =

@@ -1,6 +1,6 @@
 """``twin heldout``: the error model judged on testers it was not identified on... by a lab's rules.
 
-For each of N testers as built (:mod:`twin.validation.draws`, the spreads of facts.md
+For each of N testers as built (:mod:`twin.uncertainty.testers`, the spreads of docs/reference/facts.md
 section 6), on a Dask worker:
 
 1. every calibration experiment of ``twin identify`` (``scenarios/calibration/``) runs on that
