@@ -131,13 +131,13 @@ def test_user_measurement_without_sidecar(tmp_path: Path) -> None:
     [
         ("", "empty file"),
         ("t,x.a\n0,1\n", "first column must be 'time'"),
-        ("time,x.a,x.a\n0,1,2\n", "'x.a' appears twice"),
+        ("time,x.a,x.a\n0,1,2\n", "column(s) ['x.a'] appear twice"),
         ("time,x.a,\n0,1,2\n", "empty column name"),
-        ("time,x.a\n0,1\n1,2,3\n", "line 3: 3 values, header has 2 columns"),
-        ("time,x.a\n0,1\n1,abc\n", "line 3, column 'x.a': 'abc' is not a number"),
-        ("time,x.a\n0,1\n2,1\n1,1\n", "time is not strictly increasing after t = 2.0 s"),
-        ("time,x.a\n0,1\nnan,1\n", "non-finite"),
-        ("time,x.a", "header line is incomplete"),
+        ("time,x.a\n0,1\n1,2,3\n", "line 3: 3 values, the header has 2 columns"),
+        ("time,x.a\n0,1\n1,abc\n", "line 3: column 'x.a': 'abc' is not a number"),
+        ("time,x.a\n0,1\n2,1\n1,1\n", "line 4: time 1.0 s is not after 2.0 s"),
+        ("time,x.a\n0,1\nnan,1\n", "line 3: time 'nan' is not a finite number"),
+        ("time,x.a", "the header has no line break after it"),
     ],
 )
 def test_bad_csv_raises_config_error_naming_file_and_problem(
@@ -155,7 +155,7 @@ def test_bad_csv_raises_config_error_naming_file_and_problem(
 
 
 def test_missing_file_raises_config_error(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match="cannot read signals CSV"):
+    with pytest.raises(ConfigError, match="cannot read: No such file"):
         read_signals_csv(tmp_path / "nope.csv")
 
 

@@ -45,7 +45,7 @@ from twin.errormodel.factors import FACTORS, Contribution, Measured
 from twin.errormodel.sources import LoadHistory, hampel
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError
-from twin.signals.table import Signal, SignalTable
+from twin.signals.table import Block, Signal, SignalTable
 
 __all__ = ["PLOT_ROWS", "Block", "StreamingEvaluation"]
 
@@ -55,29 +55,6 @@ PLOT_ROWS = 4000
 CHUNK_ROWS = 1 << 14
 
 Columns = dict[str, np.ndarray]
-
-
-@dataclass
-class Block:
-    """Rows of the record: their times and one array per column."""
-
-    time: np.ndarray
-    columns: Columns
-
-    def __len__(self) -> int:
-        return int(self.time.shape[0])
-
-    def rows(self, sl: slice | np.ndarray) -> Block:
-        return Block(self.time[sl], {k: v[sl] for k, v in self.columns.items()})
-
-    @staticmethod
-    def join(blocks: list[Block]) -> Block:
-        if len(blocks) == 1:
-            return blocks[0]
-        return Block(
-            np.concatenate([b.time for b in blocks]),
-            {k: np.concatenate([b.columns[k] for b in blocks]) for k in blocks[0].columns},
-        )
 
 
 @dataclass

@@ -23,8 +23,7 @@ import contextlib
 import json
 import math
 import os
-import warnings
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
@@ -33,6 +32,7 @@ import numpy as np
 from twin.errors import ConfigError
 from twin.outputs.sink import ClosesOnExit, OutcomeSink, Sink
 from twin.outputs.summary import write_summary
+from twin.signals.csv import TIME, _default_subsystem, read_table
 from twin.signals.table import Block, Signal, SignalTable
 
 if TYPE_CHECKING:
@@ -47,7 +47,6 @@ __all__ = [
     "write_signals_csv",
 ]
 
-TIME = "time"
 _FORBIDDEN = frozenset(",\"'\n\r \t")
 # Subsystem given to a column whose name has no "<instance>." prefix and no sidecar entry,
 # e.g. a column of a user's own measurement file.
@@ -57,11 +56,6 @@ DEFAULT_SUBSYSTEM = "measured"
 def units_sidecar_path(csv_path: str | os.PathLike[str]) -> Path:
     """Where the units sidecar of ``csv_path`` lives: ``signals.csv`` -> ``signals.units.json``."""
     return Path(csv_path).with_suffix(".units.json")
-
-
-def _default_subsystem(name: str) -> str:
-    prefix, dot, _ = name.partition(".")
-    return prefix if dot and prefix else DEFAULT_SUBSYSTEM
 
 
 def _check_names(names: Sequence[str]) -> None:
@@ -303,174 +297,23 @@ def _read_sidecar(csv_path: Path) -> dict[str, dict[str, str]]:
     return data
 
 
-def read_signals_csv(
-    path: str | os.PathLike[str], *, keep_whole_last_line: bool = False, only: Collection[str] | None = None
-) -> SignalTable:
-    """Read a signals CSV (ours or a user's measurement in the same format) into a table.
-
-    Rules: the header is ``time,<name>,...`` (names may be double-quoted); every row has one
-    number per column (``nan``/``inf`` allowed); times are finite and strictly increasing;
-    blank lines are skipped. A last line without its terminating newline is taken as the
-    partial row of an interrupted run and ignored (a :class:`RuntimeWarning` says so); with
-    ``keep_whole_last_line`` (a lab's file, which an editor may save without the final line
-    break) such a line is kept when it holds one number per column. With ``only`` the table
-    holds just those columns (and time): a wide file's other columns are not kept in memory.
-    A well-formed file is parsed by Arrow's C++ reader (correctly rounded, as Python's
-    float()); any other goes through the careful line-by-line reader, which reports it.
-    Units and subsystems come from the ``<stem>.units.json`` sidecar when present, else the
-    unit is ``""`` and the subsystem the name's prefix before the first dot.
-
-    Raises :class:`~twin.errors.ConfigError` (one line: file, line number, problem) on a bad file.
-    """
+def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
+    """Read a signals CSV (ours, or a user's measurement in the same format) into a table, with
+    the one CSV reader (:func:`twin.signals.csv.read_table`: strict, a partial last line of an
+    interrupted run dropped with a warning). Units and subsystems come from the
+    ``<stem>.units.json`` sidecar when present, else the unit is ``""`` and the subsystem the
+    name's prefix before the first dot. Raises :class:`~twin.errors.ConfigError` (one line:
+    file, line number, problem) on a bad file."""
     path = Path(path)
-    source = str(path)
-    columns = _read_fast(path, source, keep_whole_last_line, only)
-    if columns is None:
-        lines = _read_lines(path)
-        header = _header(lines, source)
-        if keep_whole_last_line and lines and not lines[-1].endswith("\n") and _whole(lines[-1], len(header)):
-            lines[-1] += "\n"
-        data = _rows(_complete_lines(lines, source), header, source)
-        keep = [j for j, h in enumerate(header) if j == 0 or only is None or h in only]
-        columns = ([header[j] for j in keep], [np.ascontiguousarray(data[:, j]) for j in keep])
-    header, data_columns = columns
-    time = data_columns[0]
-    _check_time(time, source)
     sidecar = _read_sidecar(path)
-    table = SignalTable(time=time)
-    for j, name in enumerate(header[1:], start=1):
-        info = sidecar.get(name, {})
-        signal = Signal(
+    signals = {
+        name: Signal(
             name=name,
             unit=str(info.get("unit", "")),
             subsystem=str(info.get("subsystem") or _default_subsystem(name)),
             description=str(info.get("description", "")),
         )
-        table.add(signal, data_columns[j])
-    return table
+        for name, info in sidecar.items()
+    }
+    return read_table(path, signals)
 
-
-def _read_fast(
-    path: Path, source: str, keep_whole_last_line: bool, only: Collection[str] | None
-) -> tuple[list[str], list[np.ndarray]] | None:
-    """The kept header and columns of a well-formed file, parsed by numpy's C reader
-    (correctly rounded, as Python's float()); None for anything it does not take as it is (a
-    value Python reads but numpy does not, a short row, a partial last line), which the
-    careful reader then handles or reports. Columns not kept are not converted."""
-    try:
-        with open(path, "rb") as f:
-            first = f.readline()
-            size = f.seek(0, os.SEEK_END)
-            if size == 0:
-                return None
-            f.seek(size - 1)
-            ends_whole = f.read(1) == b"\n"
-        header = _header([first.decode("utf-8-sig")], source)
-    except (OSError, UnicodeDecodeError, ConfigError):
-        return None
-    if not ends_whole and not keep_whole_last_line:
-        return None
-    keep = [j for j, h in enumerate(header) if j == 0 or only is None or h in only]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # an empty file body is a case for the careful reader
-            data = np.loadtxt(
-                path,
-                delimiter=",",
-                skiprows=1,
-                # every column when all are kept: then a row of the wrong length is refused here
-                usecols=None if len(keep) == len(header) else keep,
-                comments=None,
-                dtype=np.float64,
-                ndmin=2,
-                encoding="utf-8",
-            )
-    except (ValueError, OSError, UnicodeDecodeError, UserWarning):
-        return None
-    if data.shape[1] != len(keep):
-        return None
-    return [header[j] for j in keep], [np.ascontiguousarray(data[:, k]) for k in range(len(keep))]
-
-
-def _read_lines(path: Path) -> list[str]:
-    try:
-        # utf-8-sig: spreadsheet programs often prepend a byte-order mark.
-        with open(path, encoding="utf-8-sig", newline=None) as f:
-            return f.readlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read signals CSV: {exc}", source=str(path)) from None
-
-
-def _header(lines: list[str], source: str) -> list[str]:
-    """The column names of line 1, ``time`` first, checked."""
-    if not lines or not lines[0].strip():
-        raise ConfigError("empty file, expected a header 'time,<name>,...'", source=source)
-    if not lines[0].endswith("\n"):
-        raise ConfigError("header line is incomplete (no line break after it)", source=source)
-    header = [h.strip().strip('"').strip() for h in lines[0].split(",")]
-    if header[0] != TIME:
-        raise ConfigError(f"line 1: first column must be 'time', got {header[0]!r}", source=source)
-    if not all(header[1:]):
-        raise ConfigError("line 1: empty column name", source=source)
-    if len(set(header)) != len(header):
-        dup = next(n for n in header if header.count(n) > 1)
-        raise ConfigError(f"line 1: column {dup!r} appears twice", source=source)
-    return header
-
-
-def _whole(line: str, ncol: int) -> bool:
-    """Whether ``line`` holds one number per column."""
-    fields = line.split(",")
-    return len(fields) == ncol and all(_is_float(v) for v in fields)
-
-
-def _complete_lines(lines: list[str], source: str) -> list[str]:
-    """The lines without a last one that has no line break (the partial row of a killed run)."""
-    if len(lines) < 2 or lines[-1].endswith("\n"):
-        return lines
-    if lines[-1].strip():
-        warnings.warn(
-            f"{source}: ignored incomplete last line {len(lines)} (no line break: interrupted write?)",
-            RuntimeWarning,
-            stacklevel=3,  # the caller of read_signals_csv
-        )
-    return lines[:-1]
-
-
-def _rows(lines: list[str], header: list[str], source: str) -> np.ndarray:
-    """The numbers of every data line (blank lines skipped), one row per line."""
-    ncol = len(header)
-    rows: list[list[float]] = []
-    for lineno, line in enumerate(lines[1:], start=2):
-        if not line.strip():
-            continue
-        fields = line.split(",")
-        if len(fields) != ncol:
-            raise ConfigError(
-                f"line {lineno}: {len(fields)} values, header has {ncol} columns", source=source
-            )
-        try:
-            rows.append([float(v) for v in fields])
-        except ValueError:
-            col, bad = next((h, v) for h, v in zip(header, fields, strict=True) if not _is_float(v))
-            raise ConfigError(
-                f"line {lineno}, column '{col}': {bad.strip()!r} is not a number", source=source
-            ) from None
-    return np.array(rows, dtype=np.float64).reshape(len(rows), ncol)
-
-
-def _check_time(time: np.ndarray, source: str) -> None:
-    if not np.all(np.isfinite(time)):
-        raise ConfigError("column 'time' holds a non-finite value", source=source)
-    steps = np.diff(time)
-    if np.any(steps <= 0):
-        k = int(np.argmax(steps <= 0))
-        raise ConfigError(f"time is not strictly increasing after t = {float(time[k])!r} s", source=source)
-
-
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True

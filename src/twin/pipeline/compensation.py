@@ -31,8 +31,8 @@ from twin.outputs.run_folder import (
     check_output_folder,
 )
 from twin.outputs.sink import Outcome
-from twin.pipeline.measurements import BLOCK_BYTES, Flag, MeasurementReader
 from twin.pipeline.stages import OutputsLog, budget_columns, write_outputs
+from twin.signals.csv import BLOCK_BYTES, CsvReader, Flag
 from twin.signals.table import Signal
 
 __all__ = ["FLAGGED_CSV", "compensate", "compensation_config"]
@@ -73,7 +73,7 @@ def compensate(
     cfg, source = config or compensation_config(config_path)
     folder = RunFolder(out_dir)
     flags = _FlagFile(folder.file(FLAGGED_CSV))
-    reader = MeasurementReader(
+    reader = CsvReader(
         csv_path,
         (required_columns(cfg), source),
         input_columns(cfg),
@@ -117,7 +117,7 @@ def compensate(
     return summary
 
 
-def _stream(reader: MeasurementReader, evaluation: StreamingEvaluation, path: Path, flags: _FlagFile) -> None:
+def _stream(reader: CsvReader, evaluation: StreamingEvaluation, path: Path, flags: _FlagFile) -> None:
     """Read, evaluate and write errormodel.csv (and flagged_rows.csv) chunk by chunk; a file
     refused part way removes what was written of them."""
     writer = _LazyCsv(path, evaluation)

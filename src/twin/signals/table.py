@@ -7,7 +7,7 @@ and the subsystem it belongs to (used to group series in plots and recordings).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,7 +83,8 @@ class SignalTable:
 class Block:
     """A chunk of rows on the run's time axis: ``time`` (s) and one array per column name.
 
-    What a recorder hands its sinks while a run goes (see :mod:`twin.outputs.sink`).
+    What a recorder hands its sinks while a run goes (see :mod:`twin.outputs.sink`), and what the
+    CSV reader hands on (:mod:`twin.signals.csv`).
     """
 
     time: np.ndarray
@@ -91,3 +92,17 @@ class Block:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+    def rows(self, sl: slice | np.ndarray) -> Block:
+        """The rows ``sl`` of every column."""
+        return Block(self.time[sl], {k: v[sl] for k, v in self.columns.items()})
+
+    @staticmethod
+    def join(blocks: Sequence[Block]) -> Block:
+        """The rows of ``blocks`` one after the other (the columns of the first)."""
+        if len(blocks) == 1:
+            return blocks[0]
+        return Block(
+            np.concatenate([b.time for b in blocks]),
+            {k: np.concatenate([b.columns[k] for b in blocks]) for k in blocks[0].columns},
+        )

@@ -1,8 +1,15 @@
-"""A CSV of measurements read in blocks, for ``twin compensate``: the columns the error model
-reads, the rows it can use, and the rows it cannot, flagged.
+"""The one reader of a CSV of signals: a run's ``signals.csv`` or a lab's record, read in blocks.
 
+The format (the FMI cross-check convention, which :func:`fmpy.util.read_csv` reads): a header
+``time,<name>,...`` (names may be double-quoted; a byte-order mark and CRLF line ends are
+accepted), then one row of numbers per line, times in seconds, finite and increasing.
+
+:class:`CsvReader` reads it block by block (memory flat in the file's length) and hands on
+the columns kept, as :class:`~twin.signals.table.Block` s. A lab's record (``twin compensate``)
+is read leniently: a row it cannot use is flagged (left out, the rest computed, the row
+listed); :func:`read_table` reads a whole file strictly (a row it cannot use is bad input).
 What is refused (:class:`~twin.errors.ConfigError`: one line naming the file and the line,
-exit code 2) and what is flagged (the row is left out, the rest computed, the row listed):
+exit code 2) and what is flagged:
 
 * the file: missing, not a regular file, empty, a header that is not ``time,<name>,...``
   (incomplete, an empty name, a name twice), a column the error model reads missing, fewer than
@@ -10,15 +17,16 @@ exit code 2) and what is flagged (the row is left out, the rest computed, the ro
 * the time column: a value that is not a finite number, or a time not at least
   :data:`MIN_TIME_STEP_S` after the one before (rows of the wrong length apart): refused, as
   the drift windows and the filter's order depend on it;
-* a row: the wrong number of values (a torn line, a logger's restart), or a column the error
-  model reads holding anything but a finite number of at most :data:`MAX_MEASURED` (``nan``,
-  ``inf``, empty, ``NA``, a word, a logger's overload value ``9.9e37``): flagged. Columns the
-  error model does not read are not looked at (a wide file's other columns may hold anything).
+* a row: the wrong number of values (a torn line, a logger's restart), or a column kept holding
+  anything but a finite number of at most :data:`MAX_MEASURED` (``nan``, ``inf``, empty,
+  ``NA``, a word, a logger's overload value ``9.9e37``): flagged. Columns not kept are not
+  looked at (a wide file's other columns may hold anything).
 
 Blocks of about ``block_bytes`` are parsed by Arrow's C++ reader (correctly rounded, as
 Python's ``float()``), only the columns kept; a block Arrow refuses, or one with a value to
 flag or a time out of order, is read again line by line, which says which line and why. A last
-line without its line break is a row like any other.
+line without its line break is a row like any other in a lab's record; in a run's own file it is
+the partial row of a run that was killed while writing, dropped with a warning.
 """
 
 from __future__ import annotations
@@ -27,18 +35,21 @@ import io
 import math
 import os
 import stat
-from collections.abc import Callable, Iterator, Sequence
+import warnings
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from twin.errormodel.streaming import Block
 from twin.errors import ConfigError
-from twin.outputs.csv import TIME
+from twin.signals.table import Block, Signal, SignalTable
 
-__all__ = ["BLOCK_BYTES", "Flag", "MeasurementReader"]
+__all__ = ["BLOCK_BYTES", "TIME", "CsvReader", "Flag", "read_table"]
+
+#: the first column of every signals CSV
+TIME = "time"
 
 #: bytes of the file parsed at a time
 BLOCK_BYTES = 1 << 22
@@ -65,19 +76,22 @@ class Flag:
     reason: str
 
 
-class MeasurementReader:
-    """The rows of ``path`` in :class:`~twin.errormodel.streaming.Block` s of the ``keep``
-    columns present (time first), flagged rows left out and given to ``on_flag``.
+class CsvReader:
+    """The rows of ``path`` in :class:`~twin.signals.table.Block` s of the ``keep`` columns
+    present (time first; None: every column), flagged rows left out and given to ``on_flag``.
 
-    ``required`` are the columns that must be present, each with the ``[errormodel]`` key that
-    names it, and the configuration's name (for the message). Opening reads and checks the header; :meth:`blocks` reads the rest.
+    ``required`` are the columns that must be present, each with the key of the configuration
+    that names it, and the configuration's name (for the message). Opening reads and checks the
+    header; :meth:`blocks` reads the rest. ``partial_last_line``: a last line without its line
+    break is the partial row of an interrupted write, dropped with a warning (a run's own file),
+    instead of a row like any other (a lab's).
     """
 
     def __init__(
         self,
         path: Path,
         required: tuple[dict[str, str], str],
-        keep: set[str],
+        keep: set[str] | None,
         *,
         on_flag: Callable[[Flag], None],
         block_bytes: int = BLOCK_BYTES,
@@ -85,6 +99,10 @@ class MeasurementReader:
         self.path, self.source = path, str(path)
         self.block_bytes = max(1, block_bytes)
         self.on_flag = on_flag
+        self.partial_last_line = False
+        #: the values are measurements (a lab's record): each a finite number of at most
+        #: MAX_MEASURED; else (a run's own file) any number, nan and inf included
+        self.measured = True
         self.read_rows = 0  # data rows seen (blank lines apart)
         self.flagged = 0
         self._last_time = -math.inf
@@ -95,7 +113,7 @@ class MeasurementReader:
         except BaseException:
             self._file.close()
             raise
-        self.kept = [j for j, h in enumerate(self.header) if j == 0 or h in keep]
+        self.kept = [j for j, h in enumerate(self.header) if j == 0 or keep is None or h in keep]
         self.names = [self.header[j] for j in self.kept]
 
     def close(self) -> None:
@@ -139,7 +157,13 @@ class MeasurementReader:
             if block:
                 yield from self._block(block, line)
                 line += block.count(b"\n")
-        if rest.strip():  # a last line without its line break: a row like any other
+        if rest.strip() and self.partial_last_line:
+            warnings.warn(
+                f"{self.source}: ignored incomplete last line {line} (no line break: interrupted write?)",
+                RuntimeWarning,
+                stacklevel=4,  # the caller of read_table
+            )
+        elif rest.strip():  # a last line without its line break: a row like any other
             yield from self._block(rest + b"\n", line)
 
     def _block(self, data: bytes, line: int) -> Iterator[Block]:
@@ -180,7 +204,7 @@ class MeasurementReader:
             return None
         cols = [_floats(table.column(names[j])) for j in self.kept]
         if any(c is None for c in cols):
-            return None  # a null ("nan", "", "NA"): a row to flag
+            return None  # a null ("nan", "", "NA"): a row to flag, or a NaN the careful reader reads
         time = cols[0]
         if time.size and (
             not time[0] - self._last_time >= MIN_TIME_STEP_S or not np.all(np.diff(time) >= MIN_TIME_STEP_S)
@@ -189,7 +213,7 @@ class MeasurementReader:
         if not np.isfinite(time).all():  # inf
             return None
         # False for inf and NaN too: one pass over each column
-        if not all((np.abs(c) <= MAX_MEASURED).all() for c in cols[1:]):
+        if self.measured and not all((np.abs(c) <= MAX_MEASURED).all() for c in cols[1:]):
             return None
         return Block(time, dict(zip(self.names[1:], cols[1:], strict=True)))
 
@@ -209,6 +233,12 @@ class MeasurementReader:
             row, bad = [t], None
             for j in self.kept[1:]:
                 value = _number(fields[j])
+                if value is not None and not self.measured:
+                    row.append(value)
+                    continue
+                if value is None and not self.measured:
+                    bad = f"column '{self.header[j]}': {fields[j].strip()!r} is not a number"
+                    break
                 if value is None or not math.isfinite(value):
                     bad = f"column '{self.header[j]}': {fields[j].strip()!r} is not a finite number"
                     break
@@ -319,3 +349,35 @@ def _check_required(header: Sequence[str], required: dict[str, str], config: str
         f"the error model reads {TIME}, {', '.join(required)}",
         source=source,
     )
+
+
+def _refuse(source: str) -> Callable[[Flag], None]:
+    def refuse(flag: Flag) -> None:
+        raise ConfigError(f"line {flag.line}: {flag.reason}", source=source)
+
+    return refuse
+
+
+def read_table(path: Path, signals: Mapping[str, Signal] | None = None) -> SignalTable:
+    """A whole CSV of signals as a table, strictly: any row it cannot use is bad input (a run's
+    own file, or a lab's in the same format), a partial last line dropped with a warning.
+    ``signals`` gives a column's unit, subsystem and description (else no unit, and the name's
+    prefix before the first dot as its subsystem)."""
+    reader = CsvReader(path, ({}, ""), None, on_flag=_refuse(str(path)))
+    reader.partial_last_line, reader.measured = True, False
+    try:
+        blocks = list(reader.blocks())
+    finally:
+        reader.close()
+    names = reader.names[1:]
+    data = Block.join(blocks) if blocks else Block(np.empty(0), {n: np.empty(0) for n in names})
+    table = SignalTable(time=data.time)
+    for name in names:
+        meta = (signals or {}).get(name) or Signal(name, "", _default_subsystem(name))
+        table.add(meta, data.columns[name])
+    return table
+
+
+def _default_subsystem(name: str) -> str:
+    """The subsystem of a column without a sidecar: its name's prefix before the first dot."""
+    return name.split(".", 1)[0] if "." in name else "measured"
