@@ -7,10 +7,6 @@ real-time wear-depth detecting for spherical plain bearing tester. J. Cent. Sout
 
 from __future__ import annotations
 
-#: the name of the scenario that replays the paper's experiment: only its summary sets the
-#: paper's measured values beside the twin's (other scenarios have nothing to do with them)
-PAPER_SCENARIO = "li2017-thermal-experiment"
-
 #: duration of the thermal experiment, s [paper]
 EXPERIMENT_S = 480 * 60
 
@@ -41,15 +37,3 @@ FEM_PARTS_M: dict[str, float] = {
     "long_pole": 0.040e-3,  # clamp contact point moves down (pole + clamp) [paper]
 }
 FEM_TOTAL_M = -0.016e-3  # the paper's FEM total (reading falls)
-
-#: which thermal-network node sits at each measuring point (room: the network's input)
-NODE_OUTPUTS: dict[str, str] = {
-    "bearing_block": "t_bearing_block",
-    "heel_block": "t_heel_block",
-    "bearing": "t_bearing",
-    "t_plate": "t_t_plate",
-    "base": "t_base",
-    "long_pole": "t_pole_lower",
-    "detecting_frame": "t_detecting_frame",
-    "room": "t_ambient",
-}

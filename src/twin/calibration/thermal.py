@@ -30,10 +30,24 @@ from scipy.optimize import least_squares
 
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
-from twin.paper import EXPERIMENT_S, NODE_OUTPUTS, TEMPERATURE_RISE_K
+from twin.paper import EXPERIMENT_S, TEMPERATURE_RISE_K
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.stages import simulate
 from twin.uncertainty import rooms
+
+#: which thermal-network node sits at each of the paper's measuring points (room: the network's
+#: input): the network the calibration fits is a ThermalNetwork
+NODE_OUTPUTS: dict[str, str] = {
+    "bearing_block": "t_bearing_block",
+    "heel_block": "t_heel_block",
+    "bearing": "t_bearing",
+    "t_plate": "t_t_plate",
+    "base": "t_base",
+    "long_pole": "t_pole_lower",
+    "detecting_frame": "t_detecting_frame",
+    "room": "t_ambient",
+}
+
 
 #: the fitted values and their prior relative spread (sigma of the log-factor) with its reason
 PRIORS: dict[str, tuple[float, str]] = {

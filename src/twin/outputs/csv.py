@@ -316,4 +316,3 @@ def read_signals_csv(path: str | os.PathLike[str]) -> SignalTable:
         for name, info in sidecar.items()
     }
     return read_table(path, signals)
-
