@@ -226,16 +226,16 @@ def _another_process_can_lock(folder: RunFolder) -> bool:
     )
 
 
-def test_the_lock_is_shared_within_a_process_and_held_until_its_last_holder_lets_go(tmp_path: Path) -> None:
-    command, run = RunFolder(tmp_path / "run"), RunFolder(tmp_path / "run")
+def test_the_lock_is_held_until_it_is_let_go_and_refuses_a_second_holder(tmp_path: Path) -> None:
+    command, other = RunFolder(tmp_path / "run"), RunFolder(tmp_path / "run")
     command.lock()
-    run.lock()  # the run the command starts: the same process, so not "in use"
+    command.lock()  # taken once: a second call holds nothing more
     assert command.file(LOCK_FILE).read_text() == f"{os.getpid()}\n"
     assert not _another_process_can_lock(command)
-    run.unlock()
-    run.unlock()  # idempotent: the command's share stays
-    assert not _another_process_can_lock(command)
+    with pytest.raises(ConfigError, match=f"in use by another twin process \\(pid {os.getpid()}\\)"):
+        other.lock()  # a second holder, even in this process: a run is prepared once
     command.unlock()
+    command.unlock()  # idempotent
     assert _another_process_can_lock(command)
 
 

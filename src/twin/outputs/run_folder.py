@@ -84,8 +84,6 @@ RUN_OUTPUTS = (
     "checkpoint.pkl",
     "checkpoint.npz.tmp",  # a checkpoint a kill interrupted (checkpoint_file.save)
 )
-#: the run folders this process holds the lock of: resolved path -> [descriptor, holders]
-_HELD: dict[Path, list[int]] = {}
 #: file systems no run folder may be on
 _SPECIAL_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
 #: the errors of a full disk or a file-size limit
@@ -201,6 +199,7 @@ class RunFolder:
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
+        self._lock_fd: int | None = None
 
     def file(self, name: str) -> Path:
         """The path of one of the folder's files (a name of this module)."""
@@ -215,22 +214,13 @@ class RunFolder:
     def lock(self) -> None:
         """Hold the folder's lock until :meth:`unlock` (or the process ends): a second twin
         process on the same folder is refused with :class:`ConfigError` (exit 2) instead of
-        interleaving its rows with this one's.
-
-        Within one process the lock is shared: the command takes it for its whole life (the
-        run, then the Monte Carlo that adds to the summary) and the run it starts takes it
-        again; flock would refuse that second descriptor, so this process's holders are
-        counted and the descriptor closes with the last :meth:`unlock`."""
+        interleaving its rows with this one's. A command takes it once, when it prepares its
+        run (:func:`twin.pipeline.prepare.prepare`), for its whole life."""
         import fcntl
 
-        if getattr(self, "_held", None) is not None:
+        if self._lock_fd is not None:
             return
         self.make()
-        key = self.path.resolve()
-        if key in _HELD:
-            _HELD[key][1] += 1
-            self._held = key
-            return
         fd = os.open(self.file(LOCK_FILE), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -242,20 +232,13 @@ class RunFolder:
             ) from None
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
-        _HELD[key] = [fd, 1]
-        self._held = key
+        self._lock_fd = fd
 
     def unlock(self) -> None:
-        """Release this holder's share of the folder's lock (idempotent)."""
-        key = getattr(self, "_held", None)
-        if key is None:
-            return
-        self._held = None
-        entry = _HELD[key]
-        entry[1] -= 1
-        if entry[1] == 0:
-            del _HELD[key]
-            os.close(entry[0])  # closing the descriptor releases the flock
+        """Release the folder's lock (idempotent)."""
+        fd, self._lock_fd = self._lock_fd, None
+        if fd is not None:
+            os.close(fd)  # closing the descriptor releases the flock
 
     def start(self, meta: RunMeta) -> None:
         """Make the folder for a new run: remove every output of an earlier run (and its
