@@ -875,7 +875,12 @@ CLASS_CASES = [
     ),
     Case("em-factors-empty", "errormodel.factors", "expected a list", setv("errormodel.factors", [])),
     Case("em-factors-string", "errormodel.factors", "expected a list", setv("errormodel.factors", "thermal")),
-    Case("em-unknown-key", "errormodel.readings", "did you mean 'reading'", setv("errormodel.readings", "sensors.probe_meas")),
+    Case(
+        "em-unknown-key",
+        "errormodel.readings",
+        "did you mean 'reading'",
+        setv("errormodel.readings", "sensors.probe_meas"),
+    ),
     Case(
         "em-coefficients-number", "errormodel.coefficients", "file name", setv("errormodel.coefficients", 5)
     ),

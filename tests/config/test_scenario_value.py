@@ -36,8 +36,20 @@ def test_with_parameter_is_the_loaders_value_and_leaves_the_original(paper: Scen
 @pytest.mark.parametrize(
     ("instance", "name", "value", "key", "words"),
     [
-        ("mechanics", "alpha_stel", 1e-5, "fmu.mechanics.parameters.alpha_stel", "did you mean 'alpha_steel'"),
-        ("mechanics", "alpha_steel", -1.0, "fmu.mechanics.parameters.alpha_steel", "outside the physical range"),
+        (
+            "mechanics",
+            "alpha_stel",
+            1e-5,
+            "fmu.mechanics.parameters.alpha_stel",
+            "did you mean 'alpha_steel'",
+        ),
+        (
+            "mechanics",
+            "alpha_steel",
+            -1.0,
+            "fmu.mechanics.parameters.alpha_steel",
+            "outside the physical range",
+        ),
         ("mechanics", "alpha_steel", "1e-5", "fmu.mechanics.parameters.alpha_steel", "expected a number"),
         ("mechanics", "alpha_steel", float("nan"), "fmu.mechanics.parameters.alpha_steel", "finite"),
         ("mechanix", "alpha_steel", 1e-5, "fmu.mechanix", "unknown FMU instance"),
@@ -76,7 +88,10 @@ def test_with_value_takes_what_a_sweep_varies(paper: Scenario) -> None:
     room = changed.profile("thermal.t_room").params
     assert room["rise"] == 9.9 and room["time_constant"] == 7200.0  # a duration in seconds
     assert changed.fmu("sensors").parameters["probe_zero_drift"].value == 0.2e-6 and changed.seed == 7
-    assert changed.nominal("input.thermal.t_room.rise") == 9.9 and paper.nominal("input.thermal.t_room.rise") == 8.9
+    assert (
+        changed.nominal("input.thermal.t_room.rise") == 9.9
+        and paper.nominal("input.thermal.t_room.rise") == 8.9
+    )
     for key, value, words in [
         ("input.thermal.t_room.rize", 1.0, "has no parameter 'rize'"),
         ("scenario.duration", "1 h", "a study varies"),

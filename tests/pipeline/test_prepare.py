@@ -41,7 +41,12 @@ def test_a_scenario_value_is_prepared_as_its_file_is() -> None:
         (RunOptions(), ['errormodel.reading="sensors.probe_mea"'], "", "did you mean 'sensors.probe_meas'"),
         (RunOptions(), ["uncertainty.room_drift_K=-1"], "", "uncertainty.room_drift_K"),
         (RunOptions(reports=reports), ['reference.experiment="li2018"'], "", "reference.experiment"),
-        (RunOptions(), ["fmu.thermal.parameters.hyd_share_oil=0.5"], "", "the FMU refuses them"),  # shares > 1
+        (
+            RunOptions(),
+            ["fmu.thermal.parameters.hyd_share_oil=0.5"],
+            "",
+            "the FMU refuses them",
+        ),  # shares > 1
     ],
 )
 def test_bad_input_is_refused_before_any_folder_is_made(
