@@ -15,20 +15,26 @@ each section alternate within every repetition, so slow drifts of a noisy machin
     included, sampled: benchmarks/treemem.py);
 (e) memory flatness: peak RSS of a 1 h vs a 10 h run of scenarios/constant-load.toml.
 
-It ends with a markdown table for the README.
+It ends with a Markdown table of the figures against their goals; ``--write-docs`` writes it
+to docs/performance/bench.md (under the command and the machine line), which the docs include.
 
     python benchmarks/bench.py            # everything (several minutes: the endurance run is long)
     python benchmarks/bench.py --quick    # a fast check: few reps, short runs, no endurance
+    python benchmarks/bench.py --quick --write-docs   # ... and its table into the docs
+
+Since issue 28 the master takes a plan (:func:`twin.cosim.make_plan`) instead of a scenario:
+the plan, made inside the master's set-up before, is made here just before the master and its
+time counted in the twin's set-up (and so in set-up + stepping), so sections (a) and (b) mean
+what they did. Sections (c)-(e) time ``twin run``, which is now ``twin.pipeline.prepare`` then
+``twin.pipeline.run``: the same command, the same fresh process.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import inspect
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -40,17 +46,17 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from machine import machine, machine_line, print_machine, write_docs
 from treemem import wait_with_tree_peak
 
-from twin import __version__ as twin_version
+from twin.config.durations import NS_PER_S, parse_duration
 from twin.config.load import load_scenario
-from twin.config.spec import NS_PER_S, Scenario
-from twin.cosim.master import Master
-from twin.cosim.plan import instance_seed
+from twin.config.spec import Scenario
+from twin.cosim import Master, make_plan
 from twin.fmu.build import ensure_fmu
 from twin.fmu.catalog import variables as model_variables
 from twin.fmu.slot import FMUSlot
+from twin.seeds import instance_seed
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -84,39 +90,6 @@ def spread(xs: Sequence[float], fmt: str = "{:.3f}", unit: str = "") -> str:
 
 def header(title: str) -> None:
     print(f"\n== {title}", flush=True)
-
-
-def machine() -> dict[str, str]:
-    cpu = "unknown"
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    mem = ""
-    with contextlib.suppress(OSError, ValueError, IndexError):
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemTotal"):
-                mem = f"{int(line.split()[1]) / 1024**2:.1f} GB"
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count() or 0
-    commit = ""
-    with contextlib.suppress(OSError, subprocess.SubprocessError):
-        commit = subprocess.run(
-            ["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True, text=True
-        ).stdout.strip()
-    return {
-        "cpu": cpu,
-        "cores": f"{os.cpu_count()} logical ({usable} usable)",
-        "memory": mem,
-        "os": f"{platform.system()} {platform.release()}",
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "libcosimpy": libcosim_version() or "not installed",
-        "twin": f"{twin_version} ({commit})" if commit else twin_version,
-    }
 
 
 def libcosim_version() -> str | None:
@@ -157,11 +130,17 @@ def loop_label(loop: str | None) -> str:
 def run_master(scenario: Scenario, loop: str | None) -> dict[str, Any]:
     """One in-process master run: cosim_s, its set-up part and the stepping part.
 
-    Set-up is the time spent in the master's ``_create``/``_initialize`` (instantiating the FMUs,
-    parameters, initialization mode), timed by wrapping them on the instance; ``loop_s`` is
-    ``cosim_s`` minus that (the stepping, recording and the few scheduler yields).
+    Set-up is the making of the plan (:func:`twin.cosim.make_plan`, which the master did in its
+    ``_create`` before it took a plan) and the time spent in the master's
+    ``_create``/``_initialize`` (instantiating the FMUs, parameters, initialization mode), timed
+    by wrapping them on the instance; ``cosim_s`` is the master's own plus the plan's;
+    ``loop_s`` is ``cosim_s`` minus the set-up (the stepping, recording and the few scheduler
+    yields).
     """
-    master = Master(scenario, loop=loop) if loop else Master(scenario)
+    t0 = time.perf_counter()
+    plan = make_plan(scenario)
+    plan_s = time.perf_counter() - t0
+    master = Master(plan, loop=loop) if loop else Master(plan)
     setup = {"s": 0.0, "wrapped": 0}
     for name in SETUP_METHODS:
         fn = getattr(master, name, None)
@@ -181,16 +160,15 @@ def run_master(scenario: Scenario, loop: str | None) -> dict[str, Any]:
     wall = time.perf_counter() - t0
     if result.status != "completed":
         raise RuntimeError(f"master run {result.status}: {result.error}")
-    out = {
-        "wall_s": wall,
-        "cosim_s": result.cosim_s,
-        "setup_s": setup["s"] if setup["wrapped"] else None,
+    return {
+        "wall_s": plan_s + wall,
+        "cosim_s": plan_s + result.cosim_s,
+        "setup_s": plan_s + setup["s"] if setup["wrapped"] else None,
+        "loop_s": result.cosim_s - setup["s"] if setup["wrapped"] else None,
         "fmu_steps": result.fmu_steps,
         "macro_steps": result.macro_steps,
         "result": result,
     }
-    out["loop_s"] = result.cosim_s - setup["s"] if setup["wrapped"] else None
-    return out
 
 
 # ----------------------------------------------------------------------------- (a) overhead
@@ -410,8 +388,6 @@ def tester_scenario(duration: str, step: str) -> tuple[Scenario, list[str]]:
 
 
 def _seconds(text: str) -> float:
-    from twin.config.load import parse_duration
-
     return parse_duration(text) / NS_PER_S
 
 
@@ -780,7 +756,7 @@ def cli_run(args: Sequence[str], out: Path) -> dict[str, Any]:
     with tempfile.TemporaryFile() as log:
         t0 = time.perf_counter()
         # bytecode cache on, as an installed twin has it (PYTHONDONTWRITEBYTECODE, set on some
-        # machines, would add about 0.08 s of compiling to every run)
+        # machines, would add the compiling of the twin's modules to every run)
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=str(ROOT), env=env)
         # rusage of this child (and what it waited for) alone, and the sum with its plot helper
@@ -841,7 +817,7 @@ def bench_runs(name: str, label: str, args: Sequence[str], reps: int) -> dict[st
 def bench_whole_runs(reps: int, endurance_reps: int, skip_endurance: bool) -> None:
     header("(c, d) whole runs, `twin run --quiet --out TMP` each as a fresh process (FMUs already built)")
     # the replay alone: its uncertainty Monte Carlo (the scenario's [uncertainty]) is another
-    # figure, measured in the README's held-out validation section
+    # figure, not measured here
     RESULTS["replay"] = bench_runs(
         "replay",
         "the paper's 480-minute replay (default scenario, --uncertainty 0)",
@@ -977,7 +953,8 @@ def _flatness_rows(f: dict[str, Any]) -> list[Row]:
     ]
 
 
-def markdown_table(info: dict[str, str], args: argparse.Namespace) -> str:
+def markdown_table(args: argparse.Namespace) -> str:
+    """The figures against their goals (the machine and the command are the docs file's header)."""
     rows: list[Row] = []
     for key, make in (("overhead", _overhead_rows), ("libcosim", _libcosim_rows), ("replay", _replay_rows)):
         if key in RESULTS:
@@ -988,18 +965,14 @@ def markdown_table(info: dict[str, str], args: argparse.Namespace) -> str:
         rows.append(("MIL endurance 41.7 h", "skipped", "< 60 s, < 400 MB", ""))
     if "flatness" in RESULTS:
         rows += _flatness_rows(RESULTS["flatness"])
-    lines = [
-        f"Machine: {info['cpu']}, {info['cores']}, {info['memory']} RAM; {info['os']}; Python {info['python']}, "
-        f"numpy {info['numpy']}, libcosimpy {info['libcosimpy']}; twin {info['twin']}. "
+    lines = ["| figure | measured | target | met |", "|---|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
+    lines += [
+        "",
         f"Medians of {args.reps} repetitions ({args.endurance_reps} for the "
         + ("endurance and " if "endurance" in RESULTS else "")
-        + f"memory-flatness runs){' with --quick' if args.quick else ''}, {time.strftime('%Y-%m-%d')}; "
-        "`python benchmarks/bench.py`.",
-        "",
-        "| figure | measured | target | met |",
-        "|---|---|---|---|",
+        + f"memory-flatness runs){'; --quick: short runs, no endurance run' if args.quick else ''}.",
     ]
-    lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
     if RESULTS.get("libcosim", {}).get("mode") == "initial":
         lines += [
             "",
@@ -1027,11 +1000,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=int,
         help="repetitions of the long runs: endurance, 1 h/10 h (default min(reps, 3); 1 with --quick)",
     )
-    p.add_argument(
-        "--skip-endurance", action="store_true", help="skip the MIL endurance run (~2 min per run)"
-    )
+    p.add_argument("--skip-endurance", action="store_true", help="skip the MIL endurance run (the long one)")
     p.add_argument("--steps", type=int, help="FMU steps of section (a) (default 100000; 20000 with --quick)")
     p.add_argument("--only", default="abcde", help="sections to run, e.g. --only ab (default: abcde)")
+    p.add_argument(
+        "--write-docs",
+        action="store_true",
+        help="write the table to docs/performance/bench.md (when every section ran)",
+    )
     p.add_argument("--libcosim-worker", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--twin-worker", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
@@ -1047,10 +1023,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     tester_duration = "2 min" if args.quick else "10 min"
     flat = ("6 min", "60 min") if args.quick else ("1 h", "10 h")
 
-    info = machine()
     print("twin co-simulation benchmark" + (" (--quick)" if args.quick else ""))
-    for k, v in info.items():
-        print(f"   {k:11s} {v}")
+    info = print_machine(machine())
     loops = master_loops()
     print(f"   master      loops benchmarked: {', '.join(loop_label(lp) for lp in loops)}")
     print("   building/checking FMUs ...", flush=True)
@@ -1075,8 +1049,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"   section ({key}) FAILED:")
             traceback.print_exc(file=sys.stdout)
     print(f"\n(benchmark took {time.perf_counter() - t0:.0f} s)")
-    print("\n== table for the README\n")
-    print(markdown_table(info, args))
+    table = markdown_table(args)
+    print(f"\n== the table (docs/performance/bench.md)\n\nmachine: {machine_line(info)}\n\n{table}")
+    if args.write_docs and failed:
+        print("\nnot written to the docs: a section failed")
+    elif args.write_docs:
+        write_docs(__file__, table, info, argv)
     return 1 if failed else 0
 
 
