@@ -23,18 +23,27 @@ the design and the table are the real ``twin sweep`` code paths (:func:`run_swee
 
     python benchmarks/bench_sweep.py            # the figures above (a few minutes)
     python benchmarks/bench_sweep.py --quick    # a fast check that everything runs
+    python benchmarks/bench_sweep.py --write-docs   # ... the table into docs/performance/
+
+Since issue 28 a sweep's point is a :class:`~twin.pipeline.prepare.PreparedRun` made on the
+client (:func:`~twin.pipeline.prepare.prepare_scenario`: the plan, the error model's
+configuration) and run by the worker (:func:`~twin.pipeline.point.point_task`, which runs
+:func:`~twin.pipeline.stages.run_point`). So (d) prepares each point outside its timer and
+times ``run_point`` on it, what a worker's point now is; the batch size (b) is
+:data:`twin.pipeline.cluster.MAX_BATCH` (was ``twin.sweep.execute``).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+from machine import machine, machine_line, print_machine, write_docs
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenarios" / "li2017-thermal-experiment.toml"
@@ -77,11 +86,14 @@ def noop_task(payload: dict[str, Any]) -> dict[str, Any]:
 
 
 def _sweep(folder: Path, samples: int, workers: int, seed: int, **kwargs: Any) -> dict[str, Any]:
+    """``run_sweep`` on a local cluster of ``workers``; ``kwargs``: its ``task``, ``on_record``."""
+    from twin.cosim import RunControls
+    from twin.pipeline.cluster import StudyOptions
     from twin.sweep.runner import run_sweep
 
     out = folder / f"out-{samples}-{workers}-{seed}-{time.monotonic_ns()}"
     spec = _spec(folder, samples, seed, empty="task" in kwargs)
-    return run_sweep(spec, out, workers=workers, **kwargs)
+    return run_sweep(spec, out, RunControls(), StudyOptions(workers=workers), **kwargs)
 
 
 def throughput(folder: Path, points: int, reps: int) -> dict[str, Any]:
@@ -108,15 +120,15 @@ def round_trip(folder: Path, points: int, max_batch: int) -> float:
     :data:`twin.pipeline.cluster.MAX_BATCH`: what a sweep of such short points costs a point)."""
     import cloudpickle
 
-    from twin.sweep import execute
+    from twin.pipeline import cluster
 
     if __name__ != "__main__":  # imported: send the task by value (as a script it already is)
         cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    kept, execute.MAX_BATCH = execute.MAX_BATCH, max_batch
+    kept, cluster.MAX_BATCH = cluster.MAX_BATCH, max_batch
     try:
         timing = _sweep(folder, points, 2, seed=99, task=noop_task)["timing"]
     finally:
-        execute.MAX_BATCH = kept
+        cluster.MAX_BATCH = kept
     return timing["elapsed_s"] * timing["threads"] / timing["points_run"] * 1e3
 
 
@@ -132,57 +144,54 @@ def memory(folder: Path, points: int) -> dict[int, tuple[float, float]]:
 
 
 def setup_per_point(points: int) -> dict[str, float]:
-    """(d): median ms of the ``fmu_setup`` phase and of the whole point, fresh vs reused,
+    """(d): median ms of the ``fmu_setup`` phase and of the whole point (``run_point`` on a
+    point prepared outside the timer, as a sweep's client prepares it), fresh vs reused,
     alternating so a slow drift of the machine hits both alike."""
     import statistics
 
     from twin.config.load import load_scenario
     from twin.fmu.pool import SlotPool
-    from twin.pipeline.stages import run_point
+    from twin.pipeline import prepare_scenario, run_point
 
     sc = load_scenario(PAPER, ['scenario.duration="60 min"'])
+    base = prepare_scenario(sc)  # the error model's configuration, once (as run_sweep does)
     pool = SlotPool()
-    run_point(sc), run_point(sc, pool=pool)  # warm: the FMU files unpacked, the pool filled
+    run_point(prepare_scenario(sc, base.evaluation))  # warm: the FMU files unpacked
+    run_point(prepare_scenario(sc, base.evaluation), pool=pool)  # ... and the pool filled
     got: dict[str, list[float]] = {"fresh": [], "reused": [], "fresh point": [], "reused point": []}
     for _ in range(points):
         for label, kwargs in (("fresh", {}), ("reused", {"pool": pool})):
+            point = prepare_scenario(sc, base.evaluation)
             start = time.perf_counter()
-            summary = run_point(sc, **kwargs)
+            summary = run_point(point, **kwargs)
             got[f"{label} point"].append(time.perf_counter() - start)
             got[label].append(summary.timing.phases_s["fmu_setup"])
     return {k: statistics.median(v) * 1e3 for k, v in got.items()}
 
 
-def _row(name: str, value: str, goal: str = "", ok: bool | str | None = None) -> str:
-    verdict = ok if isinstance(ok, str) else {None: "", True: "yes", False: "NO"}[ok]
-    return f"| {name:<44} | {value:>22} | {goal:>12} | {verdict:>4} |"
+def _row(name: str, value: str, goal: str = "", ok: bool | None = None) -> str:
+    verdict = {None: "", True: "yes", False: "**no**"}[ok]
+    return f"| {name:<44} | {value:>22} | {goal:>12} | {verdict:>6} |"
 
 
-def main() -> int:
+def measure(sizes: dict[str, int]) -> dict[str, Any]:
+    """Every figure of (a)-(d) at these sizes."""
     from twin.pipeline.cluster import MAX_BATCH
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small sizes: a check that it runs, not figures")
-    args = parser.parse_args()
-    points, reps, noop_points, memory_points = (40, 1, 100, 100) if args.quick else (200, 2, 500, 1000)
-    setup_points = 10 if args.quick else 60
-    load = os.getloadavg()[0]
-    print(
-        f"twin sweep benchmark: {os.cpu_count()} cores, load {load:.1f}, Python {platform.python_version()}"
-    )
-    if load > 0.5 * (os.cpu_count() or 1):
-        print("note: the machine is busy; ratios are indicative, measure on a quiet machine for the record")
     with tempfile.TemporaryDirectory(prefix="twin-bench-sweep-") as tmp:
         folder = Path(tmp)
-        t = throughput(folder, points, reps)
-        rt = round_trip(folder, noop_points, 1)
-        rt_batched = round_trip(folder, noop_points, MAX_BATCH)
-        mem = memory(folder, memory_points)
-    setup = setup_per_point(setup_points)
+        return {
+            "throughput": throughput(folder, sizes["points"], sizes["reps"]),
+            "round_trip": round_trip(folder, sizes["noop_points"], 1),
+            "round_trip_batched": round_trip(folder, sizes["noop_points"], MAX_BATCH),
+            "memory": memory(folder, sizes["memory_points"]),
+            "setup": setup_per_point(sizes["setup_points"]),
+        }
+
+
+def _sweep_rows(t: dict[str, Any], points: int) -> list[str]:
     w1, w2 = t["workers"][1], t["workers"][2]
-    lines = [
-        _row("measure", "measured", "goal", "ok"),
-        "|" + "-" * 46 + "|" + "-" * 24 + "|" + "-" * 14 + "|" + "-" * 6 + "|",
+    return [
         _row(f"(a) {points}-point sweep, 1 worker", f"{w1['points_per_s']:.2f} points/s"),
         _row(f"(a) {points}-point sweep, 2 workers", f"{w2['points_per_s']:.2f} points/s"),
         _row("(a) speed-up, 2 vs 1 worker", f"{t['speedup']:.2f}x", ">= 1.7x", t["speedup"] >= 1.7),
@@ -194,17 +203,32 @@ def main() -> int:
             "< 20 ms",
             w2["overhead_ms_per_point"] < 20,
         ),
+    ]
+
+
+def _round_trip_rows(r: dict[str, Any], noop_points: int) -> list[str]:
+    from twin.pipeline.cluster import MAX_BATCH
+
+    rt = r["round_trip"]
+    return [
         _row(
             f"(b) round trip of an empty point, one a task ({noop_points})",
             f"{rt:.1f} ms",
             "< 20 ms",
             rt < 20,
         ),
-        _row(f"    the same, up to {MAX_BATCH} a task (as a sweep sends them)", f"{rt_batched:.1f} ms"),
+        _row(
+            f"    the same, up to {MAX_BATCH} a task (as a sweep sends them)",
+            f"{r['round_trip_batched']:.1f} ms",
+        ),
     ]
+
+
+def _memory_rows(mem: dict[int, tuple[float, float]], memory_points: int) -> list[str]:
+    rows = []
     for k, (early, end) in enumerate(mem[pid] for pid in sorted(mem)):
         growth = end / early - 1
-        lines.append(
+        rows.append(
             _row(
                 f"(c) worker {k + 1} peak RSS, 1/10 vs all {memory_points // 2}",
                 f"{early:.0f} -> {end:.0f} MB ({growth:+.0%})",
@@ -212,7 +236,11 @@ def main() -> int:
                 abs(growth) <= 0.2,
             )
         )
-    lines += [
+    return rows
+
+
+def _setup_rows(setup: dict[str, float]) -> list[str]:
+    return [
         _row("(d) FMU set-up per point, fresh instances", f"{setup['fresh']:.2f} ms"),
         _row(
             "(d) FMU set-up per point, reused (pool)",
@@ -226,7 +254,47 @@ def main() -> int:
             f"{setup['fresh point']:.1f} / {setup['reused point']:.1f} ms",
         ),
     ]
-    print("\n".join(lines))
+
+
+def markdown(r: dict[str, Any], sizes: dict[str, int], load: float) -> str:
+    """The figures against their goals as a Markdown table, and how they were measured."""
+    lines = [
+        f"| {'measure':<44} | {'measured':>22} | {'goal':>12} | {'met':>6} |",
+        "|" + "-" * 46 + "|" + "-" * 23 + ":|" + "-" * 13 + ":|" + "-" * 8 + "|",
+    ]
+    lines += _sweep_rows(r["throughput"], sizes["points"])
+    lines += _round_trip_rows(r, sizes["noop_points"])
+    lines += _memory_rows(r["memory"], sizes["memory_points"])
+    lines += _setup_rows(r["setup"])
+    reps = sizes["reps"]
+    lines += [
+        "",
+        f"(a) medians of {reps} sweep{'s' if reps > 1 else ''} on each number of workers, alternating; "
+        f"(d) medians of {sizes['setup_points']} points each, alternating. "
+        f"Load average at the start: {load:.1f}.",
+    ]
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes: a check that it runs, not figures")
+    parser.add_argument(
+        "--write-docs", action="store_true", help="write the table to docs/performance/bench_sweep.md"
+    )
+    args = parser.parse_args()
+    small = (40, 1, 100, 100, 10) if args.quick else (200, 2, 500, 1000, 60)
+    sizes = dict(zip(("points", "reps", "noop_points", "memory_points", "setup_points"), small, strict=True))
+    load = os.getloadavg()[0]
+    print("twin sweep benchmark" + (" (--quick)" if args.quick else ""))
+    info = print_machine(machine())
+    print(f"   load        {load:.1f}")
+    if load > 0.5 * (os.cpu_count() or 1):
+        print("note: the machine is busy; ratios are indicative, measure on a quiet machine for the record")
+    table = markdown(measure(sizes), sizes, load)
+    print(f"\n== the table (docs/performance/bench_sweep.md)\n\nmachine: {machine_line(info)}\n\n{table}")
+    if args.write_docs:
+        write_docs(__file__, table, info)
     return 0
 
 
