@@ -43,11 +43,20 @@ def _first(path: str, key: str) -> str:
     return ""
 
 
+#: what the figures depend on: a change here (not committed) marks the commit "-dirty"; the
+#: tables in docs/performance/ a benchmark has just written do not
+CODE = ("src", "fmus", "scenarios", "benchmarks", "pyproject.toml")
+
+
 def _commit() -> str:
+    """The checkout's commit, ``-dirty`` when the code measured differs from it, or ''."""
     with contextlib.suppress(OSError, subprocess.SubprocessError):
-        return subprocess.run(
-            ["git", "-C", str(ROOT), "describe", "--always", "--dirty"], capture_output=True, text=True
-        ).stdout.strip()
+        git = ["git", "-C", str(ROOT)]
+        head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+        if head.returncode != 0:
+            return ""
+        changed = subprocess.run([*git, "status", "--porcelain", "--", *CODE], capture_output=True, text=True)
+        return head.stdout.strip() + ("-dirty" if changed.stdout.strip() else "")
     return ""
 
 
