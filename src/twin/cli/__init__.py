@@ -16,7 +16,7 @@ def main(argv: Sequence[str] | None = None, *, own_process: bool = False) -> int
 
     ``own_process`` says the process is the command's alone (the console script and
     ``python -m twin``): a run may then tune it (:mod:`twin.cli.process`). A Ctrl-C while the
-    twin imports (a few tenths of a second) ends as every other interrupt does: one line, 130.
+    twin imports ends as every other interrupt does: one line, 130.
     """
     try:
         from twin.cli.parser import run_command

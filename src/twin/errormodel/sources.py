@@ -382,7 +382,7 @@ def moving_median(x: np.ndarray, half_window: int) -> np.ndarray:
     """The median of every window of ``2 half_window + 1`` samples centred on each sample, the
     ends padded with the end values: the same numbers as scipy's ``median_filter(x, size,
     mode="nearest")`` (a median of an odd count is one of the samples, no arithmetic), without
-    its import (a third of a second of ``twin compensate``)."""
+    importing scipy.ndimage into ``twin compensate``."""
     x = np.asarray(x, dtype=np.float64)
     if half_window <= 0 or x.size == 0:
         return x.copy()

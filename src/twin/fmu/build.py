@@ -83,8 +83,8 @@ _VARIABILITY = {
 def source_hash(model_name: str, src: Path | None = None) -> str:
     """Content hash of everything that goes into a model's FMU (sources, XML, readme).
 
-    Kept per process while no file's size or modification time changes (reading and hashing
-    them is 0.2 ms a model, and a sweep's worker asks five times a point)."""
+    Kept per process while no file's size or modification time changes: a sweep's worker
+    asks for it five times a point."""
     m = model(model_name, src)
     return _content_hash(m, m.stat_key())
 
@@ -217,8 +217,7 @@ def built_library(fmu: Path) -> Path | None:
     The library is taken out of the FMU once, when the FMU's bytes still match the SHA-256
     recorded at its build, and is from then on checked against its own recorded SHA-256
     each time, as every cache entry is (:func:`twin.fmu.toolchain.cached`). A fresh process
-    then loads the tester's five FMUs without unpacking any (their unpacking was 2.8 ms of
-    that process's 11 ms of set-up). The FMUs built here have no ``resources/``
+    then loads the tester's five FMUs without unpacking any. The FMUs built here have no ``resources/``
     (:func:`_lay_out`), so the library is all an instance loads of them.
     """
     from fmpy import platform as fmpy_platform

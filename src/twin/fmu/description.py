@@ -94,8 +94,7 @@ def _variable(sv: Any) -> Variable:
 
 #: descriptions by the SHA-256 of their modelDescription.xml: a model's source file and the FMU
 #: built from it hold the same bytes, so a process parses and validates each one once (fmpy
-#: loads the XML schema for every file it validates: 2 ms each, a tenth of a fresh process's
-#: FMU set-up)
+#: loads the XML schema again for every file it validates)
 _BY_CONTENT: dict[bytes, Description] = {}
 
 

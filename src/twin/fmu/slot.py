@@ -125,8 +125,7 @@ def _loaded_part(name: str) -> bool:
 
 def _extract(fmu_path: Path, instance_name: str) -> str:
     """Unpack what an instance loads of the FMU (:data:`_LOADED_PARTS`: 1 file of the twin's
-    12; a fresh process's set-up of the tester's five took half the time, 0.084 -> 0.041 s
-    under cProfile) into a new private folder; a write that fails there (a full disk) names
+    12, not the sources and documentation it ships) into a new private folder; a write that fails there (a full disk) names
     that folder, since zipfile's error names no file."""
     folder = extraction_dir(f"{instance_name}-")
     try:
@@ -161,7 +160,7 @@ def _description(key: tuple[str, int, int]) -> Description:
 def _unpacked(key: tuple[str, int, int]) -> str:
     """The folder an FMU from elsewhere is unpacked into, once per process: every instance of
     it (a sweep's points on a worker) loads the same folder instead of reading and unpacking
-    the zip again (about 6 ms an instance). The folder is private to this process
+    the zip again. The folder is private to this process
     (:func:`twin.fmu.workdir.process_dir`) and removed with it. A failure (a full disk) is
     not remembered: the next instance tries again."""
     path = Path(key[0])
@@ -172,7 +171,7 @@ def _loaded(path: Path) -> Loaded:
     """What an instance of the FMU at ``path`` loads. An FMU the twin built
     (:func:`twin.fmu.catalog.fmu` has just verified it) loads its library from the cache, where
     it was taken out once and is checked against its recorded SHA-256 for every instance
-    (:func:`twin.fmu.build.built_library`, 0.15 ms): fmpy unloads a library when its last
+    (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last
     instance is freed, so each instance opens the file anew. Any other FMU is unpacked."""
     from twin.fmu.build import built_library
 
@@ -190,8 +189,7 @@ class FMU2SlaveTyped(FMU2Slave):
     """fmpy's FMU2Slave, with the prototypes of the FMI functions worked out once per process.
 
     fmpy types each function of a loaded library from its own method's signature
-    (``inspect.signature`` of 34 methods: 0.6 ms an instance, half the warm set-up of the
-    tester's five FMUs). The prototypes are the same for every FMI 2.0 library, so after the
+    (``inspect.signature`` of 34 methods, for every instance). The prototypes are the same for every FMI 2.0 library, so after the
     first instance has run fmpy's own loader, the next ones get its result: the same
     argtypes, restype and argnames on each function of their own library. A library without
     one of the functions fails as in fmpy, with AttributeError. (The name starts with

@@ -1,7 +1,7 @@
 """The run's plots drawn by a second Python process, started when the run starts.
 
-Importing matplotlib takes about a third of a second, as long as the paper replay's whole
-co-simulation and error model together, and drawing the error budget another 0.15 s. A
+Importing matplotlib and drawing the error budget take about as long as a short run's whole
+co-simulation and error model (docs/performance/bench_phases.md measures it). A
 :class:`PlotProcess` starts ``python -m twin.outputs.plot_process`` when the run starts
 (``twin run`` starts it before anything else); that process imports matplotlib (and draws a
 throw-away figure, which loads the fonts) on the machine's other core while the run goes, then
@@ -304,7 +304,6 @@ def columns_json(columns: Any) -> dict[str, Any]:
 if __name__ == "__main__":
     code = main()
     # Every PNG is written and closed and every answer flushed: nothing is left to clean up,
-    # and tearing down matplotlib's interpreter would cost about 0.1 s, which the run waits
-    # for (it waits for the helper to end, so none outlives it).
+    # and tearing down matplotlib's interpreter is time the run waits for (it waits for the helper to end, so none outlives it).
     sys.stdout.flush()
     os._exit(code)

@@ -32,7 +32,7 @@ class _PlotSink(OutcomeSink):
 
     #: a run interrupted after its co-simulation leaves out the plots not already sent to the
     #: plot process (they only draw what the CSV files hold, and drawing in the run's process
-    #: means importing matplotlib, a third of a second)
+    #: means importing matplotlib)
     skippable = True
     #: the plot's kind (twin.outputs.plots.KINDS)
     kind = ""

@@ -1,7 +1,6 @@
 """``recording.rrd`` as a run's sink; the file is written by :mod:`twin.outputs.rerun_rec`.
 
-Importing rerun takes a quarter of a second (its hundreds of modules), a third of the paper
-replay's whole run. This module does not import it: :class:`RecordingSink` loads
+Importing rerun (its hundreds of modules) takes a noticeable part of a short run. This module does not import it: :class:`RecordingSink` loads
 :mod:`twin.outputs.rerun_rec`, and with it rerun, when the first rows reach it (or the run
 ends without any). ``twin run`` hands a short run's rows on only after the error model has
 run and the plots are sent (:func:`twin.pipeline.stages.simulate`'s ``hold_last_rows``), so

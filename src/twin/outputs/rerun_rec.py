@@ -68,7 +68,7 @@ SCENE_VIEW_NAME = "Tester (3D)"
 #: units recorded in another unit: SI unit -> (recorded unit, factor from SI)
 _DISPLAY_UNITS = {"m": ("µm", 1e6)}
 #: a long chunk is sent in slices of this many rows (RecordingWriter.append), each written before
-#: the next is sent: 196,608 rows x 79 signals peaked at 203 MB (509 MB sent whole), in 2.1 s (1.9 s)
+#: the next is sent, so that rerun never holds a whole long chunk encoded at once
 CHUNK_ROWS = 8192
 
 
@@ -287,7 +287,7 @@ class RecordingWriter(ClosesOnExit):
 
 
 #: seconds one flush of a recording waits before the disk is looked at (a healthy flush of a
-#: slice takes hundredths of a second; a longer one only costs a look) ...
+#: slice is far quicker; a longer one only costs a look) ...
 FLUSH_CHECK_S = 1.0
 #: ... and seconds the file may then go without growing before rerun's writer is taken for
 #: one that stopped (it writes a slice of CHUNK_ROWS rows in milliseconds)

@@ -63,8 +63,8 @@ def one_line(exc: BaseException) -> str:
 
 def peak_rss_mb() -> float:
     """This process's peak resident memory in MB: Linux's ``VmHWM``, not ``ru_maxrss``, which
-    starts from the peak of the process that started this one (measured: a Dask worker whose
-    nanny held 460 MB reported 460 MB for a 65 MB peak, so a growing worker could not show).
+    starts from the peak of the process that started this one (a Dask worker reports its
+    nanny's peak, however little it uses itself, so a growing worker could not show).
     Elsewhere ``ru_maxrss`` (bytes on macOS, KiB on the others)."""
     try:
         with open("/proc/self/status", encoding="ascii") as status:

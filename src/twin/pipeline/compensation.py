@@ -80,7 +80,7 @@ def compensate(
         on_flag=flags.add,
         block_bytes=block_bytes,
     )
-    # matplotlib's import (a third of a second of pure Python) runs while Arrow parses the
+    # matplotlib's import (pure Python, holding the GIL) runs while Arrow parses the
     # file without the GIL; the plot at the end finds it done
     threading.Thread(target=_import_plotting, name="import matplotlib", daemon=True).start()
     evaluation = StreamingEvaluation(

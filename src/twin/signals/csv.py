@@ -289,7 +289,7 @@ class CsvReader:
 
 def _floats(column: Any) -> np.ndarray | None:
     """An Arrow float64 column as one numpy array, None if it holds a null. From the buffers:
-    Arrow's own to_numpy() would import pandas (half a second, 40 MB)."""
+    Arrow's own to_numpy() would import pandas."""
     parts = []
     for chunk in column.chunks:
         if chunk.null_count:

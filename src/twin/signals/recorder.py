@@ -62,8 +62,8 @@ class TeeRecorder:
     them on once the error model has run and the plots are sent, so that writing them, and
     loading rerun with the first of them (:mod:`twin.outputs.recording_sink`), overlaps the
     drawing. A longer run's files are open by then and its last rows cheap to write: they are
-    handed on at once, not held beside the error model's columns (4.6 MB more at the peak of
-    the MIL endurance run).
+    handed on at once, not held beside the error model's columns (which would raise a long
+    run's peak memory).
     """
 
     def __init__(
