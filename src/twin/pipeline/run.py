@@ -21,10 +21,8 @@ from twin.errors import ConfigError
 from twin.outputs.run_folder import SUMMARY_JSON, UNCERTAINTY_CSV
 from twin.outputs.summary import write_summary
 from twin.pipeline.cluster import execute, failed, one_line, open_client
-from twin.pipeline.point import point_task
 from twin.pipeline.prepare import PreparedRun, prepare_scenario
 from twin.pipeline.run_summary import RunSummary
-from twin.pipeline.shipping import BinariesPlugin, collect
 from twin.pipeline.stages import run_into_folder
 
 __all__ = ["run", "run_samples"]
@@ -66,6 +64,11 @@ def run_samples(prepared: PreparedRun, controls: RunControls) -> dict[str, Any]:
     """The prepared run's Monte Carlo on Dask (a local cluster): per sample its room shape and
     figures, in sample order. ``controls.stop`` answering a signal's name ends it after the
     samples done so far (``"interrupted"`` then names it)."""
+    # Dask loads here, with the Monte Carlo: a run without one and ``twin compensate`` (which
+    # imports this package) never pay for distributed's import
+    from twin.pipeline.point import point_task
+    from twin.pipeline.shipping import BinariesPlugin, collect
+
     unc = prepared.uncertainty
     assert unc is not None
     names, make = montecarlo.sampler(unc, prepared.scenario)
