@@ -63,3 +63,28 @@ def test_a_folder_of_other_files_is_written_into(tmp_path: Path) -> None:
     (out / "notes.txt").write_text("mine", encoding="utf-8")
     assert _compensate(tmp_path, out) == 0
     assert (out / "notes.txt").read_text(encoding="utf-8") == "mine"
+
+
+@pytest.mark.parametrize("name", ["errormodel.csv", "flagged_rows.csv", "a link to errormodel.csv"])
+def test_an_input_that_is_one_of_the_outputs_is_refused_and_kept(name: str, tmp_path: Path, capsys) -> None:
+    """The input would be cut while it is read (exit 0 and a shorter record, seen by a hostile
+    test): refused before anything is written, the input as it was, --force or not."""
+    out = tmp_path / "out"
+    out.mkdir()
+    text = lab_csv()
+    (tmp_path / "lab.toml").write_text(GOOD_TOML, encoding="utf-8")
+    if name.startswith("a link"):
+        (tmp_path / "lab.csv").write_text(text, encoding="utf-8")
+        (out / "errormodel.csv").symlink_to(tmp_path / "lab.csv")
+        csv = tmp_path / "lab.csv"
+    else:
+        csv = out / name
+        csv.write_text(text, encoding="utf-8")
+    for extra in ([], ["--force"]):
+        args = ["compensate", str(csv), "--config", str(tmp_path / "lab.toml"), "--out", str(out), *extra]
+        assert main(args) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("twin: --out: the input "), err
+        assert "which this command writes" in err[0]
+        assert csv.read_text(encoding="utf-8") == text
+        assert not (out / "summary.json").exists()

@@ -7,6 +7,7 @@ run's signals.csv (whose errormodel.csv it then reproduces byte for byte).
 from __future__ import annotations
 
 import csv
+import os
 import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -278,8 +279,28 @@ def job(target: Path, config_path: Path | None, out: Path | None, force: bool) -
         csv, default = target, target.with_name(target.stem + "-compensated")
     out = out if out is not None else default
     check_output_folder(out, "--out")
+    _refuse_writing_over_the_input(csv, out)
     _refuse_another_commands_outputs(out, force)
     return Job(csv, config_path, config, out)
+
+
+def _refuse_writing_over_the_input(csv: Path, out: Path) -> None:
+    """The input is read while the outputs are written: an input that is one of the files
+    this command writes (``--out`` its own folder and its name ``errormodel.csv``, or a link
+    to it there) would be cut while it is read, and lost."""
+    written = (ERRORMODEL_CSV, FLAGGED_CSV, SUMMARY_JSON, ERROR_BUDGET_PNG)
+    names = [*written, units_sidecar_path(ERRORMODEL_CSV).name]
+    for name in names:
+        target = out / name
+        try:
+            same = target.exists() and os.path.samefile(csv, target)
+        except OSError:
+            same = False  # the input cannot be compared: the reader reports it
+        if same or csv.resolve() == target.resolve():
+            raise ConfigError(
+                f"the input {csv} is {name}, which this command writes in {out}: name another --out",
+                source="--out",
+            )
 
 
 def _refuse_another_commands_outputs(out: Path, force: bool) -> None:
