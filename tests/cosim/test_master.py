@@ -222,3 +222,38 @@ def test_fast_loop_and_python_loop_give_identical_signals(scenario_file: str, ov
     assert fast.table.time.tobytes() == py.table.time.tobytes()
     for name in fast.table.names():
         assert fast.table[name].tobytes() == py.table[name].tobytes(), name
+
+
+@pytest.mark.parametrize("loop", ["fast", "python"])
+def test_a_transformed_connection_gives_factor_times_output_plus_offset(tmp_path: Path, loop: str) -> None:
+    """A connection's factor and offset (a unit conversion, an SSP LinearTransformation) reach
+    the input, directly and through a delay, in both loops alike; the identity copies."""
+    import dataclasses
+
+    body = (
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
+        '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
+        '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
+    )
+    sc = load_scenario(scenario(tmp_path, body, duration="5 min"))
+
+    def with_transform(factor: float, offset: float):
+        connections = tuple(dataclasses.replace(c, factor=factor, offset=offset) for c in sc.connections)
+        return run_scenario(dataclasses.replace(sc, connections=connections), loop=loop)
+
+    plain, identity, halved = (
+        run_scenario(sc, loop=loop),
+        with_transform(1.0, 0.0),
+        with_transform(0.5, 150.0),
+    )
+    assert plain.status == identity.status == halved.status == "completed"
+    for name in plain.table.names():
+        assert plain.table[name].tobytes() == identity.table[name].tobytes(), name
+    ambient, room_meas = halved.table["thermal.t_ambient"], halved.table["sensors.t_room_meas"]
+    assert ambient[0] == 295.0  # the delay's initial value, as given (never transformed)
+    assert room_meas[0] == 0.5 * 295.0 + 150.0  # the direct connection at initialization
+    assert ambient[2] == 0.5 * room_meas[0] + 150.0  # through the delay, one exchange late
+    # the loop x -> 0.5 x + 150 settles at its fixed point, 300 K
+    assert abs(ambient[-1] - 300.0) < 1e-6 and abs(room_meas[-1] - 300.0) < 1e-6

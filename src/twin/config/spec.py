@@ -76,13 +76,21 @@ class Connection:
     """Output ``src`` feeds input ``dst`` ("instance.variable").
 
     A delayed connection passes the value of the previous exchange (its ``initial`` value at the
-    first one): the only way a loop between FMUs is allowed.
+    first one). The input receives ``factor * output + offset`` (a unit conversion, or an SSP
+    LinearTransformation); the identity leaves the value untouched, bit for bit.
     """
 
     src: str
     dst: str
     delay: bool = False
     initial: float | None = None
+    factor: float = 1.0
+    offset: float = 0.0
+
+    @property
+    def affine(self) -> bool:
+        """Whether the input receives anything but the output's own value."""
+        return self.factor != 1.0 or self.offset != 0.0
 
 
 ProfileKind = Literal["constant", "ramp", "exponential", "sine", "table"]

@@ -71,6 +71,8 @@ STRUCTS: dict[str, str] = {
         const int32_t *in_kind;      /* IN_CONNECTION, IN_DELAYED or IN_DRIVEN */
         const int32_t *in_src;       /* source slot (connection, delayed) or driven column */
         const int32_t *in_idx;       /* source output index (connection, delayed) */
+        const double *in_factor;     /* a connection gives factor * output + offset ... */
+        const double *in_offset;     /* ... (1 and 0: the output itself, untouched) */
         double *delay_buf;           /* the value a delayed input takes at its next exchange */
         const unsigned int *out_vr;  /* output value references */
         double *out_raw;             /* the visible outputs without their bias */

@@ -84,6 +84,13 @@ class NativeLoop:
             )
             for inst in plan.instances
         ]
+        self._affine = [
+            tuple(
+                np.array([getattr(i, a) for i in inst.inputs] or [v], dtype=np.float64)
+                for a, v in (("factor", 1.0), ("offset", 0.0))
+            )
+            for inst in plan.instances
+        ]
         self.slots = (TwinSlot * len(plan.instances))()
         for i, s in enumerate(self.slots):
             self._point(i, s)
@@ -100,6 +107,7 @@ class NativeLoop:
         s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
         s.in_val, s.out_pending = _address(buf.in_port.values), _address(buf.out_port.values)
         s.in_kind, s.in_src, s.in_idx = map(_address, self._inputs[i])
+        s.in_factor, s.in_offset = map(_address, self._affine[i])
         s.delay_buf, s.out_raw, s.out_cur, s.bias = map(_address, (buf.delay_buf, buf.raw, buf.cur, buf.bias))
         s.pending_at = _address(self.state.pending_at) + i * self.state.pending_at.itemsize
 

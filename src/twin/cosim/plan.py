@@ -60,7 +60,8 @@ class PlannedInput:
 
     ``src`` is the source instance (connection, delayed) or the driven column (driven); ``idx``
     the output index in the source instance; ``initial`` the value the input holds before the
-    first exchange (a delayed connection's initial value, a driven input's start value).
+    first exchange (a delayed connection's initial value, a driven input's start value). A
+    connection gives ``factor * output + offset`` (:class:`~twin.config.spec.Connection`).
     """
 
     name: str
@@ -69,6 +70,8 @@ class PlannedInput:
     src: int
     idx: int
     initial: float
+    factor: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -214,7 +217,8 @@ class _Builder:
             src, out = c.src.split(".")
             kind = InputKind.DELAYED if c.delay else InputKind.CONNECTION
             initial = float(c.initial or 0.0) if c.delay else 0.0
-            return PlannedInput(name, vr, kind, self.index[src], self.outputs[src].index(out), initial)
+            idx = self.outputs[src].index(out)
+            return PlannedInput(name, vr, kind, self.index[src], idx, initial, c.factor, c.offset)
         start = variables[name].start
         initial = float(start) if start is not None else 0.0
         profile = self.profiles.get(target)

@@ -60,6 +60,14 @@ class Gather:
         # the source buffers are never reallocated (a restore writes into them): keep them
         self.connected = [(j, buffers[i.src].cur, i.idx) for j, i in by_kind[InputKind.CONNECTION]]
         self.delayed = [(j, buffers[i.src].cur, i.idx) for j, i in by_kind[InputKind.DELAYED]]
+        # the few transformed connections, applied after the plain copy (as stepper.c does)
+        self.affine = [(j, i.factor, i.offset) for j, i in enumerate(inst.inputs) if _affine(i)]
+        self.affine_delayed = [
+            (j, f, o) for j, f, o in self.affine if inst.inputs[j].kind == InputKind.DELAYED
+        ]
+        self.affine_connected = [
+            (j, f, o) for j, f, o in self.affine if inst.inputs[j].kind == InputKind.CONNECTION
+        ]
         self.driven_at = np.array([j for j, _ in by_kind[InputKind.DRIVEN]], dtype=np.intp)
         self.driven_column = np.array([i.src for _, i in by_kind[InputKind.DRIVEN]], dtype=np.intp)
 
@@ -67,15 +75,24 @@ class Gather:
         vals, delay_buf = self.buf.in_port.values, self.buf.delay_buf
         for j, cur, idx in self.connected:
             vals[j] = cur[idx]
+        for j, f, o in self.affine_connected:
+            vals[j] = vals[j] * f + o
         for j, cur, idx in self.delayed:
             vals[j] = delay_buf[j]
             if exchange:
                 delay_buf[j] = cur[idx]
+        if exchange:
+            for j, f, o in self.affine_delayed:
+                delay_buf[j] = delay_buf[j] * f + o
         self.drive(drow)
 
     def drive(self, drow: np.ndarray) -> None:
         """The driven inputs alone: each takes its column of ``drow``."""
         self.buf.in_port.values[self.driven_at] = drow[self.driven_column]
+
+
+def _affine(i: PlannedInput) -> bool:
+    return i.kind != InputKind.DRIVEN and (i.factor != 1.0 or i.offset != 0.0)
 
 
 def row_values(plan: Plan, state: State) -> list[float]:

@@ -29,6 +29,13 @@ static void commit(TwinSlot *s, int64_t k) {
     *s->pending_at = -1;
 }
 
+/* what a connection gives its input: factor * output + offset, the output itself (bit for bit,
+ * a -0.0 included) when the connection transforms nothing */
+static double transformed(const TwinSlot *s, int32_t j, double v) {
+    const double f = s->in_factor[j], o = s->in_offset[j];
+    return (f != 1.0 || o != 0.0) ? v * f + o : v;
+}
+
 int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int64_t step_ns, int64_t out_every,
                    const double *driven, int32_t n_driven, double *rec, int64_t rec_capacity, const TwinColumn *cols,
                    int32_t n_cols, TwinCounters *c) {
@@ -45,10 +52,12 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
             if (k % s->period_ticks) continue;
             for (j = 0; j < s->n_in; j++) {
                 switch (s->in_kind[j]) {
-                    case IN_CONNECTION: s->in_val[j] = slots[s->in_src[j]].out_cur[s->in_idx[j]]; break;
+                    case IN_CONNECTION:
+                        s->in_val[j] = transformed(s, j, slots[s->in_src[j]].out_cur[s->in_idx[j]]);
+                        break;
                     case IN_DELAYED:
                         s->in_val[j] = s->delay_buf[j];
-                        s->delay_buf[j] = slots[s->in_src[j]].out_cur[s->in_idx[j]];
+                        s->delay_buf[j] = transformed(s, j, slots[s->in_src[j]].out_cur[s->in_idx[j]]);
                         break;
                     default: s->in_val[j] = drow[s->in_src[j]]; break;
                 }
