@@ -63,6 +63,10 @@ class ConfigErrors(ConfigError):
         return "\n".join(str(p) for p in self.problems)
 
 
+class UnitError(ConfigError):
+    """A unit that is not known, or two units of different dimensions (:mod:`twin.units`)."""
+
+
 class CheckpointError(ConfigError):
     """A checkpoint that cannot be trusted or read (a changed or damaged part, another format or
     version, an old pickle, a scenario changed since it was taken): refused, never executed."""
