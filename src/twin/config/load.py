@@ -15,7 +15,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from twin.config.connections import load_connections
+from twin.config.connections import check_inputs_fed, load_connections
 from twin.config.durations import MAX_DURATION_NS, format_duration, parse_duration
 from twin.config.events import FAULTS, load_events
 from twin.config.fmus import load_fmus
@@ -74,6 +74,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     connections = load_connections(p, data, by_name)
     profiles = load_profiles(p, data, by_name, connections)
     events = load_events(p, data, by_name, sc.duration_ns, connections)
+    check_inputs_fed(p, data, fmus)
     errormodel = table(p, data, "errormodel")
     uncertainty, reference = table(p, data, "uncertainty"), table(p, data, "reference")
 
@@ -100,16 +101,77 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     )
 
 
-def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
-    """``over`` on top of ``base``: tables merge key by key, anything else is replaced.
+def _merge(base: dict[str, Any], over: Mapping[str, Any], source: str, path: str = "") -> dict[str, Any]:
+    """``over`` (a file) on top of ``base`` (what it extends), by the one merge rule of
+    ``extends`` (docs/scenario-files.md):
 
-    An input's profile table is replaced whole: a sine does not inherit a constant's value.
+    - tables merge key by key, whatever their keys (a parameter table holding a parameter
+      named ``profile`` is a table like any other);
+    - a parameter given as ``{ value, source }`` is one value: it replaces the base's whole,
+      so a value never keeps the source of the value it replaced;
+    - an input's profile (``[input.<fmu>.<variable>]``) that names another kind of profile
+      replaces the base's whole: a sine does not inherit a constant's ``value``; the same kind
+      merges key by key (a sine's amplitude alone changed);
+    - arrays of tables (``[[delay]]``, ``[[event]]``) extend the base's; an entry with
+      ``remove = true`` instead removes the base's entries that have every other value it
+      gives (none matched: an error);
+    - anything else (a value, an array of values such as ``parameter_files``) is replaced.
+
+    A connection is removed by giving its output no input: ``"thermal.t_sensor" = []``.
     """
     out = dict(base)
     for k, v in over.items():
-        mergeable = isinstance(v, dict) and isinstance(out.get(k), dict) and "profile" not in v
-        out[k] = _merge(out[k], v) if mergeable else v
+        key = f"{path}{k}"
+        old = out.get(k)
+        if isinstance(v, dict) and isinstance(old, dict) and not _replaces_whole(key, old, v):
+            out[k] = _merge(old, v, source, key + ".")
+        elif _array_of_tables(v) and (old is None or old == [] or _array_of_tables(old)):
+            out[k] = _extend(old or [], v, source, key)
+        else:
+            out[k] = v
     return out
+
+
+def _replaces_whole(key: str, old: Mapping[str, Any], new: Mapping[str, Any]) -> bool:
+    """Whether ``new`` replaces ``old`` whole: a parameter's ``{ value, source }`` (the source
+    goes with its value) or an input's profile of another kind (key ``input.a.b``)."""
+    parts = key.split(".")
+    if len(parts) == 4 and parts[0] == "fmu" and parts[2] == "parameters":
+        return True
+    return (
+        len(parts) == 3
+        and parts[0] == "input"
+        and new.get("profile", old.get("profile")) != old.get("profile")
+    )
+
+
+def _array_of_tables(v: Any) -> bool:
+    return isinstance(v, list) and bool(v) and all(isinstance(e, dict) for e in v)
+
+
+def _extend(
+    base: list[dict[str, Any]], over: list[dict[str, Any]], source: str, key: str
+) -> list[dict[str, Any]]:
+    """The base's entries, less those an entry with ``remove = true`` names, then the file's."""
+    out = list(base)
+    for i, entry in enumerate(over):
+        if entry.get("remove") is not True:
+            out.append(entry)
+            continue
+        named = {k: v for k, v in entry.items() if k != "remove"}
+        kept = [e for e in out if not (named and all(e.get(k) == v for k, v in named.items()))]
+        if len(kept) == len(out):
+            raise ConfigError(
+                f"removes nothing: no {key} of the file it extends has {_shown(named)}",
+                source=source,
+                key=f"{key}[{i}]",
+            )
+        out = kept
+    return out
+
+
+def _shown(named: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k} = {v!r}" for k, v in named.items()) or "(no key given)"
 
 
 #: the longest ``extends`` chain (the shipped scenarios use 2 files)
@@ -149,7 +211,7 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
         # the base itself cannot be read: say so where it is named
         raise ConfigError(f"{parent}: {exc.message}", source=str(path), key="extends") from None
     _anchor(base, base_path.parent)
-    return _merge(base, data)
+    return _merge(base, data, str(path))
 
 
 def _anchor(base: dict[str, Any], folder: Path) -> None:
