@@ -27,7 +27,7 @@ def _scenario(folder: Path, model: str = "LowPass.fmu", extra: str = "") -> Path
     path.write_text(
         f'extends = "{TESTER}"\n'
         '[scenario]\nname = "with-filter"\nduration = "2 min"\noutput_interval = "0.1 s"\n'
-        f'[fmu.filter]\nmodel = "{model}"\nperiod = "0.1 s"\n'
+        f'[fmu.filter]\nmodel = "{model}"\nperiod = "0.1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         f'parameters = {{ T = {{ value = {T_FILTER}, source = "test: a 5 s filter of the probe" }} }}\n'
         '[connections]\n"sensors.probe_meas" = "filter.u"\n' + extra
     )

@@ -286,7 +286,7 @@ CASES = [
         "instance-name-not-snake",
         "fmu.Extra",
         "lower_snake",
-        setv("fmu.Extra", {"model": "SensorsDAQ", "period": "1 s"}),
+        setv("fmu.Extra", {"model": "SensorsDAQ", "period": "1 s", "unconnected": "a spare DAQ"}),
     ),
     # --- connections
     Case(

@@ -306,7 +306,12 @@ def test_scenario_is_frozen(paper) -> None:
 def test_overrides_reach_the_scenario() -> None:
     s = load_scenario(
         default_scenario_path(),
-        ["scenario.seed=7", 'scenario.duration="30 min"', 'connections."thermal.t_clamp"=[]'],
+        [
+            "scenario.seed=7",
+            'scenario.duration="30 min"',
+            'connections."thermal.t_clamp"=[]',
+            'fmu.mechanics.unconnected.t_clamp="test: the clamp at its start temperature"',
+        ],
     )
     assert s.seed == 7 and s.duration_ns == 30 * 60 * NS_PER_S
     assert not any(c.src == "thermal.t_clamp" for c in s.connections)

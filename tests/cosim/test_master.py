@@ -26,10 +26,12 @@ LOOP_SYSTEM = """
 [fmu.thermal]
 model = "ThermalNetwork"
 period = "10 s"
+unconnected = "a test system: the inputs nothing feeds keep their start values"
 parameters = { solver_step = 1.0 }
 [fmu.sensors]
 model = "SensorsDAQ"
 period = "1 s"
+unconnected = "a test system: the inputs nothing feeds keep their start values"
 [connections]
 "thermal.t_ambient" = "sensors.t_room"
 [[delay]]
@@ -59,7 +61,7 @@ seed = 3
 def test_output_times_are_exact_multiples(tmp_path: Path) -> None:
     path = scenario(
         tmp_path,
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "0.1 s"\nparameters = { solver_step = 0.1 }\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "0.1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\nparameters = { solver_step = 0.1 }\n'
         + ROOM,
         duration="10 min",
         step="0.1 s",
@@ -76,8 +78,8 @@ def test_output_times_are_exact_multiples(tmp_path: Path) -> None:
 
 def test_slow_fmu_output_is_held_between_its_steps(tmp_path: Path) -> None:
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "60 s"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "60 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         "[connections]\n"
         '"thermal.t_ambient" = "sensors.t_room"\n' + ROOM
     )
@@ -101,8 +103,8 @@ def test_jacobi_exchange_uses_values_at_the_start_of_the_step(tmp_path: Path) ->
     # sensors read thermal.t_ambient: a step change of the room at 30 min reaches the
     # thermal output at the end of thermal's step (30:10), and the sensor's input from then on
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "10 s"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "10 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
         '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
         '[input.thermal.t_room]\nprofile = "constant"\nvalue = 293.15\n'
@@ -122,7 +124,7 @@ def test_jacobi_exchange_uses_values_at_the_start_of_the_step(tmp_path: Path) ->
 
 def test_ramp_and_bias_events(tmp_path: Path) -> None:
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         '[input.thermal.q_hydraulic]\nprofile = "constant"\nvalue = 100.0\n'
         '[[event]]\nat = "10 min"\naction = "ramp"\ntarget = "thermal.q_hydraulic"\nvalue = 400.0\nduration = "10 min"\n'
         '[[event]]\nat = "40 min"\naction = "bias"\ntarget = "thermal.t_base"\nvalue = 2.5\n'
@@ -142,8 +144,8 @@ def test_an_fmu_failure_keeps_the_rows_recorded_before_it(tmp_path: Path, loop: 
     # a sensor bias at 20 min pushes a connected value past the receiving input's range: the
     # loader cannot foresee it, the FMU refuses it at run time
     body = (
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "10 s"\n'
-        '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "10 s"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "10 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+        '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "10 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         '[connections]\n"sensors.probe_meas" = "mechanics.wear_offset"\n'
         '[[event]]\nat = "20 min"\naction = "bias"\ntarget = "sensors.probe_meas"\nvalue = 0.01\n'
     )
@@ -164,7 +166,7 @@ def test_both_loops_stop_at_a_fault_with_the_same_error_and_rows(
     tmp_path: Path, fault: str, call: str
 ) -> None:
     body = (
-        '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "1 s"\n'
+        '[fmu.mechanics]\nmodel = "FixtureMechanics"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         f'[[event]]\nat = "1 min"\naction = "fault"\ntarget = "mechanics"\nfault = "{fault}"\n'
     )
     sc = load_scenario(scenario(tmp_path, body, duration="3 min"))
@@ -182,8 +184,8 @@ def test_delayed_connection_breaks_a_loop_with_its_initial_value(tmp_path: Path)
     # sensors -> thermal -> sensors: allowed only through a delay; the first exchange of the
     # delayed input sees the declared initial value
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
         '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
         '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
@@ -231,8 +233,8 @@ def test_a_transformed_connection_gives_factor_times_output_plus_offset(tmp_path
     import dataclasses
 
     body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\n'
+        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
         "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
         '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
         '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'

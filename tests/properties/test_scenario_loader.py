@@ -73,7 +73,9 @@ INSTANCES.update({_snake(m): m for m in model_names() if m not in INSTANCES.valu
 def base_data() -> dict[str, Any]:
     data = paper_data()
     for inst, model in INSTANCES.items():
-        data["fmu"].setdefault(inst, {"model": model, "period": "1 s"})
+        data["fmu"].setdefault(
+            inst, {"model": model, "period": "1 s", "unconnected": "spare: nothing feeds it"}
+        )
     return data
 
 

@@ -106,6 +106,58 @@ def check_loops(p: Problems, connections: Sequence[Connection]) -> None:
             return
 
 
+def check_inputs_fed(p: Problems, data: Mapping[str, Any], fmus: Sequence[FMUSpec]) -> None:
+    """Every input of every FMU is connected, driven (a profile, a set, ramp or fault event) or
+    marked as meant to stay at its start value (``[fmu.<name>] unconnected = { <input> =
+    "why" }``): one problem per input that is none of these, so an input a file forgot (a
+    connection lost to an ``extends``) is never left at its start value without a word. Read
+    from the data as written, so an input whose connection or profile is itself wrong is
+    reported once, there. A mark on an input that something feeds has no effect (a file may
+    drive what its base leaves alone)."""
+    if any(e.key and e.key.split(".")[0].split("[")[0] in _FEEDING for e in p.items):
+        return  # what feeds which input is itself wrong: reported there, once
+    named = _named_inputs(data)
+    for f in fmus:
+        for name, v in model_variables(f.model).items():
+            target = f"{f.name}.{name}"
+            if v.causality != "input" or target in named or name in f.unconnected:
+                continue
+            unit = "" if v.unit in (None, "", "1") else f" {v.unit}"
+            start = f"start value {v.start}{unit}" if v.start is not None else "no start value"
+            p.add(
+                f"fmu.{f.name}",
+                f"input '{name}' ({start}) is not connected: connect it, drive it with "
+                f'[input.{target}], or give the reason it is left alone: unconnected = {{ {name} = "..." }}',
+            )
+
+
+#: the tables that feed or drive inputs
+_FEEDING = frozenset({"connections", "delay", "input", "event"})
+
+
+def _named_inputs(data: Mapping[str, Any]) -> set[str]:
+    """Every "instance.input" the data feeds or drives, well written or not."""
+    named: set[str] = set()
+    for dsts in _values(data.get("connections")):
+        named.update(d for d in (dsts if isinstance(dsts, list) else [dsts]) if isinstance(d, str))
+    for group, key in (("delay", "to"), ("event", "target")):
+        entries = data.get(group)
+        for e in entries if isinstance(entries, list) else ():
+            if isinstance(e, dict) and isinstance(e.get(key), str):
+                named.add(f"{e[key]}.fault_inject" if "fault" in e else e[key])
+    inputs = data.get("input")
+    for inst, variables in inputs.items() if isinstance(inputs, dict) else ():
+        named.update(f"{inst}.{var}" for var in _values(variables, keys=True))
+    return named
+
+
+def _values(node: Any, *, keys: bool = False) -> list[Any]:
+    """A table's values (or keys); nothing for anything that is not a table."""
+    if not isinstance(node, dict):
+        return []
+    return list(node) if keys else list(node.values())
+
+
 def load_connections(p: Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
     """Every connection, plain then delayed, checked."""
     delays = _delays(p, data)

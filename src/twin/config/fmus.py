@@ -21,7 +21,7 @@ from twin.errors import ConfigError
 from twin.fmu.catalog import model_names
 from twin.fmu.catalog import variables as model_variables
 
-_FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
+_FMU_KEYS = {"model", "period", "parameters", "parameter_files", "unconnected"}
 
 
 def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str, float | None] | None:
@@ -160,9 +160,42 @@ def _instance(
     prefix = f"fmu.{name}."
     period = _period(p, raw, prefix, step_ns)
     params = _parameters(p, model, _given_parameters(p, raw, prefix, base_dir))
+    unconnected = _unconnected(p, model, raw, prefix)
     if period is None:
         return None
-    return FMUSpec(name=name, model=model, period_ns=period, parameters=MappingProxyType(params))
+    return FMUSpec(
+        name=name,
+        model=model,
+        period_ns=period,
+        parameters=MappingProxyType(params),
+        unconnected=MappingProxyType(unconnected),
+    )
+
+
+def _unconnected(p: Problems, model: str, raw: Mapping[str, Any], prefix: str) -> dict[str, str]:
+    """``unconnected = { <input> = "why it stays at its start value" }``: inputs of the model,
+    each with a reason (the scenario says it means them to be left alone); or one reason for
+    every input of the instance that nothing feeds (``unconnected = "a test rig of two FMUs"``)."""
+    given = raw.get("unconnected", {})
+    inputs = [n for n, v in model_variables(model).items() if v.causality == "input"]
+    if isinstance(given, str) and given.strip():
+        return dict.fromkeys(inputs, given)
+    if not isinstance(given, dict):
+        p.add(
+            prefix + "unconnected",
+            'expected { <input> = "why it stays at its start value" }, or one reason for all its inputs',
+        )
+        return {}
+    out = {}
+    for name, why in given.items():
+        key = f"{prefix}unconnected.{name}"
+        if name not in inputs:
+            p.add(key, f"{model} has no input '{name}'{did_you_mean(name, inputs)}")
+        elif not isinstance(why, str) or not why.strip():
+            p.add(key, "expected the reason it stays at its start value (a text)")
+        else:
+            out[name] = why
+    return out
 
 
 def load_fmus(p: Problems, data: Mapping[str, Any], base_dir: Path, step_ns: int | None) -> list[FMUSpec]:

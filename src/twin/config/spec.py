@@ -69,6 +69,8 @@ class FMUSpec:
     model: str
     period_ns: int
     parameters: Mapping[str, Parameter] = field(default_factory=_frozen)
+    #: inputs meant to stay at their start values, each with the reason (``unconnected``)
+    unconnected: Mapping[str, str] = field(default_factory=_frozen)
 
 
 @dataclass(frozen=True)

@@ -257,6 +257,7 @@ def _scenario_data(
         "connections": {},
     }
     components = {e.name: e for e in system.system.elements if e.source}
+    declared_inputs: dict[str, list[str]] = {}
     hints = {}
     for el in system_el.iterfind("ssd:Elements/ssd:Component", NS) if system_el is not None else ():
         hint = _annotation(el, OSP_TYPE)
@@ -277,8 +278,22 @@ def _scenario_data(
         data["fmu"][name] = {"model": model, "period": period, "parameters": params}
         for var, value in inputs.items():
             data.setdefault("input", {}).setdefault(name, {})[var] = {"profile": "constant", "value": value}
+        declared_inputs[name] = [k for k, v in declared.items() if v.causality == "input"]
     _connections(data, system_el, source)
+    _leave_alone(data, declared_inputs)
     return data
+
+
+def _leave_alone(data: dict[str, Any], declared_inputs: Mapping[str, list[str]]) -> None:
+    """An input the system neither connects nor gives a value keeps its start value, as in any
+    SSP tool: said so for each one (``unconnected``), which the scenario's check requires."""
+    fed = {d for dsts in data["connections"].values() for d in dsts}
+    fed |= {d["to"] for d in data.get("delay", [])}
+    fed |= {f"{inst}.{var}" for inst, table in data.get("input", {}).items() for var in table}
+    for name, inputs in declared_inputs.items():
+        left = {v: f"unconnected in {SSD_NAME}: its start value" for v in inputs if f"{name}.{v}" not in fed}
+        if left:
+            data["fmu"][name]["unconnected"] = left
 
 
 def _connections(data: dict[str, Any], system_el: ET.Element | None, source: str) -> None:
