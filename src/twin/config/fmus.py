@@ -21,7 +21,7 @@ from twin.errors import ConfigError
 from twin.fmu.catalog import model_names
 from twin.fmu.catalog import variables as model_variables
 
-_FMU_KEYS = {"model", "period", "parameters", "parameter_files"}
+_FMU_KEYS = {"model", "period", "parameters", "parameter_files", "unconnected"}
 
 
 def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str, float | None] | None:
@@ -138,6 +138,15 @@ def _external(p: Problems, given: str, prefix: str, base_dir: Path) -> str | Non
         return None
 
 
+def _unconnected(p: Problems, raw: Mapping[str, Any], prefix: str) -> None:
+    """``unconnected = { input = "why it stays at its start value" }``: inputs left unconnected
+    on purpose (an SSP archive's reader lists every one, as SSP leaves them at their start
+    value); a table of strings."""
+    marks = raw.get("unconnected", {})
+    if not isinstance(marks, dict) or not all(isinstance(v, str) for v in marks.values()):
+        p.add(prefix + "unconnected", 'expected a table { input = "why it stays at its start value" }')
+
+
 def _period(p: Problems, raw: Mapping[str, Any], prefix: str, step_ns: int | None) -> int | None:
     period = p.duration(raw, "period", prefix)
     if period is not None and period <= 0:
@@ -158,6 +167,7 @@ def _instance(
     if model is None:
         return None
     prefix = f"fmu.{name}."
+    _unconnected(p, raw, prefix)
     period = _period(p, raw, prefix, step_ns)
     params = _parameters(p, model, _given_parameters(p, raw, prefix, base_dir))
     if period is None:

@@ -27,10 +27,18 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from twin.config.spec import Scenario
-from twin.config.ssp import _TYPES, OSP_TYPE, SSD_NAME, TWIN_TYPE, _q, _seconds, _value_text
+from twin.config.ssp import NS, OSP_TYPE, SSD_NAME, TWIN_TYPE
+from twin.config.ssp import TYPES as _TYPES
+from twin.config.ssp import q as _q
+from twin.config.ssp import seconds as _seconds
+from twin.config.ssp import value_text as _value_text
 from twin.files import write_atomic
 
 __all__ = ["Exported", "export_ssp"]
+
+# the standard's prefixes, literally: libcosim's reader looks elements up as "ssv:ParameterSet"
+for _prefix, _uri in NS.items():
+    ET.register_namespace(_prefix, _uri)
 
 
 @dataclass(frozen=True)
