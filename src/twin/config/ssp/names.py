@@ -76,7 +76,9 @@ def describe(el: Any) -> str:
         return f"{tag}[{el.get('source')} -> {el.get('target')}]"
     if tag == "ssc:Annotation":
         return f"{tag}[{el.get('type')}]"
-    name = el.get("name") or el.get("source")
+    name = el.get("name") or (
+        el.get("source") if tag in ("ssd:ParameterBinding", "ssd:ParameterMapping") else None
+    )
     return f"{tag}[{name}]" if name else tag
 
 

@@ -61,14 +61,17 @@ def scenario_table(r: Any, system: Any) -> dict[str, Any]:
                 r.refuse(a, "an algorithm other than libcosim's fixed step: the twin steps at a fixed step")
             elif a.get("baseStepSize"):
                 table["step"] = f"{a.get('baseStepSize')} s"
-    settings = r.known(r.annotation(experiment, TWIN_TYPE), {"twin:Scenario", "twin:Tables"})
-    for el in (s for s in settings if tag_of(s) == "twin:Scenario"):
+    for el in r.known(r.annotation(experiment, TWIN_TYPE), {"twin:Scenario"}):
         _twin_scenario(r, el, table)
     return table
 
 
 def _twin_scenario(r: Any, el: Any, table: dict[str, Any]) -> None:
-    """The twin's settings, passed on as a scenario file writes them, for the same checks."""
+    """The twin's settings, passed on as a scenario file writes them, for the same checks (its
+    tables, inside it, are :func:`twin_tables`'s)."""
+    for c in el:
+        if isinstance(c.tag, str) and tag_of(c) != "twin:Tables":
+            r.refuse(c, "an annotation (io.github.twin) this version of the twin does not apply")
     for attribute, text in el.attrib.items():
         key = _SCENARIO_ATTRIBUTES.get(attribute)
         if key is None:
@@ -99,7 +102,7 @@ def twin_tables(r: Any) -> dict[str, Any]:
     absolute, as a base's paths are when a file extends it)."""
     experiment = _experiment(r)
     annotation = r.annotation(experiment, TWIN_TYPE) if experiment is not None else None
-    el = annotation.find("twin:Tables", NS) if annotation is not None else None
+    el = annotation.find("twin:Scenario/twin:Tables", NS) if annotation is not None else None
     if el is None:
         return {}
     try:

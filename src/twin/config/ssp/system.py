@@ -484,12 +484,12 @@ class _Reader:
                 for d in data.get("delay", [])
                 if prefix in (d["to"][: len(prefix)], d["from"][: len(prefix)])
             ]
-            if len(feeds) != 1 or not isinstance(feeds[0], str) or touching:
+            if len(feeds) != 1 or not _untransformed(feeds[0]) or touching:
                 self.refuse(
                     comp.profile, "a profile's source must feed one input, untransformed, and nothing else"
                 )
                 continue
-            target = feeds[0]
+            target = _target(feeds[0])
             receiver = self.components[target.split(".", 1)[0]]
             if comp.hint != receiver.hint:
                 self.refuse(
@@ -546,6 +546,12 @@ class _Reader:
 def _target(d: Any) -> str:
     """The input a ``[connections]`` entry feeds (a name, or a table with ``to``)."""
     return d if isinstance(d, str) else str(d.get("to", ""))
+
+
+def _untransformed(d: Any) -> bool:
+    """A ``[connections]`` entry passes its output's value as it is (a unit conversion that
+    is the identity included)."""
+    return isinstance(d, str) or (d.get("factor") == 1.0 and d.get("offset") == 0.0)
 
 
 def read_system(archive: Archive) -> dict[str, Any]:
