@@ -209,6 +209,7 @@ def _content(scenario: Scenario) -> _Content:
             (
                 "event",
                 f"the event at {seconds(e.at_ns)} s ({e.action} {e.target}): SSP has no scheduled events",
+                "leaves it out",
             )
         )
     for conn in scenario.connections:
@@ -228,23 +229,27 @@ def _content(scenario: Scenario) -> _Content:
 
 def _values(scenario: Scenario) -> dict[str, dict[str, Any]]:
     """Each instance's parameter values (the master's seeds included) and constant inputs,
-    with their source and standard error: name -> (value, source, std_error)."""
+    with their source, standard error and what a value is derived from: name -> (value,
+    source, std_error, derived)."""
     from twin.fmu.catalog import variables
     from twin.seeds import instance_seed
 
     out: dict[str, dict[str, Any]] = {}
     for i, spec in enumerate(scenario.fmus):
-        values: dict[str, Any] = {k: (p.value, p.source, p.std_error) for k, p in spec.parameters.items()}
+        values: dict[str, Any] = {k: (p.value, p.source, p.std_error, "") for k, p in spec.parameters.items()}
         if "seed" in variables(spec.model) and "seed" not in values:
-            values = {
-                "seed": (instance_seed(scenario.seed, i), "the twin's master: twin.seeds", None),
-                **values,
-            }
+            derived = (
+                instance_seed(scenario.seed, i),
+                "the twin's master: twin.seeds",
+                None,
+                "scenario.seed",
+            )
+            values = {"seed": derived, **values}
         out[spec.name] = values
     for p in scenario.profiles:
         if p.kind == "constant":
             inst, var = p.target.split(".", 1)
-            out[inst][var] = (p.params["value"], p.source, None)
+            out[inst][var] = (p.params["value"], p.source, None, "")
     return out
 
 
@@ -426,22 +431,24 @@ def _ssd(c: _Content, sources: Mapping[str, str], values: Mapping[str, Mapping[s
 # ----------------------------------------------------------------------------- the .ssv
 
 
-def _parameter_set(name: str, model: str, values: Mapping[str, tuple[Any, str, float | None]]) -> bytes:
+def _parameter_set(name: str, model: str, values: Mapping[str, tuple[Any, str, float | None, str]]) -> bytes:
     from twin.fmu.catalog import variables
 
     declared = variables(model)
     root = ET.Element(q("ssv:ParameterSet"), version="1.0", name=name)
     params = ET.SubElement(root, q("ssv:Parameters"))
-    for pname, (value, source, std_error) in values.items():
+    for pname, (value, source, std_error, derived) in values.items():
         kind = TYPES[declared[pname].type]
         kind = "Integer" if kind == "Enumeration" else kind  # its item's value, as libcosim reads it
         p = ET.SubElement(params, q("ssv:Parameter"), name=pname)
         ET.SubElement(p, q(f"ssv:{kind}"), value=value_text(kind, value))
-        if source or std_error is not None:
+        if source or std_error is not None or derived:
             a = ET.SubElement(ET.SubElement(p, q("ssv:Annotations")), q("ssc:Annotation"), type=TWIN_TYPE)
             attrs = {"source": source} if source else {}
             if std_error is not None:
                 attrs["stdError"] = repr(float(std_error))
+            if derived:
+                attrs["derived"] = derived
             ET.SubElement(a, q("twin:Parameter"), attrs)
     return _xml(root)
 
@@ -500,7 +507,7 @@ def export_ssp(scenario: Scenario, out: Path, *, lossy: bool = False) -> Exporte
                     zf, f"resources/{spec.name}.ssv", _parameter_set(spec.name, spec.model, values[spec.name])
                 )
             for s in c.sources:
-                set_values = {k: (v, "", None) for k, v in s.values.items()}
+                set_values = {k: (v, "", None, "") for k, v in s.values.items()}
                 _member(zf, f"resources/{s.name}.ssv", _parameter_set(s.name, SOURCE_MODEL, set_values))
             for name, path in files.items():
                 _member(zf, name, path.read_bytes(), zipfile.ZIP_STORED)  # an FMU is a zip already

@@ -89,6 +89,8 @@ _WHY = {
     "ssc:EnumerationMappingTransformation": _ON_CONNECTION,
 }
 _UNCONNECTED = f"unconnected in {SSD_NAME}: its start value"
+#: a value that could not be resolved (its problem is reported)
+_UNRESOLVED = object()
 
 
 @dataclass
@@ -103,6 +105,8 @@ class _Component:
     hint: str | None = None
     profile: Any = None  # the twin:Profile annotation that makes it an input's profile
     values: list[Value] = field(default_factory=list)
+    #: connectors refused (their problem is reported once, not again at each connection)
+    broken: set[str] = field(default_factory=set)
 
 
 @dataclass(frozen=True)
@@ -125,6 +129,8 @@ class _Reader:
         self.defs = definitions(self.root, "ssd")
         self.problems: list[str] = []
         self.components: dict[str, _Component] = {}
+        #: components refused: connections naming them are not reported again
+        self.broken: set[str] = set()
 
     def refuse(self, el: Any, why: str, where: str = SSD_NAME) -> None:
         self.problems.append(f"{where}: {path_of(el)}: {why}")
@@ -177,6 +183,8 @@ class _Reader:
             comp = self.component(el)
             if comp is not None:
                 self.components[comp.name] = comp
+            else:
+                self.broken.add(el.get("name"))
 
     def component(self, el: Any) -> _Component | None:
         from twin.fmu import external
@@ -225,11 +233,16 @@ class _Reader:
             name, kind = c.get("name"), c.get("kind")
             var = variables.get(name)
             typed = next((t for t in c if isinstance(t.tag, str) and tag_of(t).startswith("ssc:")), None)
-            if var is None:
+            if typed is not None and tag_of(typed) == "ssc:Binary":
+                comp.broken.add(name)  # refused where the reader walks the document
+            elif var is None:
+                comp.broken.add(name)
                 self.refuse(c, f"the FMU has no variable {name!r}")
             elif kind != var.causality:
+                comp.broken.add(name)
                 self.refuse(c, f"kind {kind!r}, but the FMU's {name!r} is a {var.causality}")
             elif typed is not None and tag_of(typed) != f"ssc:{var.type}":
+                comp.broken.add(name)
                 self.refuse(c, f"type {tag_of(typed)}, but the FMU's {name!r} is {var.type}")
             else:
                 unit = typed.get("unit") if typed is not None else None
@@ -237,9 +250,11 @@ class _Reader:
                     try:
                         same = self.conversion((unit, self.defs.units.get(unit)), self.fmu_unit(comp, var), c)
                     except Refusal as exc:
+                        comp.broken.add(name)
                         self.problems.append(str(exc))
                         continue
                     if same != (1.0, 0.0):
+                        comp.broken.add(name)
                         self.refuse(c, f"unit {unit!r} is not the FMU variable's unit {var.unit!r}")
                         continue
                 comp.connectors[name] = unit
@@ -341,55 +356,84 @@ class _Reader:
                     continue
                 comp.values.append(Value(**{**v.__dict__, "name": var}))
 
-    def apply_values(self, comp: _Component, data: dict[str, Any]) -> dict[str, Any]:
+    def apply_values(self, comp: _Component, data: dict[str, Any], index: int) -> dict[str, Any]:
         """The component's resolved values: its parameters into ``data``'s ``[fmu]`` table, its
-        inputs' start values as constant profiles; returns every value by name."""
+        inputs' start values as constant profiles; returns every value by name. ``index``: its
+        place among the scenario's FMU instances (what the master derives a seed from)."""
         resolved: dict[str, Any] = {}
-        params = data["fmu"][comp.name]["parameters"]
+        derived = False
         for v in comp.values:
-            var = comp.description.variables.get(v.name)
-            if var is None:
-                self.problems.append(
-                    f"{v.where}: {path_of(v.element)}: the FMU of {comp.name!r} has no variable {v.name!r}"
-                )
-                continue
-            try:
-                value = resolve(v, var, comp.description.units)
-            except Refusal as exc:
-                self.problems.append(str(exc))
+            value = self.resolved(comp, v)
+            if value is _UNRESOLVED:
                 continue
             resolved[v.name] = value
             if comp.profile is not None:
+                continue  # a profile's source: read as the profile
+            if v.name == "seed" and v.derived == "scenario.seed" and value == _derived_seed(data, index):
+                derived = True  # the master derives it again, from the scenario's seed as run
                 continue
+            self.place(comp, v, value, data)
+        if comp.profile is None and not derived:
+            self.pin_seed(comp, data)
+        return resolved
+
+    def resolved(self, comp: _Component, v: Value) -> Any:
+        var = comp.description.variables.get(v.name)
+        if var is None:
+            self.problems.append(
+                f"{v.where}: {path_of(v.element)}: the FMU of {comp.name!r} has no variable {v.name!r}"
+            )
+            return _UNRESOLVED
+        try:
+            return resolve(v, var, comp.description.units)
+        except Refusal as exc:
+            self.problems.append(str(exc))
+            return _UNRESOLVED
+
+    def place(self, comp: _Component, v: Value, value: Any, data: dict[str, Any]) -> None:
+        """A parameter's value into the instance's parameters, an input's as its constant profile."""
+        var = comp.description.variables[v.name]
+        source = {"source": v.source} if v.source else {}
+        if var.causality == "parameter":
             entry: Any = value
             if v.source or v.std_error is not None:
-                entry = {"value": value, **({"source": v.source} if v.source else {})}
+                entry = {"value": value, **source}
                 if v.std_error is not None:
                     entry["std_error"] = v.std_error
-            if var.causality == "parameter":
-                params[v.name] = entry
-            elif var.causality == "input" and var.type == "Real":
-                profile = {
-                    "profile": "constant",
-                    "value": value,
-                    **({"source": v.source} if v.source else {}),
-                }
-                data.setdefault("input", {}).setdefault(comp.name, {})[v.name] = profile
-            else:
-                what = "an input of type " + var.type if var.causality == "input" else f"a {var.causality}"
-                self.problems.append(
-                    f"{v.where}: {path_of(v.element)}: {v.name!r} is {what}: the twin sets parameters and Real inputs"
-                )
-        return resolved
+            data["fmu"][comp.name]["parameters"][v.name] = entry
+        elif var.causality == "input" and var.type == "Real":
+            profile = {"profile": "constant", "value": value, **source}
+            data.setdefault("input", {}).setdefault(comp.name, {})[v.name] = profile
+        else:
+            what = "an input of type " + var.type if var.causality == "input" else f"a {var.causality}"
+            self.problems.append(
+                f"{v.where}: {path_of(v.element)}: {v.name!r} is {what}: the twin sets parameters and Real inputs"
+            )
+
+    def pin_seed(self, comp: _Component, data: dict[str, Any]) -> None:
+        """An FMU's ``seed`` no binding sets stays at its start value, as SSP says (libcosim does):
+        the twin's master would otherwise derive one from the scenario's."""
+        seed = comp.description.variables.get("seed")
+        params = data["fmu"][comp.name]["parameters"]
+        if seed is not None and seed.causality == "parameter" and "seed" not in params:
+            params["seed"] = {
+                "value": seed.start,
+                "source": f"its start value: no binding of {SSD_NAME} sets it",
+            }
 
     # ------------------------------------------------------------------------- connections
 
     def end(self, c: Any, element: str | None, connector: str | None) -> _End | None:
+        """One end of a connection, or None (and a problem, unless its component or connector
+        was refused already)."""
         comp = self.components.get(element or "")
         if comp is None:
-            self.refuse(c, f"no component {element!r} (or it could not be read)")
+            if element not in self.broken:
+                self.refuse(c, f"no component {element!r}")
             return None
         var = comp.description.variables.get(connector or "")
+        if connector in comp.broken:
+            return None
         if var is None or connector not in comp.connectors:
             self.refuse(c, f"component {element!r} declares no connector {connector!r}")
             return None
@@ -548,6 +592,14 @@ def _target(d: Any) -> str:
     return d if isinstance(d, str) else str(d.get("to", ""))
 
 
+def _derived_seed(data: Mapping[str, Any], index: int) -> int | None:
+    """The seed the twin's master gives instance ``index`` of the scenario ``data`` describes."""
+    from twin.seeds import instance_seed
+
+    seed = data["scenario"].get("seed", 0)
+    return instance_seed(seed, index) if isinstance(seed, int) and 0 <= seed < 2**31 else None
+
+
 def _untransformed(d: Any) -> bool:
     """A ``[connections]`` entry passes its output's value as it is (a unit conversion that
     is the identity included)."""
@@ -566,11 +618,13 @@ def read_system(archive: Archive) -> dict[str, Any]:
     r.read_components(system)
     r.system_values(system)
     values = {}
+    instances = [c for c in r.components.values() if c.profile is None]
     for comp in r.components.values():
         data["fmu"][comp.name] = {"model": str(comp.fmu), "parameters": {}}
         if comp.hint:
             data["fmu"][comp.name]["period"] = f"{comp.hint} s"
-        values[comp.name] = r.apply_values(comp, data)
+        index = instances.index(comp) if comp in instances else -1
+        values[comp.name] = r.apply_values(comp, data, index)
     r.read_connections(system, data)
     r.check()
     r.profiles(data, values)

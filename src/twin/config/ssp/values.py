@@ -88,6 +88,9 @@ class Value:
     #: the twin's annotation of the parameter: (source, standard error)
     source: str = ""
     std_error: float | None = None
+    #: "scenario.seed": the twin's master derived this seed from the scenario's (its export
+    #: writes it for other masters); the twin derives it again, so a changed seed reaches it
+    derived: str = ""
 
 
 _KINDS = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
@@ -102,7 +105,7 @@ def parameter_set(root: Any, where: str, outer: Definitions, prefix: str = "") -
         kind = tag_of(typed).removeprefix("ssv:")
         if kind == "Binary":
             raise Refusal(where, typed, "a Binary parameter value is not supported")
-        source, std_error = _twin_parameter(p, where)
+        source, std_error, derived = _twin_parameter(p, where)
         out.append(
             Value(
                 prefix + p.get("name"),
@@ -115,13 +118,15 @@ def parameter_set(root: Any, where: str, outer: Definitions, prefix: str = "") -
                 enumeration=typed.get("name"),
                 source=source,
                 std_error=std_error,
+                derived=derived,
             )
         )
     return out
 
 
-def _twin_parameter(p: Any, where: str) -> tuple[str, float | None]:
-    """The twin's annotation of a parameter: where its value comes from, its standard error."""
+def _twin_parameter(p: Any, where: str) -> tuple[str, float | None, str]:
+    """The twin's annotation of a parameter: where its value comes from, its standard error,
+    what it is derived from."""
     for a in p.iterfind("ssv:Annotations/ssc:Annotation", NS):
         if a.get("type") != TWIN_TYPE:
             continue
@@ -135,8 +140,8 @@ def _twin_parameter(p: Any, where: str) -> tuple[str, float | None]:
                 std_error = float(se) if se is not None else None
             except ValueError:
                 raise Refusal(where, el, f"stdError {se!r} is not a number") from None
-            return el.get("source", ""), std_error
-    return "", None
+            return el.get("source", ""), std_error, el.get("derived", "")
+    return "", None, ""
 
 
 def apply_mapping(values: list[Value], mapping: Any, where: str) -> list[Value]:
