@@ -310,3 +310,43 @@ def test_a_fifo_named_ssp_is_refused_at_once(tmp_path: Path, capsys: pytest.Capt
 def test_export_refuses_a_bad_output_name(out: str, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert main(["export-ssp", str(TESTER), "-o", str(tmp_path / out)]) == 2
     assert capsys.readouterr().err.startswith("twin: -o: ")
+
+
+#: the paper replay's archive with one of the twin's own annotations changed: (old, new, words)
+PAPER_EDITS = {
+    "a-profile-stepping-apart": (
+        'value="10.0" />\n          </ssc:Annotation>\n          <ssc:Annotation type="io.github.twin">',
+        'value="20.0" />\n          </ssc:Annotation>\n          <ssc:Annotation type="io.github.twin">',
+        "twin:Profile: the source steps every 20.0 s, the input it feeds every 10.0 s",
+    ),
+    "a-setting-of-a-later-version": (
+        "<twin:Tables>",
+        "<twin:Future/><twin:Tables>",
+        "twin:Scenario/twin:Future: an annotation (io.github.twin) this version of the twin does not apply",
+    ),
+    "tables-that-are-not-json": (
+        "<twin:Tables>{",
+        "<twin:Tables>{{",
+        "twin:Tables: not the twin's tables as JSON",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(PAPER_EDITS))
+def test_the_twins_own_annotations_are_checked(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    good = _export("li2017-thermal-experiment", tmp_path / "paper.ssp")
+    old, new, words = PAPER_EDITS[case]
+    path = tmp_path / f"{case}.ssp"
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(path, "w") as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename == "SystemStructure.ssd":
+                assert old.encode() in data, case
+                data = data.replace(old.encode(), new.encode(), 1)
+            zout.writestr(info, data)
+    capsys.readouterr()
+    assert main(["validate", str(path)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], lines

@@ -16,6 +16,7 @@ __all__ = [
     "SSD_NAME",
     "TWIN_TYPE",
     "TYPES",
+    "article",
     "describe",
     "path_of",
     "q",
@@ -90,6 +91,11 @@ def path_of(el: Any) -> str:
         parts.append(describe(el))
         el = el.getparent()
     return "/".join(reversed(parts)) or describe(el)
+
+
+def article(word: str) -> str:
+    """``word`` with its indefinite article: "an input", "a parameter"."""
+    return f"{'an' if word[:1].lower() in 'aeiou' else 'a'} {word}"
 
 
 def seconds(ns: int) -> str:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.config.ssp.archive import Archive, validate
-from twin.config.ssp.names import NS, OSP_TYPE, SSD_NAME, TWIN_TYPE, path_of, tag_of
+from twin.config.ssp.names import NS, OSP_TYPE, SSD_NAME, TWIN_TYPE, article, path_of, tag_of
 from twin.config.ssp.values import (
     Refusal,
     Value,
@@ -240,7 +240,7 @@ class _Reader:
                 self.refuse(c, f"the FMU has no variable {name!r}")
             elif kind != var.causality:
                 comp.broken.add(name)
-                self.refuse(c, f"kind {kind!r}, but the FMU's {name!r} is a {var.causality}")
+                self.refuse(c, f"kind {kind!r}, but the FMU's {name!r} is {article(var.causality)}")
             elif typed is not None and tag_of(typed) != f"ssc:{var.type}":
                 comp.broken.add(name)
                 self.refuse(c, f"type {tag_of(typed)}, but the FMU's {name!r} is {var.type}")
@@ -405,7 +405,7 @@ class _Reader:
             profile = {"profile": "constant", "value": value, **source}
             data.setdefault("input", {}).setdefault(comp.name, {})[v.name] = profile
         else:
-            what = "an input of type " + var.type if var.causality == "input" else f"a {var.causality}"
+            what = "an input of type " + var.type if var.causality == "input" else article(var.causality)
             self.problems.append(
                 f"{v.where}: {path_of(v.element)}: {v.name!r} is {what}: the twin sets parameters and Real inputs"
             )
@@ -447,25 +447,29 @@ class _Reader:
                     c, "a connection to the system's own connector: the twin runs the components only"
                 )
                 continue
-            a = self.end(c, c.get("startElement"), c.get("startConnector"))
-            b = self.end(c, c.get("endElement"), c.get("endConnector"))
-            if a is None or b is None:
+            out = self.end(c, c.get("startElement"), c.get("startConnector"))
+            into = self.end(c, c.get("endElement"), c.get("endConnector"))
+            if out is None or into is None:
                 continue
-            causalities = (a.var.causality, b.var.causality)
+            causalities = (out.var.causality, into.var.causality)
             if causalities == ("input", "output"):
-                a, b = b, a  # start and end say nothing of the direction: the kinds do
+                out, into = into, out  # start and end say nothing of the direction: the kinds do
             elif causalities != ("output", "input"):
                 self.refuse(
                     c,
-                    f"connects a {causalities[0]} to a {causalities[1]}: the twin connects outputs to inputs",
+                    f"connects {article(causalities[0])} to {article(causalities[1])}: the twin connects outputs to inputs",
                 )
                 continue
-            if (a.var.type, b.var.type) != ("Real", "Real"):
-                self.refuse(c, f"a {a.var.type} connection: the twin's master exchanges Real outputs only")
+            if (out.var.type, into.var.type) != ("Real", "Real"):
+                self.refuse(
+                    c, f"{article(out.var.type)} connection: the twin's master exchanges Real outputs only"
+                )
                 continue
-            self.connection(c, a, b, data)
+            self.connection(c, out, into, data)
 
-    def connection(self, c: Any, a: _End, b: _End, data: dict[str, Any]) -> None:
+    def connection(self, c: Any, out: _End, into: _End, data: dict[str, Any]) -> None:
+        """One connection from the output ``out`` to the input ``into``, as ``[connections]``
+        (its transformation and unit conversion folded into factor and offset) or ``[[delay]]``."""
         t = c.find("ssc:LinearTransformation", NS)
         factor = float(t.get("factor", "1")) if t is not None else 1.0
         offset = float(t.get("offset", "0")) if t is not None else 0.0
@@ -474,9 +478,9 @@ class _Reader:
             return
         suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
         folded = False
-        if not suppress and a.unit[0] and b.unit[0]:
+        if not suppress and out.unit[0] and into.unit[0]:
             try:
-                cf, co = self.conversion(a.unit, b.unit, c)
+                cf, co = self.conversion(out.unit, into.unit, c)
             except Refusal as exc:
                 self.problems.append(str(exc))
                 return
@@ -494,15 +498,15 @@ class _Reader:
             except ValueError:
                 self.refuse(twin[0], f"initial {initial!r} is not a number")
                 return
-            data.setdefault("delay", []).append({"from": a.ref, "to": b.ref, "initial": value})
+            data.setdefault("delay", []).append({"from": out.ref, "to": into.ref, "initial": value})
             return
-        target: Any = b.ref
-        fmu_units_differ = a.var.unit != b.var.unit
+        target: Any = into.ref
+        fmu_units_differ = out.var.unit != into.var.unit
         if (factor, offset) != (1.0, 0.0) or ((folded or suppress) and fmu_units_differ):
-            target = {"to": b.ref, "factor": factor, "offset": offset}
+            target = {"to": into.ref, "factor": factor, "offset": offset}
             if (folded or suppress) and fmu_units_differ:
                 target["convert_units"] = False  # the conversion is in factor and offset already
-        data["connections"].setdefault(a.ref, []).append(target)
+        data["connections"].setdefault(out.ref, []).append(target)
 
     # ------------------------------------------------------------------------- profiles
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
 
-from twin.config.ssp.names import NS, TWIN_TYPE, describe, path_of, q, tag_of
+from twin.config.ssp.names import NS, TWIN_TYPE, article, describe, path_of, q, tag_of
 from twin.errors import UnitError
 from twin.units import BASE_UNITS, BaseUnit, conversion, defined_conversion
 
@@ -183,7 +183,9 @@ def resolve(v: Value, var: Any, fmu_units: Mapping[str, BaseUnit]) -> Any:
         _expect(v, var, ("Integer", "Enumeration"))
         return _enumeration(v, var)
     raise Refusal(
-        v.where, v.element, f"a {v.kind} parameter value: the twin's parameters are numbers and booleans"
+        v.where,
+        v.element,
+        f"{article(v.kind)} parameter value: the twin's parameters are numbers and booleans",
     )
 
 
