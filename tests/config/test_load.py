@@ -318,6 +318,18 @@ def test_overrides_reach_the_scenario() -> None:
     assert len(s.connections) == 20
 
 
+def test_a_transformed_connection_feeds_its_input() -> None:
+    """An input fed by a ``{ to, factor, offset }`` connection is connected; without it, it is named."""
+    base = default_scenario_path()
+    s = load_scenario(
+        base, ['connections."thermal.t_clamp"={ to = "mechanics.t_clamp", factor = 1.0, offset = 0.5 }']
+    )
+    (c,) = [c for c in s.connections if c.src == "thermal.t_clamp"]
+    assert (c.dst, c.factor, c.offset) == ("mechanics.t_clamp", 1.0, 0.5)
+    with pytest.raises(ConfigErrors, match=r"fmu\.mechanics.*input 't_clamp'.*is not connected"):
+        load_scenario(base, ['connections."thermal.t_clamp"=[]'])
+
+
 # ----------------------------------------------------------------------------- more of the loader
 
 

@@ -103,4 +103,18 @@ CASES: dict[str, Case] = {
             "tplate_rotation_compliance": 1e-7,
         },
     ),
+    "SignalSource": Case(
+        # a day-night room (the day-night scenario's sine) sped up to a 20 s period, so that 60
+        # one-second steps pass through three cycles; no inputs drive it but its fault_inject
+        inputs={"fault_inject": 0.0},
+        step=1.0,
+        stop=60.0,
+        parameters={
+            "profile": 3,
+            "mean": 293.15,
+            "amplitude": 3.0,
+            "period": 20.0,
+            "phase": -1.5707963267948966,
+        },
+    ),
 }

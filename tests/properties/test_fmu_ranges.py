@@ -385,12 +385,34 @@ def _thermal_refuses(p: dict[str, Any]) -> bool | None:
     return None if None in verdicts else False
 
 
+def _signal_source_refuses(p: dict[str, Any]) -> bool | None:
+    """The active profile's durations positive, and no quantity its formula forms overflowing."""
+    kind = p["profile"]
+    if kind == 1:
+        return not (p["duration"] > 0.0 and math.isfinite(p["end"] - p["start"]))
+    if kind == 2:
+        if not p["time_constant"] > 0.0:
+            return True
+        reached = -math.expm1(-p["rise_at"] / p["time_constant"])  # 0.0 when the ratio underflows
+        scale = (1.0 / reached if reached else math.inf) if p["rise_at"] > 0.0 else 1.0
+        return not (math.isfinite(p["rise"] * scale) and math.isfinite(p["start"] + p["rise"] * scale))
+    if kind == 3:
+        return not (p["period"] > 0.0 and math.isfinite(abs(p["mean"]) + abs(p["amplitude"])))
+    if kind == 4:
+        points = [(p[f"table_t_{k}"], p[f"table_v_{k}"]) for k in range(1, p["table_n"] + 1)]
+        for (t0, v0), (t1, v1) in itertools.pairwise(points):
+            if not t1 > t0 or not math.isfinite((v1 - v0) / (t1 - t0)):
+                return True
+    return False
+
+
 MODEL_RULES: dict[str, Callable[[dict[str, Any]], bool | None]] = {
     "HydraulicLoader": _hydraulic_refuses,
     "SensorsDAQ": lambda p: not p["probe_range_min"] < p["probe_range_max"],
     "FixtureMechanics": lambda p: p["k_spring"] + p["k_head"] <= 0.0,
     "OscillationDrive": _oscillation_refuses,
     "ThermalNetwork": _thermal_refuses,
+    "SignalSource": _signal_source_refuses,
 }
 
 
@@ -405,7 +427,14 @@ def expected_rejection(model: Model, params: dict[str, Any]) -> bool | None:
 
 def test_every_model_has_its_rules() -> None:
     """A new model must get its model_check rules above (and a conformance case)."""
-    known = {"HydraulicLoader", "SensorsDAQ", "FixtureMechanics", "OscillationDrive", "ThermalNetwork"}
+    known = {
+        "HydraulicLoader",
+        "SensorsDAQ",
+        "FixtureMechanics",
+        "OscillationDrive",
+        "ThermalNetwork",
+        "SignalSource",
+    }
     assert set(MODELS) <= known, f"add the model_check rules of {sorted(set(MODELS) - known)}"
     assert set(MODELS) <= set(CASES)
 
@@ -528,6 +557,15 @@ def refused_combination(d: st.DrawFn, model: Model) -> dict[str, Any] | None:
             )
         )
         return dict(zip(names, shares, strict=True))
+    if model.name == "SignalSource":
+        if d(st.booleans()):
+            kind, name = d(st.sampled_from([(1, "duration"), (2, "time_constant"), (3, "period")]))
+            return {"profile": kind, name: 0.0}
+        n = d(st.integers(2, 64))
+        times = d(st.lists(value_in_range(r["table_t_1"]), min_size=n, max_size=n))
+        k = d(st.integers(1, n - 1))
+        times[k] = d(st.floats(r["table_t_1"].lo, times[k - 1]))  # not after its predecessor
+        return {"profile": 4, "table_n": n, **{f"table_t_{i + 1}": t for i, t in enumerate(times)}}
     return None
 
 

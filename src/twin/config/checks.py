@@ -20,14 +20,18 @@ __all__ = ["ParameterValue", "parameter_value", "range_problem", "typed_value"]
 
 ParameterValue = float | int | bool
 
-_EXPECTED = {"Boolean": "true or false", "Integer": "an integer"}
+_EXPECTED = {
+    "Boolean": "true or false",
+    "Integer": "an integer",
+    "Enumeration": "an integer (an item's value)",
+}
 
 
 def typed_value(var: Variable, raw: Any) -> tuple[ParameterValue | None, str | None]:
     """``raw`` as a value of the variable's type (floats for Real), or the reason it is not one."""
     if var.type == "Boolean":
         ok = isinstance(raw, bool)
-    elif var.type == "Integer":
+    elif var.type in ("Integer", "Enumeration"):
         ok = not isinstance(raw, bool) and isinstance(raw, int)
     else:
         ok = not isinstance(raw, bool) and isinstance(raw, int | float)

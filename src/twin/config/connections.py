@@ -15,23 +15,49 @@ from twin.config.reader import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
 from twin.fmu.catalog import variables as model_variables
 
+#: the keys of a connection written as a table (a transformation, SSP's LinearTransformation)
+_TRANSFORM_KEYS = {"to", "factor", "offset", "convert_units"}
+
+
+def _transformed(p: Problems, src: str, raw: dict[str, Any], key: str) -> Connection | None:
+    """``{ to = "instance.input", factor = 2.0, offset = 0.0, convert_units = true }``: the
+    input receives ``factor * output + offset``. ``convert_units = false`` says that factor
+    and offset are the whole map (SSP's suppressUnitConversion): the ends' units are then not
+    compared."""
+    p.unknown_keys(raw, _TRANSFORM_KEYS, key + ".")
+    dst = raw.get("to")
+    if not isinstance(dst, str):
+        p.add(key + ".to", "missing (the input this output feeds, 'instance.input')")
+        return None
+    factor = p.number(raw, "factor", key + ".") if "factor" in raw else 1.0
+    offset = p.number(raw, "offset", key + ".") if "offset" in raw else 0.0
+    convert = p.boolean(raw, "convert_units", key + ".", default=True)
+    if factor is None or offset is None:
+        return None
+    return Connection(src, dst, factor=factor, offset=offset, convert_units=convert)
+
 
 def _plain(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
-    """``"instance.output" = "instance.input"`` or a list of inputs."""
+    """``"instance.output" = "instance.input"``, a table with a transformation, or a list of
+    them."""
     out = []
     for src, dsts in table(p, data, "connections").items():
         key = f'connections."{src}"'
-        if isinstance(dsts, str):
-            dsts = [dsts]
-        if isinstance(dsts, dict):
+        if isinstance(dsts, dict) and "to" not in dsts:  # an unquoted dotted key: "thermal".t_clamp
             p.add(
                 key, f'expected an input name or a list of them (quote the output: "{src}.<variable>" = ...)'
             )
             continue
-        if not isinstance(dsts, list) or not all(isinstance(d, str) for d in dsts):
-            p.add(key, "expected an input name or a list of them")
+        if isinstance(dsts, str | dict):
+            dsts = [dsts]
+        if not isinstance(dsts, list) or not all(isinstance(d, str | dict) for d in dsts):
+            p.add(key, "expected an input name, a table { to, factor, offset } or a list of them")
             continue
-        out.extend(Connection(src, dst) for dst in dsts)
+        for i, d in enumerate(dsts):
+            if isinstance(d, str):
+                out.append(Connection(src, d))
+            elif (c := _transformed(p, src, d, key if len(dsts) == 1 else f"{key}[{i}]")) is not None:
+                out.append(c)
     return out
 
 
@@ -68,7 +94,7 @@ def _check_endpoints(p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequ
         key = f'connections."{c.src}"' if not c.delay else "delay"
         vs = endpoint(p, fmus, c.src, key, "output")
         vd = endpoint(p, fmus, c.dst, key, "input")
-        if vs is not None and vd is not None and vs.unit != vd.unit:
+        if vs is not None and vd is not None and c.convert_units and vs.unit != vd.unit:
             p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
         if c.dst in fed:
             p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
@@ -139,7 +165,10 @@ def _named_inputs(data: Mapping[str, Any]) -> set[str]:
     """Every "instance.input" the data feeds or drives, well written or not."""
     named: set[str] = set()
     for dsts in _values(data.get("connections")):
-        named.update(d for d in (dsts if isinstance(dsts, list) else [dsts]) if isinstance(d, str))
+        for d in dsts if isinstance(dsts, list) else [dsts]:
+            d = d.get("to") if isinstance(d, dict) else d  # { to, factor, offset }
+            if isinstance(d, str):
+                named.add(d)
     for group, key in (("delay", "to"), ("event", "target")):
         entries = data.get(group)
         for e in entries if isinstance(entries, list) else ():

@@ -235,6 +235,10 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
     path = Path(path)
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
+    if path.suffix == ".ssp":  # what an archive may leave to the command line (its step)
+        from twin.config.ssp import finish_ssp_data
+
+        finish_ssp_data(data, str(path))
     return load_scenario_data(data, str(path), path.resolve().parent)
 
 

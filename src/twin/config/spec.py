@@ -80,6 +80,9 @@ class Connection:
     A delayed connection passes the value of the previous exchange (its ``initial`` value at the
     first one). The input receives ``factor * output + offset`` (a unit conversion, or an SSP
     LinearTransformation); the identity leaves the value untouched, bit for bit.
+    ``convert_units`` False: factor and offset are the whole map from the output's unit to the
+    input's (an SSP connection with suppressUnitConversion, or one whose unit conversion the
+    SSP reader already folded into them), so the two units are not compared.
     """
 
     src: str
@@ -88,6 +91,7 @@ class Connection:
     initial: float | None = None
     factor: float = 1.0
     offset: float = 0.0
+    convert_units: bool = True
 
     @property
     def affine(self) -> bool:

@@ -18,6 +18,7 @@ from types import MappingProxyType
 from typing import Any
 
 from twin.errors import ConfigError
+from twin.units import BASE_UNITS, BaseUnit
 
 __all__ = ["Description", "Variable", "describe"]
 
@@ -41,6 +42,8 @@ class Variable:
     max: float
     start: float | int | bool | str | None
     description: str
+    #: an Enumeration's items by name (its declared type's), empty for other types
+    items: Mapping[str, int] = field(default_factory=lambda: MappingProxyType({}))
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,8 @@ class Description:
     text: str = ""
     #: the FMI interfaces it offers: "co-simulation", "model exchange"
     kinds: tuple[str, ...] = ()
+    #: its UnitDefinitions that give a BaseUnit, by name (what an SSP's units are converted to)
+    units: Mapping[str, BaseUnit] = field(default_factory=lambda: MappingProxyType({}))
 
 
 def _declared(sv: Any, attribute: str) -> Any:
@@ -76,6 +81,21 @@ def _start(kind: str, text: str | None) -> float | int | bool | str | None:
     return {"Real": float, "Integer": int, "Enumeration": int}.get(kind, str)(text)
 
 
+def _items(sv: Any) -> Mapping[str, int]:
+    items = getattr(sv.declaredType, "items", None) if sv.type == "Enumeration" else None
+    return MappingProxyType({str(i.name): int(i.value) for i in items or ()})
+
+
+def _units(md: Any) -> Mapping[str, BaseUnit]:
+    out = {}
+    for u in md.unitDefinitions or ():
+        b = u.baseUnit
+        if u.name and b is not None:
+            exponents = tuple(int(getattr(b, name) or 0) for name in BASE_UNITS)
+            out[str(u.name)] = BaseUnit(exponents, float(b.factor or 1.0), float(b.offset or 0.0))
+    return MappingProxyType(out)
+
+
 def _variable(sv: Any) -> Variable:
     lo, hi = _declared(sv, "min"), _declared(sv, "max")
     return Variable(
@@ -89,6 +109,7 @@ def _variable(sv: Any) -> Variable:
         max=float(hi) if hi is not None else math.inf,
         start=_start(sv.type, sv.start),
         description=sv.description or "",
+        items=_items(sv),
     )
 
 
@@ -175,6 +196,7 @@ def _parse(xml: bytes) -> Description:
         md.fmiVersion or "",
         md.description or "",
         kinds,
+        _units(md),
     )
 
 

@@ -291,7 +291,7 @@ class FMUSlot:
         vr = [v.value_reference]
         if v.type == "Boolean":
             self._call("fmi2SetBoolean", lambda: self._slave.setBoolean(vr, [bool(value)]))
-        elif v.type == "Integer":
+        elif v.type in ("Integer", "Enumeration"):  # FMI 2.0 sets an enumeration as an integer
             self._call("fmi2SetInteger", lambda: self._slave.setInteger(vr, [int(value)]))
         else:
             self._call("fmi2SetReal", lambda: self._slave.setReal(vr, [float(value)]))

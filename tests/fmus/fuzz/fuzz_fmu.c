@@ -769,6 +769,19 @@ static const char *craft_model(int k, Blob *b) {
         case 6: m->wear = 1.0; return "wear";
         case 7: b->v.r[VR_k_spring] = 0.0; b->v.r[VR_k_head] = 0.0; return "k_spring";
 #endif
+#ifdef SS_TABLE /* SignalSource: no state of its own; its parameters' consistency is all */
+        case 0: b->v.i[VR_profile] = 5; return "profile";
+        case 1: b->v.i[VR_profile] = 4; b->v.i[VR_table_n] = 0; return "table_n";
+        case 2: b->v.i[VR_profile] = 4; b->v.i[VR_table_n] = SS_TABLE + 1; return "table_n";
+        case 3: b->v.i[VR_profile] = 4; b->v.i[VR_table_n] = 3; return "table times"; /* all at 0 s */
+        case 4: b->v.i[VR_profile] = 1; b->v.r[VR_duration] = 0.0; return "duration";
+        case 5: b->v.i[VR_profile] = 2; b->v.r[VR_time_constant] = 0.0; return "time_constant";
+        case 6: b->v.i[VR_profile] = 3; b->v.r[VR_period] = 0.0; return "period";
+        case 7: b->v.r[VR_value] = NAN; return "value";
+        case 8: m->step_ns += 1; return "step_ns";
+        case 9: m->scale = 2.0; return "scale";
+        case 10: m->scale = NAN; return "scale";
+#endif
         case 40: return NULL;
         default: return "";
     }
