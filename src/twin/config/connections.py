@@ -1,8 +1,8 @@
 """``[connections]`` and ``[[delay]]``: which output feeds which input.
 
-Checked before any run (as mosaik does): endpoints exist, an output feeds an input, units
-agree, no input is fed twice, and loops between FMUs go through an explicit delay with an
-initial value.
+Checked before any run (as mosaik does): endpoints exist, an output feeds an input, no input
+is fed twice, units agree, and an algebraic loop can be solved (:mod:`twin.config.loops`). A delay is a choice, not a requirement: a loop through an output
+without direct feedthrough runs as it is.
 """
 
 from __future__ import annotations
@@ -11,8 +11,10 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from twin.config.endpoints import check_range, endpoint
+from twin.config.loops import check_loops as check_algebraic_loops
 from twin.config.reader import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
+from twin.errors import ConfigError
 from twin.fmu.catalog import variables as model_variables
 
 
@@ -62,55 +64,40 @@ def _check_initial_values(
             check_range(p, fmus, c.dst, [c.initial], key + ".initial")
 
 
-def _check_endpoints(p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]) -> None:
+def _check_endpoints(
+    p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]
+) -> list[Connection]:
+    """The connections; problems for endpoints that do not exist, units that differ and an
+    input fed twice."""
     fed: dict[str, str] = {}
+    out = []
     for c in connections:
         key = f'connections."{c.src}"' if not c.delay else "delay"
         vs = endpoint(p, fmus, c.src, key, "output")
         vd = endpoint(p, fmus, c.dst, key, "input")
-        if vs is not None and vd is not None and vs.unit != vd.unit:
-            p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
         if c.dst in fed:
             p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
         fed[c.dst] = c.src
+        if vs is not None and vd is not None and vs.unit != vd.unit:
+            p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
+        out.append(c)
+    return out
 
 
-def check_loops(p: Problems, connections: Sequence[Connection]) -> None:
-    """Loops between instances must contain a delayed connection (no algebraic loops)."""
-    graph: dict[str, set[str]] = {}
-    for c in connections:
-        if not c.delay and "." in c.src and "." in c.dst:
-            a, b = c.src.split(".")[0], c.dst.split(".")[0]
-            graph.setdefault(a, set()).add(b)
-    state: dict[str, int] = {}
-    stack: list[str] = []
-
-    def visit(n: str) -> list[str] | None:
-        state[n] = 1
-        stack.append(n)
-        for m in sorted(graph.get(n, ())):
-            if state.get(m) == 1:
-                return [*stack[stack.index(m) :], m]
-            if m not in state and (cycle := visit(m)):
-                return cycle
-        state[n] = 2
-        stack.pop()
-        return None
-
-    for n in sorted(graph):
-        if n not in state and (cycle := visit(n)):
-            p.add(
-                "connections",
-                "algebraic loop " + " -> ".join(cycle) + ": break it with a [[delay]] (from, to, initial)",
-            )
-            return
+def check_loops(p: Problems, connections: Sequence[Connection], fmus: Mapping[str, FMUSpec]) -> None:
+    """A loop between instances runs as it is unless it is a true algebraic loop (direct
+    feedthrough all round, :mod:`twin.config.loops`) that the master cannot solve: one across
+    instances of different periods, refused naming its cycle."""
+    try:
+        check_algebraic_loops(fmus, connections)
+    except ConfigError as exc:
+        p.add(exc.key or "connections", exc.message or "")
 
 
 def load_connections(p: Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
     """Every connection, plain then delayed, checked."""
     delays = _delays(p, data)
-    out = _plain(p, data) + [c for _, c in delays]
-    _check_endpoints(p, fmus, out)
+    out = _check_endpoints(p, fmus, _plain(p, data) + [c for _, c in delays])
     _check_initial_values(p, fmus, delays)
-    check_loops(p, out)
+    check_loops(p, out, fmus)
     return out
