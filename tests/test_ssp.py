@@ -20,15 +20,15 @@ TESTER = scenarios_dir() / "base" / "tester-system.toml"
 DURATION = "2 min"
 
 
-def _no_loop(folder: Path) -> Path:
-    """The tester system without its one delayed connection (friction heat -> thermal network,
-    delayed one exchange to break the friction loop): libcosim has no delayed connection, its
-    Jacobi exchange passes every output at the start of the receiver's step."""
-    path = folder / "no-loop.toml"
+def _delayed_loop(folder: Path) -> Path:
+    """The tester system with its friction loop closed through an explicit one-exchange delay
+    (friction heat -> thermal network): a choice libcosim has no means to express."""
+    path = folder / "delayed-loop.toml"
     path.write_text(
-        f'extends = "{TESTER}"\ndelay = []\n'
-        f'[scenario]\nname = "tester-no-friction-loop"\nduration = "{DURATION}"\n'
-        '[input.thermal.q_friction]\nprofile = "constant"\nvalue = 0.0\nsource = "test: the loop cut"\n'
+        f'extends = "{TESTER}"\n'
+        f'[scenario]\nname = "tester-delayed-friction-loop"\nduration = "{DURATION}"\n'
+        '[connections]\n"oscillation.q_friction_avg" = []\n'
+        '[[delay]]\nfrom = "oscillation.q_friction_avg"\nto = "thermal.q_friction"\ninitial = 0.0\n'
     )
     return path
 
@@ -81,7 +81,7 @@ def test_the_export_is_valid_ssp_and_holds_the_system(tmp_path: Path) -> None:
     components = {c.name: c for c in ssd.system.elements}
     assert set(components) == {"hydraulic", "oscillation", "thermal", "mechanics", "sensors"}
     assert components["thermal"].source == "resources/ThermalNetwork.fmu"
-    assert len(ssd.system.connections) == 35  # 34 plain and the delayed friction heat
+    assert len(ssd.system.connections) == 35  # the friction heat's loop among them, undelayed
     with zipfile.ZipFile(ssp) as zf:
         names = set(zf.namelist())
         assert {f"resources/{n}.ssv" for n in components} <= names
@@ -95,10 +95,10 @@ def test_the_export_is_valid_ssp_and_holds_the_system(tmp_path: Path) -> None:
 def test_libcosim_runs_the_export_and_agrees_bit_for_bit(tmp_path: Path) -> None:
     """Tolerance 0: the same FMU binaries with the same parameters and seeds, the same base step
     and per-FMU periods (libcosim's step size hints), and both masters exchange Jacobi-style
-    (each FMU steps on the values its inputs had at the start of its step, held over it)."""
-    scenario = _no_loop(tmp_path)
-    ours = _run(scenario, tmp_path / "ours")
-    ssp = _export(scenario, tmp_path / "tester.ssp")
+    (each FMU steps on the values its inputs had at the start of its step, held over it). The
+    friction loop runs undelayed in both: neither of its ends has direct feedthrough."""
+    ours = _run(TESTER, tmp_path / "ours")
+    ssp = _export(TESTER, tmp_path / "tester.ssp")
     names = ours.names()
     theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)  # output every 1 s = 10 steps
     assert len(names) > 70
@@ -106,13 +106,14 @@ def test_libcosim_runs_the_export_and_agrees_bit_for_bit(tmp_path: Path) -> None
         np.testing.assert_array_equal(theirs[name], ours[name][1:], err_msg=name)
 
 
-def test_with_the_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp_path: Path) -> None:
-    """The full tester: libcosim has no one-exchange delay, so the friction heat reaches the
-    thermal network one 10 s step earlier there. The load and the swing do not depend on it and
-    stay bit-identical; the bearing's temperature differs by about the heat of one step, the
-    base (far from the bearing in the network) by far less."""
-    ours = _run(TESTER, tmp_path / "ours")
-    ssp = _export(TESTER, tmp_path / "tester.ssp")
+def test_with_a_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp_path: Path) -> None:
+    """The friction loop delayed by choice: libcosim has no one-exchange delay, so the friction
+    heat reaches the thermal network one 10 s step earlier there. The load and the swing do not
+    depend on it and stay bit-identical; the bearing's temperature differs by about the heat of
+    one step, the base (far from the bearing in the network) by far less."""
+    scenario = _delayed_loop(tmp_path)
+    ours = _run(scenario, tmp_path / "ours")
+    ssp = _export(scenario, tmp_path / "tester.ssp")
     names = ["hydraulic.radial_load", "oscillation.angle", "thermal.t_bearing", "thermal.t_base"]
     theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)
     for name in ("hydraulic.radial_load", "oscillation.angle"):
