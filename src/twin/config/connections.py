@@ -1,12 +1,15 @@
 """``[connections]`` and ``[[delay]]``: which output feeds which input.
 
 Checked before any run (as mosaik does): endpoints exist, an output feeds an input, no input
-is fed twice, units agree, and an algebraic loop can be solved (:mod:`twin.config.loops`). A delay is a choice, not a requirement: a loop through an output
+is fed twice, units convert (pint: a K output feeds a degC input through factor and offset;
+different dimensions are refused), and an algebraic loop can be solved
+(:mod:`twin.config.loops`). A delay is a choice, not a requirement: a loop through an output
 without direct feedthrough runs as it is.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -14,8 +17,9 @@ from twin.config.endpoints import check_range, endpoint
 from twin.config.loops import check_loops as check_algebraic_loops
 from twin.config.reader import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
-from twin.errors import ConfigError
+from twin.errors import ConfigError, UnitError
 from twin.fmu.catalog import variables as model_variables
+from twin.units import conversion, same_unit
 
 
 def _plain(p: Problems, data: Mapping[str, Any]) -> list[Connection]:
@@ -64,11 +68,39 @@ def _check_initial_values(
             check_range(p, fmus, c.dst, [c.initial], key + ".initial")
 
 
+def _converted(p: Problems, fmus: Mapping[str, FMUSpec], c: Connection, key: str) -> Connection:
+    """``c`` with the unit conversion from its output's unit to its input's (pint, through
+    :mod:`twin.units`) composed into its factor and offset; unchanged, bit for bit, when the
+    units are written alike. A unit the input lacks (or the output) must be given by the
+    scenario (``[fmu.<instance>] units``); units of different dimensions are a problem."""
+    (si, sv), (di, dv) = c.src.split("."), c.dst.split(".")
+    su, du = fmus[si].unit(sv), fmus[di].unit(dv)
+    if same_unit(su, du):
+        return c
+    if not su or not du:
+        inst, var = (di, dv) if not du else (si, sv)
+        what = (
+            f"{c.src} is in '{su}', {c.dst} has no unit"
+            if not du
+            else f"{c.src} has no unit, {c.dst} is in '{du}'"
+        )
+        p.add(
+            key, f'{what}: give {inst}.{var} the unit it means with [fmu.{inst}] units = {{ {var} = "..." }}'
+        )
+        return c
+    try:
+        factor, offset = conversion(su, du)
+    except UnitError as exc:
+        p.add(key, f"unit mismatch: {c.src} is in '{su}', {c.dst} in '{du}' ({exc.message})")
+        return c
+    return dataclasses.replace(c, factor=factor * c.factor, offset=factor * c.offset + offset)
+
+
 def _check_endpoints(
     p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]
 ) -> list[Connection]:
-    """The connections; problems for endpoints that do not exist, units that differ and an
-    input fed twice."""
+    """The connections whose endpoints exist, each with its unit conversion; problems for the
+    others and for an input fed twice."""
     fed: dict[str, str] = {}
     out = []
     for c in connections:
@@ -78,9 +110,7 @@ def _check_endpoints(
         if c.dst in fed:
             p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
         fed[c.dst] = c.src
-        if vs is not None and vd is not None and vs.unit != vd.unit:
-            p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
-        out.append(c)
+        out.append(_converted(p, fmus, c, key) if vs is not None and vd is not None else c)
     return out
 
 

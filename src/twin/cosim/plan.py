@@ -301,15 +301,19 @@ class _Builder:
         return PlannedEvent(e.at_ns, e.action, inst.index, k, inst.inputs[k].src, e.value, e.duration_ns)
 
 
-def _columns(instances: Sequence[PlannedInstance]) -> tuple[Column, ...]:
-    """Every output of every instance, then its driven inputs, instance by instance."""
+def _columns(instances: Sequence[PlannedInstance], scenario: Scenario) -> tuple[Column, ...]:
+    """Every output of every instance, then its driven inputs, instance by instance; each in
+    its unit (the scenario's, where it gives one to a variable its FMU declares none for)."""
     cols = []
     for inst in instances:
         variables = model_variables(inst.model)
+        spec = scenario.fmus[inst.index]
 
-        def meta(name: str, inst: PlannedInstance = inst, variables: Any = variables) -> SignalMeta:
+        def meta(
+            name: str, inst: PlannedInstance = inst, variables: Any = variables, spec: Any = spec
+        ) -> SignalMeta:
             v = variables[name]
-            return SignalMeta(f"{inst.name}.{name}", v.unit, inst.name, v.description or "")
+            return SignalMeta(f"{inst.name}.{name}", spec.unit(name), inst.name, v.description or "")
 
         cols += [Column(inst.index, ColumnKind.OUTPUT, k, meta(n)) for k, n in enumerate(inst.outputs)]
         cols += [
@@ -369,7 +373,7 @@ def make_plan(scenario: Scenario) -> Plan:
         scenario=scenario,
         instances=instances,
         driven=tuple(b.driven),
-        columns=_columns(instances),
+        columns=_columns(instances, scenario),
         events=tuple(b.event(e, instances) for e in scenario.events),
         loops=_loops(scenario, instances),
         init_stages=_init_stages(scenario, instances),
