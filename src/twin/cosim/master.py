@@ -13,6 +13,8 @@ The parts, one role each:
   what feeds each input, what is recorded), by :func:`~twin.cosim.plan.make_plan`;
 - :mod:`~twin.cosim.state`: the exchange state every other part works on;
 - :mod:`~twin.cosim.instances`: the FMU instances (load, initialize, free);
+- :mod:`~twin.cosim.loops`: initialization variable by variable, and the algebraic loops
+  iterated at each communication point;
 - :mod:`~twin.cosim.stepping`: the stepping loop, compiled (:mod:`~twin.cosim.native`) or
   Python, behind one interface: runs a batch of ticks;
 - :mod:`~twin.cosim.events`: scenario events, progress, checkpoints and batch limits as simpy
