@@ -33,6 +33,7 @@ __all__ = [
     "Cycle",
     "InitStage",
     "algebraic_loops",
+    "check_loops",
     "dependency_graph",
     "initialization_stages",
     "loop_problem",
