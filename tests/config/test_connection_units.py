@@ -39,6 +39,15 @@ duration = "10 min"
 [input.thermal.q_hydraulic]
 profile = "constant"
 value = 300.0
+[input.thermal.q_friction]
+profile = "constant"
+value = 0.0
+[input.thermal.q_pole_heater]
+profile = "constant"
+value = 0.0
+[input.thermal.fault_inject]
+profile = "constant"
+value = 0.0
 """
 
 
@@ -110,13 +119,16 @@ def test_units_of_different_dimensions_are_refused_in_one_line(
     assert "[temperature]" in lines[0]
 
 
-def _gain(models: dict[str, Path], units: str = "") -> str:
+def _gain(
+    models: dict[str, Path], units: str = "", feed: str = '[connections]\n"thermal.t_bearing" = "gain.u"\n'
+) -> str:
     return (
         THERMAL
         + f'[fmu.gain]\nmodel = "{models["Gain"]}"\nperiod = "10 s"\nparameters = {{ solver_step = 1.0 }}\n'
         + units
         + '[input.gain.k]\nprofile = "constant"\nvalue = 1.0\n'
-        + '[connections]\n"thermal.t_bearing" = "gain.u"\n'
+        + '[input.gain.w]\nprofile = "constant"\nvalue = 0.0\n'
+        + feed
     )
 
 
@@ -156,7 +168,10 @@ def test_a_unit_the_scenario_gives_converts_and_labels_the_signal(
 def test_a_bad_unit_given_to_a_variable_is_one_line(
     units: str, words: str, test_models: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    text = _gain(test_models, f"units = {units}\n").replace('"thermal.t_bearing" = "gain.u"\n', "")
+    # the input driven rather than connected: the unit given is the one problem
+    text = _gain(
+        test_models, f"units = {units}\n", feed='[input.gain.u]\nprofile = "constant"\nvalue = 1.0\n'
+    )
     path = _write(tmp_path, text)
     assert main(["validate", str(path)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
