@@ -696,10 +696,15 @@ def bench_libcosim(duration: str, step: str, reps: int) -> None:
         f"(b) tester system, {len(scenario.fmus)} FMUs all at {step}, {duration} ({n} macro steps): twin vs libcosimpy"
     )
     print(f"   scenario: {TESTER.relative_to(ROOT)} with --set " + " ".join(f"'{o}'" for o in overrides))
+    delayed = sum(c.delay for c in scenario.connections)
     print(
         f"   same FMU files, parameters (+ the master's per-instance seeds), {len(scenario.connections)} connections, "
-        f"constant inputs as initial values; the {sum(c.delay for c in scenario.connections)} delayed connection(s) "
-        "are connected directly in libcosim (its fixed-step exchange is Jacobi: one step of delay anyway)"
+        "constant inputs as initial values; "
+        + (
+            f"the {delayed} delayed connection(s) are connected directly in libcosim (it has no delay)"
+            if delayed
+            else "the friction loop undelayed in both (no direct feedthrough on it)"
+        )
     )
     version = libcosim_version()
     loops = master_loops()

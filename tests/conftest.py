@@ -29,3 +29,20 @@ def lowpass_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     build_platform_binary(unzipped, build_dir=root / "build")
     archive = shutil.make_archive(str(root / "LowPass"), "zip", unzipped)
     return Path(shutil.move(archive, root / "LowPass.fmu"))
+
+
+@pytest.fixture(scope="session")
+def test_models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The test-only models of tests/data/models (Gain: direct feedthrough; Lag: none, in degC),
+    built as the twin's own models are (its FMU wrapper, its build, the content-hashed cache),
+    from a sources folder outside fmus/: a copy of fmus/common beside them."""
+    import shutil
+
+    from twin.fmu.sources import sources_dir
+
+    root = tmp_path_factory.mktemp("models")
+    shutil.copytree(sources_dir() / "common", root / "common")
+    models = sorted((Path(__file__).parent / "data" / "models").iterdir())
+    for folder in models:
+        shutil.copytree(folder, root / folder.name)
+    return {folder.name: ensure_fmu(folder.name, src=root) for folder in models}

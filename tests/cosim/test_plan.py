@@ -89,8 +89,12 @@ def test_plan_resolves_inputs_columns_and_events_without_loading_an_fmu(
     # the sensors' noise seed is derived from the scenario seed, set before the parameters
     assert sensors.parameters[0] == ("seed", instance_seed(3, 1))
     assert thermal.parameters == (("solver_step", 1.0),)  # ThermalNetwork has no seed
-    # thermal feeds sensors without delay: it is initialized first
-    assert plan.init_order == (0, 1)
+    # initialization goes variable by variable: the thermal network's t_ambient is read, then
+    # the sensors' t_room is set from it; the loop back is delayed: no algebraic loop
+    assert plan.loops == ()
+    stages = [(s.inputs, s.outputs, s.cycles) for s in plan.init_stages]
+    t_ambient, t_room = thermal.outputs.index("t_ambient"), sensors.in_names.index("t_room")
+    assert stages == [((), ((0, t_ambient),), ()), (((1, t_room),), (), ())]
 
 
 def test_batch_progress_and_checkpoint_ticks(tmp_path: Path) -> None:

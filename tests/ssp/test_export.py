@@ -20,15 +20,15 @@ TESTER = scenarios_dir() / "base" / "tester-system.toml"
 DURATION = "2 min"
 
 
-def _no_loop(folder: Path) -> Path:
-    """The tester system without its one delayed connection (friction heat -> thermal network,
-    delayed one exchange to break the friction loop): libcosim has no delayed connection, its
-    Jacobi exchange passes every output at the start of the receiver's step."""
-    path = folder / "no-loop.toml"
+def _delayed_loop(folder: Path) -> Path:
+    """The tester system with its friction loop closed through an explicit one-exchange delay
+    (friction heat -> thermal network): a choice libcosim has no means to express."""
+    path = folder / "delayed-loop.toml"
     path.write_text(
-        f'extends = "{TESTER}"\ndelay = []\n'
-        f'[scenario]\nname = "tester-no-friction-loop"\nduration = "{DURATION}"\n'
-        '[input.thermal.q_friction]\nprofile = "constant"\nvalue = 0.0\nsource = "test: the loop cut"\n'
+        f'extends = "{TESTER}"\n'
+        f'[scenario]\nname = "tester-delayed-friction-loop"\nduration = "{DURATION}"\n'
+        '[connections]\n"oscillation.q_friction_avg" = []\n'
+        '[[delay]]\nfrom = "oscillation.q_friction_avg"\nto = "thermal.q_friction"\ninitial = 0.0\n'
     )
     return path
 
@@ -77,12 +77,12 @@ def _run(scenario: Path | str, out: Path, *sets: str) -> SignalTable:
 def test_the_export_is_valid_ssp_and_holds_the_system(tmp_path: Path) -> None:
     from fmpy.ssp.ssd import read_ssd
 
-    ssp = _export(TESTER, tmp_path / "tester.ssp", "--lossy")
+    ssp = _export(TESTER, tmp_path / "tester.ssp")
     ssd = read_ssd(str(ssp), validate=True)  # fmpy checks it against the SSP 1.0 schema
     components = {c.name: c for c in ssd.system.elements}
     assert set(components) == {"hydraulic", "oscillation", "thermal", "mechanics", "sensors"}
     assert components["thermal"].source == "resources/ThermalNetwork.fmu"
-    assert len(ssd.system.connections) == 35  # 34 plain and the delayed friction heat
+    assert len(ssd.system.connections) == 35  # the friction heat's loop among them, undelayed
     with zipfile.ZipFile(ssp) as zf:
         names = set(zf.namelist())
         assert {f"resources/{n}.ssv" for n in components} <= names
@@ -95,18 +95,18 @@ def test_the_export_is_valid_ssp_and_holds_the_system(tmp_path: Path) -> None:
     newton = next(u for u in ssd.units if u.name == "N")
     assert (int(newton.kg), int(newton.m), int(newton.s)) == (1, 1, -2)
     assert 'twin:Parameter source="' in ssv  # each parameter's source travels with it
-    assert "<twin:Delay initial=" in text
+    assert "twin:Delay" not in text  # the friction loop travels as it runs: undelayed
     # the same scenario gives the same archive, byte for byte
-    assert _export(TESTER, tmp_path / "again.ssp", "--lossy").read_bytes() == ssp.read_bytes()
+    assert _export(TESTER, tmp_path / "again.ssp").read_bytes() == ssp.read_bytes()
 
 
 def test_libcosim_runs_the_export_and_agrees_bit_for_bit(tmp_path: Path) -> None:
     """Tolerance 0: the same FMU binaries with the same parameters and seeds, the same base step
     and per-FMU periods (libcosim's step size hints), and both masters exchange Jacobi-style
-    (each FMU steps on the values its inputs had at the start of its step, held over it)."""
-    scenario = _no_loop(tmp_path)
-    ours = _run(scenario, tmp_path / "ours")
-    ssp = _export(scenario, tmp_path / "tester.ssp")
+    (each FMU steps on the values its inputs had at the start of its step, held over it). The
+    friction loop runs undelayed in both: neither of its ends has direct feedthrough."""
+    ours = _run(TESTER, tmp_path / "ours")
+    ssp = _export(TESTER, tmp_path / "tester.ssp")
     names = ours.names()
     theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)  # output every 1 s = 10 steps
     assert len(names) > 70
@@ -114,13 +114,14 @@ def test_libcosim_runs_the_export_and_agrees_bit_for_bit(tmp_path: Path) -> None
         np.testing.assert_array_equal(theirs[name], ours[name][1:], err_msg=name)
 
 
-def test_with_the_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp_path: Path) -> None:
-    """The full tester: libcosim has no one-exchange delay, so the friction heat reaches the
-    thermal network one 10 s step earlier there. The load and the swing do not depend on it and
-    stay bit-identical; the bearing's temperature differs by about the heat of one step, the
-    base (far from the bearing in the network) by far less."""
-    ours = _run(TESTER, tmp_path / "ours")
-    ssp = _export(TESTER, tmp_path / "tester.ssp", "--lossy")
+def test_with_a_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp_path: Path) -> None:
+    """The friction loop delayed by choice: libcosim has no one-exchange delay, so the friction
+    heat reaches the thermal network one 10 s step earlier there. The load and the swing do not
+    depend on it and stay bit-identical; the bearing's temperature differs by about the heat of
+    one step, the base (far from the bearing in the network) by far less."""
+    scenario = _delayed_loop(tmp_path)
+    ours = _run(scenario, tmp_path / "ours")
+    ssp = _export(scenario, tmp_path / "tester.ssp", "--lossy")
     names = ["hydraulic.radial_load", "oscillation.angle", "thermal.t_bearing", "thermal.t_base"]
     theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)
     for name in ("hydraulic.radial_load", "oscillation.angle"):
@@ -131,7 +132,7 @@ def test_with_the_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp
 
 
 def test_the_twin_runs_its_export_with_the_same_bytes(tmp_path: Path) -> None:
-    ssp = _export(TESTER, tmp_path / "tester.ssp", "--lossy")
+    ssp = _export(TESTER, tmp_path / "tester.ssp")
     from_toml = _run(TESTER, tmp_path / "toml")
     from_ssp = _run(ssp, tmp_path / "ssp")
     assert (tmp_path / "ssp" / "signals.csv").read_bytes() == (tmp_path / "toml" / "signals.csv").read_bytes()
@@ -144,27 +145,33 @@ def test_the_twin_runs_its_export_with_the_same_bytes(tmp_path: Path) -> None:
 def test_what_another_master_could_not_run_is_refused_unless_lossy(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
+    scenario = _delayed_loop(tmp_path)
     out = tmp_path / "tester.ssp"
     capsys.readouterr()
-    assert main(["export-ssp", str(TESTER), "-o", str(out)]) == 2
+    assert main(["export-ssp", str(scenario), "-o", str(out)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines == [
-        f"twin: {TESTER}: delay: the archive cannot carry the delayed connection oscillation.q_friction_avg -> "
+        f"twin: {scenario}: delay: the archive cannot carry the delayed connection oscillation.q_friction_avg -> "
         "thermal.q_friction: SSP has no delay (--lossy writes it undelayed for other masters; the twin reads "
         "it back delayed)"
     ]
     assert not out.exists()
-    assert main(["export-ssp", str(TESTER), "-o", str(out), "--lossy"]) == 0
+    assert main(["export-ssp", str(scenario), "-o", str(out), "--lossy"]) == 0
     captured = capsys.readouterr()
     assert "left out (--lossy): delay: the delayed connection oscillation.q_friction_avg" in captured.err
     assert "5 components" in captured.out
+    with zipfile.ZipFile(out) as zf:
+        assert "<twin:Delay initial=" in zf.read("SystemStructure.ssd").decode()
+    # the twin reads the annotation back: its run of the archive is its run of the file
+    _run(scenario, tmp_path / "toml")
+    _run(out, tmp_path / "ssp")
+    assert (tmp_path / "ssp" / "signals.csv").read_bytes() == (tmp_path / "toml" / "signals.csv").read_bytes()
 
 
 def test_a_scheduled_event_is_refused_unless_lossy(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     scenario = tmp_path / "event.toml"
     scenario.write_text(
-        f'extends = "{TESTER}"\ndelay = []\n[scenario]\nname = "event"\n'
-        '[input.thermal.q_friction]\nprofile = "constant"\nvalue = 0.0\n'
+        f'extends = "{TESTER}"\n[scenario]\nname = "event"\n'
         '[[event]]\nat = "60 s"\naction = "set"\ntarget = "hydraulic.station_on"\nvalue = 0.0\n'
     )
     capsys.readouterr()

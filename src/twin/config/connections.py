@@ -1,19 +1,25 @@
 """``[connections]`` and ``[[delay]]``: which output feeds which input.
 
-Checked before any run (as mosaik does): endpoints exist, an output feeds an input, units
-agree, no input is fed twice, and loops between FMUs go through an explicit delay with an
-initial value.
+Checked before any run (as mosaik does): endpoints exist, an output feeds an input, no input
+is fed twice, units convert (pint: a K output feeds a degC input through factor and offset;
+different dimensions are refused), and an algebraic loop can be solved
+(:mod:`twin.config.loops`). A delay is a choice, not a requirement: a loop through an output
+without direct feedthrough runs as it is.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 from twin.config.endpoints import check_range, endpoint
+from twin.config.loops import check_loops as check_algebraic_loops
 from twin.config.reader import Problems, array_of_tables, table
 from twin.config.spec import Connection, FMUSpec
+from twin.errors import ConfigError, UnitError
 from twin.fmu.catalog import variables as model_variables
+from twin.units import conversion, same_unit
 
 #: the keys of a connection written as a table (a transformation, SSP's LinearTransformation)
 _TRANSFORM_KEYS = {"to", "factor", "offset", "convert_units"}
@@ -88,48 +94,60 @@ def _check_initial_values(
             check_range(p, fmus, c.dst, [c.initial], key + ".initial")
 
 
-def _check_endpoints(p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]) -> None:
+def _converted(p: Problems, fmus: Mapping[str, FMUSpec], c: Connection, key: str) -> Connection:
+    """``c`` with the unit conversion from its output's unit to its input's (pint, through
+    :mod:`twin.units`) composed into its factor and offset; unchanged, bit for bit, when the
+    units are written alike. A unit the input lacks (or the output) must be given by the
+    scenario (``[fmu.<instance>] units``); units of different dimensions are a problem."""
+    (si, sv), (di, dv) = c.src.split("."), c.dst.split(".")
+    su, du = fmus[si].unit(sv), fmus[di].unit(dv)
+    if not c.convert_units or same_unit(su, du):
+        return c  # convert_units = false: factor and offset hold the whole map already
+    if not su or not du:
+        inst, var = (di, dv) if not du else (si, sv)
+        what = (
+            f"{c.src} is in '{su}', {c.dst} has no unit"
+            if not du
+            else f"{c.src} has no unit, {c.dst} is in '{du}'"
+        )
+        p.add(
+            key, f'{what}: give {inst}.{var} the unit it means with [fmu.{inst}] units = {{ {var} = "..." }}'
+        )
+        return c
+    try:
+        factor, offset = conversion(su, du)
+    except UnitError as exc:
+        p.add(key, f"unit mismatch: {c.src} is in '{su}', {c.dst} in '{du}' ({exc.message})")
+        return c
+    return dataclasses.replace(c, factor=factor * c.factor, offset=factor * c.offset + offset)
+
+
+def _check_endpoints(
+    p: Problems, fmus: Mapping[str, FMUSpec], connections: Sequence[Connection]
+) -> list[Connection]:
+    """The connections whose endpoints exist, each with its unit conversion; problems for the
+    others and for an input fed twice."""
     fed: dict[str, str] = {}
+    out = []
     for c in connections:
         key = f'connections."{c.src}"' if not c.delay else "delay"
         vs = endpoint(p, fmus, c.src, key, "output")
         vd = endpoint(p, fmus, c.dst, key, "input")
-        if vs is not None and vd is not None and c.convert_units and vs.unit != vd.unit:
-            p.add(key, f"unit mismatch: {c.src} is in '{vs.unit}', {c.dst} in '{vd.unit}'")
         if c.dst in fed:
             p.add(key, f"input {c.dst!r} is already fed by {fed[c.dst]!r}")
         fed[c.dst] = c.src
+        out.append(_converted(p, fmus, c, key) if vs is not None and vd is not None else c)
+    return out
 
 
-def check_loops(p: Problems, connections: Sequence[Connection]) -> None:
-    """Loops between instances must contain a delayed connection (no algebraic loops)."""
-    graph: dict[str, set[str]] = {}
-    for c in connections:
-        if not c.delay and "." in c.src and "." in c.dst:
-            a, b = c.src.split(".")[0], c.dst.split(".")[0]
-            graph.setdefault(a, set()).add(b)
-    state: dict[str, int] = {}
-    stack: list[str] = []
-
-    def visit(n: str) -> list[str] | None:
-        state[n] = 1
-        stack.append(n)
-        for m in sorted(graph.get(n, ())):
-            if state.get(m) == 1:
-                return [*stack[stack.index(m) :], m]
-            if m not in state and (cycle := visit(m)):
-                return cycle
-        state[n] = 2
-        stack.pop()
-        return None
-
-    for n in sorted(graph):
-        if n not in state and (cycle := visit(n)):
-            p.add(
-                "connections",
-                "algebraic loop " + " -> ".join(cycle) + ": break it with a [[delay]] (from, to, initial)",
-            )
-            return
+def check_loops(p: Problems, connections: Sequence[Connection], fmus: Mapping[str, FMUSpec]) -> None:
+    """A loop between instances runs as it is unless it is a true algebraic loop (direct
+    feedthrough all round, :mod:`twin.config.loops`) that the master cannot solve: one across
+    instances of different periods, refused naming its cycle."""
+    try:
+        check_algebraic_loops(fmus, connections)
+    except ConfigError as exc:
+        p.add(exc.key or "connections", exc.message or "")
 
 
 def check_inputs_fed(p: Problems, data: Mapping[str, Any], fmus: Sequence[FMUSpec]) -> None:
@@ -190,8 +208,7 @@ def _values(node: Any, *, keys: bool = False) -> list[Any]:
 def load_connections(p: Problems, data: Mapping[str, Any], fmus: Mapping[str, FMUSpec]) -> list[Connection]:
     """Every connection, plain then delayed, checked."""
     delays = _delays(p, data)
-    out = _plain(p, data) + [c for _, c in delays]
-    _check_endpoints(p, fmus, out)
+    out = _check_endpoints(p, fmus, _plain(p, data) + [c for _, c in delays])
     _check_initial_values(p, fmus, delays)
-    check_loops(p, out)
+    check_loops(p, out, fmus)
     return out

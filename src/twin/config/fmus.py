@@ -2,7 +2,9 @@
 
 Parameter values come from ``parameter_files`` (each a TOML file with a ``[parameters]``
 table, relative to the scenario) and then the table's own ``parameters``, the later winning;
-each is checked against the model's declared type and physical range.
+each is checked against the model's declared type and physical range. ``units`` gives a unit
+to an input or output its FMU declares none for (``units = { u = "degC" }``), so that a
+connection can convert to or from it.
 """
 
 from __future__ import annotations
@@ -20,8 +22,9 @@ from twin.config.spec import FMUSpec, Parameter
 from twin.errors import ConfigError
 from twin.fmu.catalog import model_names
 from twin.fmu.catalog import variables as model_variables
+from twin.units import UnitError, parse
 
-_FMU_KEYS = {"model", "period", "parameters", "parameter_files", "unconnected"}
+_FMU_KEYS = {"model", "period", "parameters", "parameter_files", "unconnected", "units"}
 
 
 def _unwrap(p: Problems, raw: Any, key: str) -> tuple[Any, str, float | None] | None:
@@ -150,6 +153,38 @@ def _period(p: Problems, raw: Mapping[str, Any], prefix: str, step_ns: int | Non
     return period
 
 
+def _units(p: Problems, model: str, raw: Mapping[str, Any], prefix: str) -> dict[str, str]:
+    """``units = { variable = "unit" }``: a unit for each Real input or output that the FMU
+    declares none for (pint must know it). A variable with a unit of its own keeps it: a
+    connection converts from or to that unit."""
+    given = raw.get("units", {})
+    if not isinstance(given, dict):
+        p.add(prefix + "units", 'expected a table such as { u = "degC" }')
+        return {}
+    variables = model_variables(model)
+    out = {}
+    for var, unit in given.items():
+        key = f"{prefix}units.{var}"
+        v = variables.get(var)
+        if v is None or v.causality not in ("input", "output") or v.type != "Real":
+            exchanged = [n for n, x in variables.items() if x.causality in ("input", "output")]
+            p.add(key, f"{model} has no Real input or output '{var}'{did_you_mean(var, exchanged)}")
+        elif v.unit:
+            p.add(
+                key, f"{model} declares '{v.unit}' for {var}: a unit is given only where the FMU gives none"
+            )
+        elif not isinstance(unit, str) or not unit.strip():
+            p.add(key, f'expected a unit such as "degC", got {unit!r}')
+        else:
+            try:
+                parse(unit)
+            except UnitError as exc:
+                p.add(key, exc.message)
+                continue
+            out[var] = unit.strip()
+    return out
+
+
 def _instance(
     p: Problems, name: str, raw: Any, known: list[str], base_dir: Path, step_ns: int | None
 ) -> FMUSpec | None:
@@ -161,6 +196,7 @@ def _instance(
     period = _period(p, raw, prefix, step_ns)
     params = _parameters(p, model, _given_parameters(p, raw, prefix, base_dir))
     unconnected = _unconnected(p, model, raw, prefix)
+    units = _units(p, model, raw, prefix)
     if period is None:
         return None
     return FMUSpec(
@@ -169,6 +205,7 @@ def _instance(
         period_ns=period,
         parameters=MappingProxyType(params),
         unconnected=MappingProxyType(unconnected),
+        units=MappingProxyType(units),
     )
 
 

@@ -63,7 +63,11 @@ class Parameter:
 
 @dataclass(frozen=True)
 class FMUSpec:
-    """One FMU instance: which model, how often it steps, its parameter values."""
+    """One FMU instance: which model, how often it steps, its parameter values.
+
+    ``units`` gives a unit to inputs and outputs its FMU declares none for (variable -> unit),
+    so that a connection can convert to or from them (:mod:`twin.config.connections`).
+    """
 
     name: str
     model: str
@@ -71,6 +75,15 @@ class FMUSpec:
     parameters: Mapping[str, Parameter] = field(default_factory=_frozen)
     #: inputs meant to stay at their start values, each with the reason (``unconnected``)
     unconnected: Mapping[str, str] = field(default_factory=_frozen)
+    units: Mapping[str, str] = field(default_factory=_frozen)
+
+    def unit(self, variable: str) -> str:
+        """The unit of ``variable``: the one this instance gives it, else its FMU's ("": none)."""
+        declared = self.units.get(variable)
+        if declared is not None:
+            return declared
+        v = model_variables(self.model).get(variable)
+        return v.unit if v is not None else ""
 
 
 @dataclass(frozen=True)

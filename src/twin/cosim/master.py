@@ -13,6 +13,8 @@ The parts, one role each:
   what feeds each input, what is recorded), by :func:`~twin.cosim.plan.make_plan`;
 - :mod:`~twin.cosim.state`: the exchange state every other part works on;
 - :mod:`~twin.cosim.instances`: the FMU instances (load, initialize, free);
+- :mod:`~twin.cosim.loops`: initialization variable by variable, and the algebraic loops
+  iterated at each communication point;
 - :mod:`~twin.cosim.stepping`: the stepping loop, compiled (:mod:`~twin.cosim.native`) or
   Python, behind one interface: runs a batch of ticks;
 - :mod:`~twin.cosim.events`: scenario events, progress, checkpoints and batch limits as simpy
@@ -39,11 +41,12 @@ from twin.cosim import events
 from twin.cosim.checkpoint import restore, snapshot
 from twin.cosim.controls import RunControls
 from twin.cosim.instances import close_slots, initialize, open_slots
+from twin.cosim.loops import loop_solvers
 from twin.cosim.native import NativeLoop
 from twin.cosim.plan import Plan, make_plan
 from twin.cosim.recording import MemoryRecorder, Recorder, batch_rows
 from twin.cosim.state import State, make_state
-from twin.cosim.stepping import Loop, PythonLoop, Stepping, check_loop, final_tick
+from twin.cosim.stepping import Loop, PythonLoop, Solver, Stepping, check_loop, final_tick
 from twin.errors import FMUError, RunError
 from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
@@ -100,6 +103,7 @@ class Master:
         self.resume = resume
         self.state: State | None = None
         self.slots: list[FMUSlot] = []
+        self.solvers: list[Solver] = []
 
     # ------------------------------------------------------------------ set-up
 
@@ -117,7 +121,8 @@ class Master:
             self._create()
             if self.resume is None:
                 self._initialize()
-            stepping = make_stepping(self.loop, self.plan, self.state, self.slots)
+            self.solvers = loop_solvers(self.plan, self.state, self.slots)
+            stepping = make_stepping(self.loop, self.plan, self.state, self.slots, self.solvers)
             tick = 0 if self.resume is None else restore(self.plan, self.state, self.slots, self.resume)
         except BaseException:
             self.close()
@@ -162,7 +167,7 @@ class Master:
                 k = k1
                 if why := self.controls.stopped():
                     return "interrupted", why
-            last = final_tick(self.plan, self.state)
+            last = final_tick(self.plan, self.state, self.solvers)
             if last is not None:
                 self.recorder.append(*last)
         except RunError as exc:  # the run stops; what was recorded stays
@@ -203,10 +208,14 @@ class Master:
         self.slots = []
 
 
-def make_stepping(loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> Stepping:
-    """The loop named ``loop`` over ``state`` (the compiled one is built on first use)."""
-    if check_loop(loop) == "python":
-        return PythonLoop(plan, state, slots)
+def make_stepping(
+    loop: Loop, plan: Plan, state: State, slots: Sequence[FMUSlot], solvers: Sequence[Solver] = ()
+) -> Stepping:
+    """The loop named ``loop`` over ``state`` (the compiled one is built on first use). A plan
+    with algebraic loops (``solvers``) runs the Python loop whichever is named: the compiled
+    stepper runs loop-free plans only, and the two agree bit for bit where both run."""
+    if check_loop(loop) == "python" or solvers:
+        return PythonLoop(plan, state, slots, solvers)
     return NativeLoop(plan, state, slots)
 
 

@@ -8,10 +8,15 @@ libcosim's ``system_structure``: the checked, resolved description of the system
 
 Each input of an instance is of one :class:`InputKind`: fed by a connection (the visible
 output of another instance at the same exchange), by a delayed connection (that output one
-exchange late, its declared initial value first: the only way a loop is allowed), or driven
-by a function of time (a profile, or its start value until a set/ramp event changes it).
-Driven inputs are numbered across the whole plan: they are the columns of the driven matrix
-the master evaluates for a batch of ticks at once.
+exchange late, its declared initial value first), or driven by a function of time (a
+profile, or its start value until a set/ramp event changes it). Driven inputs are numbered
+across the whole plan: they are the columns of the driven matrix the master evaluates for a
+batch of ticks at once.
+
+The plan also holds what the FMUs' ``<ModelStructure>`` says of the connections
+(:mod:`twin.config.loops`): the algebraic loops the master iterates at each communication
+point (:attr:`Plan.loops`), and the order in which initialization sets inputs and reads
+outputs, variable by variable (:attr:`Plan.init_stages`).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
+from twin.config.loops import Cycle, check_loops, initialization_stages
 from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
 from twin.errors import ConfigError
 from twin.fmu.catalog import roles as model_roles
@@ -111,6 +117,34 @@ class PlannedEvent:
     duration_ns: int
 
 
+#: a variable resolved to indices: (instance, index in its inputs or in its outputs)
+VarIndex = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class PlannedLoop:
+    """An algebraic loop (a cycle through direct feedthrough, :class:`twin.config.loops.Cycle`)
+    resolved to indices: the inputs and outputs on it, and its name for a message."""
+
+    name: str
+    inputs: tuple[VarIndex, ...]
+    outputs: tuple[VarIndex, ...]
+
+    @property
+    def instances(self) -> tuple[int, ...]:
+        return tuple(sorted({i for i, _ in self.inputs + self.outputs}))
+
+
+@dataclass(frozen=True)
+class PlannedStage:
+    """One stage of initialization (:class:`twin.config.loops.InitStage`): its inputs are set,
+    its outputs read, each of its cycles iterated."""
+
+    inputs: tuple[VarIndex, ...]
+    outputs: tuple[VarIndex, ...]
+    cycles: tuple[PlannedLoop, ...]
+
+
 @dataclass(frozen=True)
 class Column:
     """One recorded column: an output's visible value or a driven input's value."""
@@ -131,8 +165,10 @@ class Plan:
     driven: tuple[DrivenSpec, ...]
     columns: tuple[Column, ...]
     events: tuple[PlannedEvent, ...]
-    #: instances in dependency order of their undelayed connections (initialization)
-    init_order: tuple[int, ...]
+    #: the algebraic loops, each after those it depends on, solved at every communication point
+    loops: tuple[PlannedLoop, ...] = ()
+    #: initialization, variable by variable: inputs set as soon as their sources are read
+    init_stages: tuple[PlannedStage, ...] = ()
 
     @property
     def step_ns(self) -> int:
@@ -265,15 +301,19 @@ class _Builder:
         return PlannedEvent(e.at_ns, e.action, inst.index, k, inst.inputs[k].src, e.value, e.duration_ns)
 
 
-def _columns(instances: Sequence[PlannedInstance]) -> tuple[Column, ...]:
-    """Every output of every instance, then its driven inputs, instance by instance."""
+def _columns(instances: Sequence[PlannedInstance], scenario: Scenario) -> tuple[Column, ...]:
+    """Every output of every instance, then its driven inputs, instance by instance; each in
+    its unit (the scenario's, where it gives one to a variable its FMU declares none for)."""
     cols = []
     for inst in instances:
         variables = model_variables(inst.model)
+        spec = scenario.fmus[inst.index]
 
-        def meta(name: str, inst: PlannedInstance = inst, variables: Any = variables) -> SignalMeta:
+        def meta(
+            name: str, inst: PlannedInstance = inst, variables: Any = variables, spec: Any = spec
+        ) -> SignalMeta:
             v = variables[name]
-            return SignalMeta(f"{inst.name}.{name}", v.unit, inst.name, v.description or "")
+            return SignalMeta(f"{inst.name}.{name}", spec.unit(name), inst.name, v.description or "")
 
         cols += [Column(inst.index, ColumnKind.OUTPUT, k, meta(n)) for k, n in enumerate(inst.outputs)]
         cols += [
@@ -284,18 +324,45 @@ def _columns(instances: Sequence[PlannedInstance]) -> tuple[Column, ...]:
     return tuple(cols)
 
 
-def _init_order(instances: Sequence[PlannedInstance]) -> tuple[int, ...]:
-    """Instances in dependency order of undelayed connections (the loader excluded loops)."""
-    deps = {inst.index: {i.src for i in inst.inputs if i.kind == InputKind.CONNECTION} for inst in instances}
-    order: list[int] = []
-    while len(order) < len(instances):
-        before = len(order)
-        for i, needs in deps.items():
-            if i not in order and needs <= set(order):
-                order.append(i)
-        if len(order) == before:
-            raise ConfigError("the undelayed connections form a loop", key="connections")
-    return tuple(order)
+class _Resolver:
+    """Names of variables on loops and initialization stages, resolved to indices."""
+
+    def __init__(self, instances: Sequence[PlannedInstance]) -> None:
+        self.by_name = {inst.name: inst for inst in instances}
+
+    def input(self, ref: str) -> VarIndex:
+        inst, var = ref.split(".")
+        return self.by_name[inst].index, self.by_name[inst].in_names.index(var)
+
+    def output(self, ref: str) -> VarIndex:
+        inst, var = ref.split(".")
+        return self.by_name[inst].index, self.by_name[inst].outputs.index(var)
+
+    def loop(self, cycle: Cycle) -> PlannedLoop:
+        return PlannedLoop(
+            cycle.text, tuple(map(self.input, cycle.inputs)), tuple(map(self.output, cycle.outputs))
+        )
+
+
+def _loops(scenario: Scenario, instances: Sequence[PlannedInstance]) -> tuple[PlannedLoop, ...]:
+    """The algebraic loops (a :class:`ConfigError` for one the master cannot solve)."""
+    fmus = {f.name: f for f in scenario.fmus}
+    try:
+        cycles = check_loops(fmus, scenario.connections)
+    except ConfigError as exc:
+        raise ConfigError(exc.message or "", source=scenario.source_path, key=exc.key) from None
+    return tuple(map(_Resolver(instances).loop, cycles))
+
+
+def _init_stages(scenario: Scenario, instances: Sequence[PlannedInstance]) -> tuple[PlannedStage, ...]:
+    r = _Resolver(instances)
+    stages = initialization_stages({f.name: f for f in scenario.fmus}, scenario.connections)
+    return tuple(
+        PlannedStage(
+            tuple(map(r.input, s.inputs)), tuple(map(r.output, s.outputs)), tuple(map(r.loop, s.cycles))
+        )
+        for s in stages
+    )
 
 
 def make_plan(scenario: Scenario) -> Plan:
@@ -306,9 +373,10 @@ def make_plan(scenario: Scenario) -> Plan:
         scenario=scenario,
         instances=instances,
         driven=tuple(b.driven),
-        columns=_columns(instances),
+        columns=_columns(instances, scenario),
         events=tuple(b.event(e, instances) for e in scenario.events),
-        init_order=_init_order(instances),
+        loops=_loops(scenario, instances),
+        init_stages=_init_stages(scenario, instances),
     )
 
 
@@ -322,5 +390,7 @@ __all__ = [
     "PlannedEvent",
     "PlannedInput",
     "PlannedInstance",
+    "PlannedLoop",
+    "PlannedStage",
     "make_plan",
 ]

@@ -29,6 +29,16 @@ Loop = Literal["fast", "python"]
 LOOPS: tuple[Loop, ...] = ("fast", "python")
 
 
+class Solver(Protocol):
+    """An algebraic loop iterated at its instances' communication points
+    (:class:`twin.cosim.loops.LoopSolver`)."""
+
+    instances: tuple[int, ...]
+    period_ticks: int
+
+    def solve(self, drow: np.ndarray, t: float, *, exchange: bool) -> int: ...
+
+
 class Stepping(Protocol):
     """Runs ticks of a plan over its state."""
 
@@ -73,10 +83,7 @@ class Gather:
 
     def __call__(self, drow: np.ndarray, *, exchange: bool) -> None:
         vals, delay_buf = self.buf.in_port.values, self.buf.delay_buf
-        for j, cur, idx in self.connected:
-            vals[j] = cur[idx]
-        for j, f, o in self.affine_connected:
-            vals[j] = vals[j] * f + o
+        self.connect()
         for j, cur, idx in self.delayed:
             vals[j] = delay_buf[j]
             if exchange:
@@ -85,6 +92,15 @@ class Gather:
             for j, f, o in self.affine_delayed:
                 delay_buf[j] = delay_buf[j] * f + o
         self.drive(drow)
+
+    def connect(self) -> None:
+        """The connected inputs alone: each takes its source's visible value, transformed (what
+        an algebraic loop's iteration repeats, :mod:`twin.cosim.loops`)."""
+        vals = self.buf.in_port.values
+        for j, cur, idx in self.connected:
+            vals[j] = cur[idx]
+        for j, f, o in self.affine_connected:
+            vals[j] = vals[j] * f + o
 
     def drive(self, drow: np.ndarray) -> None:
         """The driven inputs alone: each takes its column of ``drow``."""
@@ -115,15 +131,20 @@ def non_finite(inst: PlannedInstance, slot: FMUSlot, buf: Buffers, j: int) -> FM
     )
 
 
-def final_tick(plan: Plan, state: State) -> tuple[np.ndarray, np.ndarray] | None:
-    """The end of the run, tick ``n_ticks``: its outputs become visible, the driven inputs take
-    their values, and its row (times, rows) is returned if it is an output tick. No FMU steps."""
+def final_tick(
+    plan: Plan, state: State, solvers: Sequence[Solver] = ()
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The end of the run, tick ``n_ticks``: its outputs become visible (an algebraic loop's
+    solved there too), the driven inputs take their values, and its row (times, rows) is
+    returned if it is an output tick. No FMU steps."""
     n = plan.n_ticks
     for i, buf in enumerate(state.buffers):
         if state.pending_at[i] == n:
             buf.commit()
     t_s = n * plan.step_ns / NS_PER_S
     values = state.driven.row(t_s)
+    for solver in solvers:
+        solver.solve(values, t_s, exchange=False)
     for inst in plan.instances:
         Gather(inst, state.buffers).drive(values)
     if n % plan.out_every:
@@ -132,9 +153,11 @@ def final_tick(plan: Plan, state: State) -> tuple[np.ndarray, np.ndarray] | None
 
 
 class _Unit:
-    """One instance as the Python loop steps it."""
+    """One instance as the Python loop steps it (``looped``: on an algebraic loop, whose solver
+    sets its inputs)."""
 
-    def __init__(self, inst: PlannedInstance, slot: FMUSlot, state: State) -> None:
+    def __init__(self, inst: PlannedInstance, slot: FMUSlot, state: State, looped: bool = False) -> None:
+        self.looped = looped
         self.inst = inst
         self.slot = slot
         self.buf = state.buffers[inst.index]
@@ -145,12 +168,23 @@ class _Unit:
 
 class PythonLoop:
     """The ticks in plain Python: the same arithmetic as ``native/stepper.c``, through
-    :class:`~twin.fmu.slot.FMUSlot`'s calls (slower; for checking the compiled stepper)."""
+    :class:`~twin.fmu.slot.FMUSlot`'s calls (slower; for checking the compiled stepper).
 
-    def __init__(self, plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
+    It also runs the plans with algebraic loops: at a tick where a loop's instances are due,
+    its ``solvers`` set their inputs (iterated to convergence) before the other instances
+    gather theirs, so those see the loop's converged outputs."""
+
+    def __init__(
+        self, plan: Plan, state: State, slots: Sequence[FMUSlot], solvers: Sequence[Solver] = ()
+    ) -> None:
         self.plan = plan
         self.state = state
-        self.units = [_Unit(inst, slot, state) for inst, slot in zip(plan.instances, slots, strict=True)]
+        self.solvers = list(solvers)
+        looped = {i for s in self.solvers for i in s.instances}
+        self.units = [
+            _Unit(inst, slot, state, inst.index in looped)
+            for inst, slot in zip(plan.instances, slots, strict=True)
+        ]
 
     def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
         plan, c = self.plan, self.state.counters
@@ -159,7 +193,12 @@ class PythonLoop:
             t = k * step / NS_PER_S
             self._commit(k)
             due = [u for u in self.units if k % u.period_ticks == 0]
+            for solver in self.solvers:
+                if k % solver.period_ticks == 0:
+                    solver.solve(driven[k - k0], t, exchange=True)
             for u in due:
+                if u.looped:
+                    continue
                 u.gather(driven[k - k0], exchange=True)
                 u.slot.time = t  # an error in fmi2SetReal names this time
                 u.slot.write(u.buf.in_port)
@@ -200,6 +239,7 @@ __all__ = [
     "Gather",
     "Loop",
     "PythonLoop",
+    "Solver",
     "Stepping",
     "check_loop",
     "final_tick",

@@ -2,7 +2,10 @@
 
 :func:`describe` reads the description of a model's source folder, an extracted FMU or an
 ``.fmu`` file with fmpy's reader (validated against the schema), resolved once per content
-into :class:`Variable` records: unit and range come from the variable or its declared type.
+into :class:`Variable` records: unit, range and nominal value come from the variable or its
+declared type. It also reads the ``<ModelStructure>``: which inputs each output depends on at a
+communication point (direct feedthrough) and in initialization mode, with FMI 2.0's defaults
+(:func:`_dependencies`), which the master's loop analysis needs (:mod:`twin.config.loops`).
 """
 
 from __future__ import annotations
@@ -44,6 +47,9 @@ class Variable:
     description: str
     #: an Enumeration's items by name (its declared type's), empty for other types
     items: Mapping[str, int] = field(default_factory=lambda: MappingProxyType({}))
+    #: the magnitude the variable is scaled by (FMI 2.0: 1 when none is declared); an algebraic
+    #: loop's convergence is judged relative to it for values near zero
+    nominal: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -63,6 +69,10 @@ class Description:
     kinds: tuple[str, ...] = ()
     #: its UnitDefinitions that give a BaseUnit, by name (what an SSP's units are converted to)
     units: Mapping[str, BaseUnit] = field(default_factory=lambda: MappingProxyType({}))
+    #: output -> the inputs it depends on at a communication point (direct feedthrough)
+    feedthrough: Mapping[str, tuple[str, ...]] = field(default_factory=lambda: MappingProxyType({}))
+    #: output -> the inputs its value in initialization mode depends on
+    initial_dependencies: Mapping[str, tuple[str, ...]] = field(default_factory=lambda: MappingProxyType({}))
 
 
 def _declared(sv: Any, attribute: str) -> Any:
@@ -98,6 +108,7 @@ def _units(md: Any) -> Mapping[str, BaseUnit]:
 
 def _variable(sv: Any) -> Variable:
     lo, hi = _declared(sv, "min"), _declared(sv, "max")
+    nominal = _declared(sv, "nominal") if sv.type == "Real" else None
     return Variable(
         name=sv.name,
         value_reference=int(sv.valueReference),
@@ -110,6 +121,7 @@ def _variable(sv: Any) -> Variable:
         start=_start(sv.type, sv.start),
         description=sv.description or "",
         items=_items(sv),
+        nominal=abs(float(nominal)) if nominal not in (None, "") and float(nominal) != 0 else 1.0,
     )
 
 
@@ -187,6 +199,7 @@ def _parse(xml: bytes) -> Description:
     kinds = tuple(
         k for k, i in (("co-simulation", md.coSimulation), ("model exchange", md.modelExchange)) if i
     )
+    feedthrough, initial = _dependencies(md)
     return Description(
         md.guid,
         identifier,
@@ -197,7 +210,38 @@ def _parse(xml: bytes) -> Description:
         md.description or "",
         kinds,
         _units(md),
+        feedthrough,
+        initial,
     )
+
+
+def _dependencies(md: Any) -> tuple[Mapping[str, tuple[str, ...]], Mapping[str, tuple[str, ...]]]:
+    """Which inputs each output depends on: at a communication point (``ModelStructure/Outputs``)
+    and in initialization mode (``ModelStructure/InitialUnknowns``), by FMI 2.0's rules:
+
+    - an ``Unknown`` without ``dependencies`` depends on every known, so on every input;
+      ``dependencies=""`` on none (only on states: no direct feedthrough);
+    - an output that ``Outputs`` does not list (which FMI forbids) is taken to depend on every
+      input, the safe side;
+    - an output that ``InitialUnknowns`` does not list has ``initial="exact"``: its start value,
+      known before anything is set, depends on no input.
+
+    Only inputs are kept (a dependency on a state or a parameter is no edge between FMUs)."""
+    inputs = tuple(v.name for v in md.modelVariables if v.causality == "input")
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+
+    def listed(unknowns: Any) -> dict[str, tuple[str, ...]]:
+        out = {}
+        for u in unknowns:
+            deps = u.dependencies
+            names = inputs if deps is None else tuple(v.name for v in deps if v.causality == "input")
+            out[u.variable.name] = names
+        return out
+
+    at_steps, at_init = listed(md.outputs), listed(md.initialUnknowns)
+    feedthrough = {name: at_steps.get(name, inputs) for name in outputs}
+    initial = {name: at_init.get(name, ()) for name in outputs}
+    return MappingProxyType(feedthrough), MappingProxyType(initial)
 
 
 #: the tool name of the twin's own annotations in a modelDescription.xml

@@ -33,6 +33,7 @@ from twin.config.load import find_scenario, load_scenario
 from twin.config.spec import Scenario
 from twin.cosim.controls import RunControls
 from twin.cosim.instances import check_initialization
+from twin.cosim.loops import LoopError
 from twin.cosim.plan import Plan, make_plan
 from twin.cosim.stepping import Loop, check_loop
 from twin.errormodel.config import check_recorded_columns, evaluation_config
@@ -266,6 +267,8 @@ def _fmus_accept(scenario: Scenario, plan: Plan, controls: RunControls) -> None:
             source=scenario.source_path,
             key=f"fmu.{exc.instance}.parameters",
         ) from None
+    except LoopError as exc:  # the connections make a loop with no consistent initial values
+        raise ConfigError(str(exc), source=scenario.source_path, key="connections") from None
 
 
 def _take_folder(out: Path, force: bool) -> RunFolder:
