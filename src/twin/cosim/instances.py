@@ -8,8 +8,9 @@ outputs visible.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+from twin.config.spec import NS_PER_S
 from twin.cosim.plan import Plan
 from twin.cosim.state import State
 from twin.cosim.stepping import Gather
@@ -18,21 +19,25 @@ from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 
 
-def open_slots(plan: Plan, pool: SlotPool | None = None) -> list[FMUSlot]:
-    """One instantiated FMU per planned instance, parameters set; none left open on a failure.
+def open_slots(
+    plan: Plan, pool: SlotPool | None = None, log: Callable[[str, str, str, str], None] | None = None
+) -> list[FMUSlot]:
+    """One instantiated FMU per planned instance, its experiment set up at the run's start,
+    parameters set; none left open on a failure.
 
     With a ``pool``, an idle instance of the same FMU file and name is reset and reused
-    (:mod:`twin.fmu.pool`) instead of instantiating another."""
+    (:mod:`twin.fmu.pool`) instead of instantiating another. With a ``log``, the instances log
+    everything (debug logging on) and every message goes to it as well."""
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:
             path = catalog.fmu(inst.model)
             if pool is None:
-                slot = FMUSlot(path, inst.name)
+                slot = FMUSlot(path, inst.name, log=log)
             else:
                 slot = pool.open(path, inst.name, lambda p=path, n=inst.name: FMUSlot(p, n))
             slots.append(slot)
-            slot.setup(0.0)
+            slot.setup(plan.scenario.start_ns / NS_PER_S)
             for name, value in inst.parameters:
                 slot.set_value(name, value)
     except BaseException:
@@ -43,7 +48,7 @@ def open_slots(plan: Plan, pool: SlotPool | None = None) -> list[FMUSlot]:
 
 def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
     """Initialization mode of every instance in dependency order; their outputs become visible."""
-    drow = state.driven.row(0.0)
+    drow = state.driven.row(plan.scenario.start_ns / NS_PER_S)
     for i in plan.init_order:
         inst, slot, buf = plan.instances[i], slots[i], state.buffers[i]
         slot.enter_initialization()

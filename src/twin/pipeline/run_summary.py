@@ -135,6 +135,10 @@ class RunSummary:
         if "predicted" in d:
             paper = f" (paper {d['paper_measured']:+.3f} mm)" if "paper_measured" in d else ""
             return f"{self.scenario}: {self.status}; drift predicted {d['predicted']:+.4f} mm, probe {d['probe']:+.4f} mm{paper}"
+        note = self.results.get("errormodel")
+        if isinstance(note, str):  # a run that does not evaluate the error model says why
+            why = note.removeprefix("not evaluated: ")
+            return f"{self.scenario}: {self.status}; no error model or paper report ({why})"
         return f"{self.scenario}: {self.status}"
 
 
