@@ -168,6 +168,39 @@ def test_an_event_before_the_start_is_refused(tmp_path: Path, capsys) -> None:
     assert _run(str(scenario), "--out", str(out), "--start-time", "1 min") == 0  # at it: applied
 
 
+def test_an_fmu_that_cannot_begin_later_is_named(tmp_path: Path, capsys) -> None:
+    """An FMU may refuse fmi2SetupExperiment's start time (FMI 2.0 has no flag to say so
+    beforehand): a variant of LowPass that runs from 0 only is refused before the run, one
+    line naming the instance, the start and the FMU's reason."""
+    from fmpy.build import build_platform_binary
+
+    unzipped = tmp_path / "FromZero"
+    shutil.copytree(Path(__file__).parent / "data" / "LowPass", unzipped)
+    source = unzipped / "sources" / "lowpass.c"
+    text = source.read_text()
+    setup = "    ((Filter *)c)->time = start;\n"
+    assert setup in text
+    refuse = (
+        '    if (start != 0.0) { say((Filter *)c, fmi2Error, "runs from time 0 only"); return fmi2Error; }\n'
+    )
+    source.write_text(text.replace(setup, refuse + setup))
+    (tmp_path / "build").mkdir()
+    build_platform_binary(unzipped, build_dir=tmp_path / "build")
+    fmu = Path(
+        shutil.move(
+            shutil.make_archive(str(tmp_path / "FromZero"), "zip", unzipped), tmp_path / "FromZero.fmu"
+        )
+    )
+    out = tmp_path / "run"
+    assert _run(str(fmu), "--out", str(out), "--start-time", "2") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"twin: {fmu}: scenario.start: FMU 'low_pass' refuses to begin at 2 s: runs from time 0 only"
+    ]
+    assert not out.exists()
+    assert _run(str(fmu), "--out", str(out), "--stop-time", "2") == 0  # from 0 it runs
+
+
 # -- what is recorded, and in which files ----------------------------------------------------------
 
 
@@ -338,7 +371,9 @@ def test_a_runs_signals_csv_drives_another_run(lowpass: Path, tmp_path: Path) ->
     table = read_signals_csv(replay)
     only_u.write_text(
         "time,low_pass.u\n"
-        + "".join(f"{float(t)!r},{float(u)!r}\n" for t, u in zip(table.time, table["low_pass.u"]))
+        + "".join(
+            f"{float(t)!r},{float(u)!r}\n" for t, u in zip(table.time, table["low_pass.u"], strict=True)
+        )
     )
     assert _run(str(lowpass), "--out", str(second), "--input-file", str(only_u), "--stop-time", "2") == 0
     assert (second / "signals.csv").read_bytes() == replay.read_bytes()

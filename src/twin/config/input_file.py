@@ -33,8 +33,9 @@ __all__ = ["drive_from_file", "read_inputs"]
 
 #: a header holding its unit: ``name [unit]``
 _WITH_UNIT = re.compile(r"^(?P<name>.*?)\s*\[(?P<unit>[^\[\]]*)\]$")
-#: the largest input file read (a table profile holds every row in memory)
-MAX_INPUT_BYTES = 256 << 20
+#: the largest input file read: a table profile holds every row in memory, about 100 bytes
+#: each (some two million rows of one column)
+MAX_INPUT_BYTES = 64 << 20
 
 
 def _sidecar_units(path: Path) -> dict[str, str]:

@@ -26,8 +26,9 @@ def open_slots(
     parameters set; none left open on a failure.
 
     With a ``pool``, an idle instance of the same FMU file and name is reset and reused
-    (:mod:`twin.fmu.pool`) instead of instantiating another. With a ``log``, the instances log
-    everything (debug logging on) and every message goes to it as well."""
+    (:mod:`twin.fmu.pool`) instead of instantiating another. With a ``log`` (a run into its
+    folder, never a pooled study's point), the instances log everything (debug logging on) and
+    every message goes to it as well."""
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:

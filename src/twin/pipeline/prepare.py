@@ -367,6 +367,12 @@ def _fmus_accept(scenario: Scenario, plan: Plan, controls: RunControls) -> None:
     try:
         check_initialization(plan)
     except FMUError as exc:
+        if exc.call == "fmi2SetupExperiment":  # an FMU that cannot begin at scenario.start
+            raise ConfigError(
+                f"FMU {exc.instance!r} refuses to begin at {exc.time_s:g} s: {exc.detail}",
+                source=scenario.source_path,
+                key="scenario.start",
+            ) from None
         raise ConfigError(
             f"the FMU refuses them in {exc.call}: {exc.detail}",
             source=scenario.source_path,
