@@ -183,6 +183,8 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     }
     comp->v.start_time = startTime;
     comp->v.steps_taken = 0;
+    /* with debug logging on (twin run --fmi-logging), the instance's life in a few lines */
+    log_info(comp, "fmi2SetupExperiment: start time %.17g s", startTime);
     return fmi2OK;
 }
 
@@ -213,6 +215,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     model_outputs(comp);
     if (!outputs_finite(comp)) return fmi2Error;
     comp->state = ST_STEP_COMPLETE;
+    log_info(comp, "fmi2ExitInitializationMode: initialized at %.17g s, internal step %.17g s", model_time(comp), h);
     return fmi2OK;
 }
 
@@ -220,6 +223,8 @@ fmi2Status fmi2Terminate(fmi2Component c) {
     ModelInstance *comp = (ModelInstance *)c;
     if (!allowed(comp, "fmi2Terminate", ST_STEP_COMPLETE | ST_STEP_FAILED | ST_ERROR)) return fmi2Error;
     comp->state = ST_TERMINATED;
+    log_info(comp, "fmi2Terminate: at %.17g s after %lld internal steps", model_time(comp),
+             (long long)comp->v.steps_taken);
     return fmi2OK;
 }
 

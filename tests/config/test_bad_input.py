@@ -118,7 +118,7 @@ CASES = [
         "UTF-8",
         content=lambda: paper_text().encode() + b"\n# caf\xe9\xff\n",
     ),
-    Case("file-empty", "scenario", "missing", content=lambda: "", lines=5),
+    Case("file-empty", "scenario", "missing", content=lambda: "", lines=4),
     # --- unknown keys
     Case("unknown-top-level", "solver", "unknown", setv("solver.method", "rk4")),
     Case("unknown-scenario-key", "scenario.stop_time", "unknown", setv("scenario.stop_time", "480 min")),
@@ -162,7 +162,7 @@ CASES = [
     Case("duration-bool", "scenario.duration", "duration", setv("scenario.duration", True)),
     Case("duration-date", "scenario.duration", "date", setv("scenario.duration", dt.date(2017, 1, 1))),
     Case("duration-table", "scenario.duration", "dict", setv("scenario.duration", {"min": 480})),
-    Case("scenario-not-table", "scenario", "table", setv("scenario", 5), lines=4),
+    Case("scenario-not-table", "scenario", "table", setv("scenario", 5), lines=3),
     Case("model-number", "fmu.thermal.model", "unknown model", setv("fmu.thermal.model", 5)),
     Case(
         "parameter-files-table",
@@ -211,9 +211,22 @@ CASES = [
     # --- missing values
     Case("missing-duration", "scenario.duration", "missing", delv("scenario.duration")),
     Case("missing-step", "scenario.step", "missing", delv("scenario.step")),
-    Case("missing-output-interval", "scenario.output_interval", "missing", delv("scenario.output_interval")),
     Case("missing-model", "fmu.sensors.model", "missing", delv("fmu.sensors.model")),
-    Case("missing-period", "fmu.mechanics.period", "missing", delv("fmu.mechanics.period")),
+    # a run that begins later (twin run --start-time) begins on the grids, before the end
+    Case(
+        "start-off-the-step", "scenario.start", "multiple of scenario.step", setv("scenario.start", "1.5 s")
+    ),
+    Case("start-after-the-end", "scenario.start", "is not before", setv("scenario.start", "9 h")),
+    Case("start-negative", "scenario.start", "negative", setv("scenario.start", -10)),
+    Case(
+        "start-off-the-rows", "scenario.start", "output_interval", setv("scenario.start", "5 s"), lines=None
+    ),
+    Case(
+        "start-off-a-period",
+        "fmu.thermal.period",
+        "scenario.start",
+        both(setv("scenario.start", "5 s"), setv("scenario.output_interval", "1 s")),
+    ),
     Case(
         "missing-profile-parameter",
         "input.thermal.t_room.time_constant",
@@ -460,11 +473,12 @@ CASES = [
         ),
     ),
     Case(
-        "profile-table-repeated-time",
+        "profile-table-time-thrice",  # twice is a jump (as in fmpy's input files), thrice is not
         "input.thermal.q_friction.points",
         "increase",
         setv(
-            "input.thermal.q_friction", {"profile": "table", "points": [[0, 0.0], ["1 h", 1.0], [3600, 2.0]]}
+            "input.thermal.q_friction",
+            {"profile": "table", "points": [[0, 0.0], ["1 h", 1.0], [3600, 2.0], ["60 min", 3.0]]},
         ),
     ),
     Case(

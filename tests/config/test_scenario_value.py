@@ -71,8 +71,17 @@ def test_with_input_replaces_the_profile_and_checks_its_range(paper: Scenario) -
     assert profile_function(changed.profile("thermal.t_room"))(np.array([14400.0]))[0] == 297.0
     with pytest.raises(ConfigError, match="outside the range"):
         paper.with_input(Profile.of_table("thermal.t_room", t, [293.15, 297.0, 1e9]))
-    with pytest.raises(ConfigError, match="times increasing strictly"):
+    with pytest.raises(ConfigError, match="times increasing"):
         paper.with_input(Profile.of_table("thermal.t_room", [0.0, 0.0], [293.15, 294.0]))
+    with pytest.raises(ConfigError, match="a time given twice is a jump"):
+        paper.with_input(
+            Profile.of_table("thermal.t_room", [0.0, 5.0, 5.0, 5.0], [293.0, 293.0, 294.0, 295.0])
+        )
+    jump = paper.with_input(
+        Profile.of_table("thermal.t_room", [0.0, 5.0, 5.0, 9.0], [293.0, 293.0, 295.0, 295.0])
+    )
+    values = profile_function(jump.profile("thermal.t_room"))(np.array([2.5, 5.0, 7.0]))
+    np.testing.assert_array_equal(values, [293.0, 295.0, 295.0])  # from the jump on: its later value
     with pytest.raises(ConfigError, match="fed by a connection") as err:
         paper.with_input(Profile("sensors.t_base", "constant", {"value": 293.0}))
     assert err.value.key == "input.sensors.t_base"

@@ -44,6 +44,10 @@ def test_start_writes_run_json_and_drops_an_old_checkpoint(tmp_path: Path) -> No
         "overrides": ["scenario.seed=3"],
         "loop": "reference",
         "checkpoint_every_ns": 3_600_000_000_000,
+        "experiment": {},
+        "record": None,
+        "formats": [],
+        "fmi_logging": False,
     }
 
 

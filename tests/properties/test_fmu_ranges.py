@@ -159,7 +159,7 @@ class Instance:
         #: every value a set call was accepted for (what the variables hold besides start values)
         self.known: dict[str, Any] = {}
 
-        def log(status: int, message: str) -> None:
+        def log(status: int, category: str, message: str) -> None:
             self.log.append(f"[{status}] {message}")
 
         # the twin's shared callbacks: fmpy's logger proxy is process-global, and a second

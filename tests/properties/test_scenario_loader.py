@@ -710,7 +710,16 @@ def _unknown_key(m: _Mutating) -> Mutation:
     table = m.d(st.sampled_from(["", "scenario.", f"fmu.{m.inst}."]))
     allowed = {
         "": {"scenario", "fmu", "connections", "delay", "input", "event", "errormodel"},
-        "scenario.": {"name", "description", "duration", "step", "output_interval", "seed", "drift_window"},
+        "scenario.": {
+            "name",
+            "description",
+            "duration",
+            "step",
+            "output_interval",
+            "start",
+            "seed",
+            "drift_window",
+        },
         f"fmu.{m.inst}.": {"model", "period", "parameters", "parameter_files"},
     }[table]
     name = m.d(st.from_regex(r"[a-z][a-z_]{0,12}", fullmatch=True).filter(lambda n: n not in allowed))
@@ -719,13 +728,11 @@ def _unknown_key(m: _Mutating) -> Mutation:
 
 
 def _missing(m: _Mutating) -> Mutation:
-    """A required value left out."""
-    which = m.d(st.sampled_from(["step", "duration", "output_interval", "period", "model"]))
-    if which in ("period", "model"):
-        breaks = m.spec | m.model if which == "model" else m.spec
-        needs = frozenset() if which == "model" else m.model
+    """A required value left out (an output interval or a period left out is the step's)."""
+    which = m.d(st.sampled_from(["step", "duration", "model"]))
+    if which == "model":
         return Mutation(
-            f"fmu.{m.inst}.{which}", _deleter("fmu", m.inst, which), m.kind, needs=needs, breaks=breaks
+            f"fmu.{m.inst}.{which}", _deleter("fmu", m.inst, which), m.kind, breaks=m.spec | m.model
         )
     return Mutation(
         f"scenario.{which}",

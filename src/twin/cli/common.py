@@ -14,7 +14,15 @@ from typing import Any
 
 from twin.errors import ConfigError
 
-__all__ = ["EXIT_ON_SIGNAL", "Parser", "finish", "progress_bar", "stop_on_signals"]
+__all__ = [
+    "EXIT_ON_SIGNAL",
+    "Parser",
+    "add_experiment",
+    "experiment",
+    "finish",
+    "progress_bar",
+    "stop_on_signals",
+]
 
 #: a run stopped by a signal ends the command with the shell's code for it
 EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
@@ -58,6 +66,37 @@ def add_set(p: argparse.ArgumentParser) -> None:
     """The ``--set KEY=VALUE`` option of a command that loads a scenario."""
     p.add_argument(
         "--set", action="append", metavar="KEY=VALUE", help="override a scenario value by its dotted key"
+    )
+
+
+def add_experiment(p: argparse.ArgumentParser) -> None:
+    """The experiment's options, as fmpy's ``simulate`` names them: times (seconds, or a
+    duration with its unit) and an input file."""
+    times = (
+        ("--start-time", "when the run begins: the FMUs' start time and the master's first tick"),
+        ("--stop-time", "when the run ends (sets scenario.duration: the scenario's clock starts at 0)"),
+        ("--step-size", "the master's step (scenario.step); an FMU without a period steps at it"),
+        ("--output-interval", "how often a row is recorded (scenario.output_interval)"),
+    )
+    for name, text in times:
+        p.add_argument(name, metavar="TIME", help=f"{text}; seconds or a duration, e.g. 10 or '10 min'")
+    p.add_argument(
+        "--input-file",
+        metavar="CSV",
+        help="a CSV (time, then columns named instance.variable) whose columns drive those inputs",
+    )
+
+
+def experiment(args: argparse.Namespace) -> Any:
+    """The :class:`~twin.config.experiment.Experiment` the options of :func:`add_experiment` give."""
+    from twin.config.experiment import Experiment
+
+    return Experiment(
+        start=args.start_time,
+        stop=args.stop_time,
+        step=args.step_size,
+        output_interval=args.output_interval,
+        input_file=args.input_file,
     )
 
 

@@ -1,5 +1,9 @@
 """``twin run [SCENARIO]``: a scenario into its run folder, with its uncertainty (default: the
-paper's 480 min thermal experiment)."""
+paper's 480 min thermal experiment); ``twin run X.fmu``: one FMU alone.
+
+The experiment's options follow fmpy's ``simulate`` and cosim-cli's ``run``: ``--start-time``,
+``--stop-time``, ``--step-size``, ``--output-interval``, ``--input-file``, ``--fmi-logging``;
+``--record`` is fmpy's ``--output-variables``; ``--format mat`` adds signals.mat."""
 
 from __future__ import annotations
 
@@ -9,7 +13,20 @@ import time
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import add_set, finish, flag, optional, progress_bar, stop_on_signals
+from twin.cli.common import (
+    add_experiment,
+    add_set,
+    experiment,
+    finish,
+    flag,
+    optional,
+    progress_bar,
+    stop_on_signals,
+)
+
+#: the signal files ``--format`` names (twin.pipeline.prepare.FORMATS; not imported here: the
+#: parser is built before the package loads)
+FORMATS = ("csv", "mat")
 
 NAME = "run"
 
@@ -19,8 +36,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     optional(
         p,
         "scenario",
-        "scenario TOML file, an SSP archive (.ssp), or a shipped scenario's name, e.g. sine-load "
-        "(default: li2017-thermal-experiment)",
+        "scenario TOML file, an SSP archive (.ssp), one FMU (.fmu) run alone, or a shipped "
+        "scenario's name, e.g. sine-load (default: li2017-thermal-experiment)",
     )
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
     flag(p, "--force", "replace the outputs of an earlier run in the run folder")
@@ -38,6 +55,22 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         metavar="DURATION",
         help="save the whole twin every DURATION of simulated time (e.g. '1 h')",
     )
+    add_experiment(p)
+    p.add_argument(
+        "--record",
+        nargs="+",
+        action="extend",
+        metavar="VAR",
+        help="the columns signals.csv holds, named instance.variable (variable alone for one FMU); "
+        "default: every output and driven input",
+    )
+    p.add_argument(
+        "--format",
+        action="append",
+        choices=FORMATS,
+        help="also write the signals as signals.mat (MATLAB, scipy.io) beside signals.csv",
+    )
+    flag(p, "--fmi-logging", "the FMUs' own log messages (debug logging on) into the run folder's fmi.log")
     p.set_defaults(process_start=None)
     return p
 
@@ -59,6 +92,10 @@ def command(args: argparse.Namespace) -> int:
         samples=args.uncertainty,
         reports=reports,
         started=started,
+        experiment=experiment(args),
+        record=tuple(args.record) if args.record is not None else None,
+        formats=tuple(dict.fromkeys(args.format or ())),
+        fmi_logging=args.fmi_logging,
     )
     with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
         if args.own_process:

@@ -5,15 +5,21 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from twin.cli.common import add_set
+from twin.cli.common import add_experiment, add_set, experiment
 
 NAME = "validate"
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="check a scenario without running it")
-    p.add_argument("scenario", help="scenario TOML file, SSP archive (.ssp) or shipped scenario's name")
+    p.add_argument(
+        "scenario", help="scenario TOML file, SSP archive (.ssp), one FMU (.fmu) or shipped scenario's name"
+    )
     add_set(p)
+    add_experiment(p)
+    p.add_argument(
+        "--record", nargs="+", action="extend", metavar="VAR", help="the columns signals.csv would hold"
+    )
     return p
 
 
@@ -21,7 +27,12 @@ def command(args: argparse.Namespace) -> int:
     from twin.pipeline import RunOptions, prepare
     from twin.validation import reports
 
-    with prepare(args.scenario, args.set or [], RunOptions(reports=reports)) as prepared:
+    options = RunOptions(
+        reports=reports,
+        experiment=experiment(args),
+        record=tuple(args.record) if args.record is not None else None,
+    )
+    with prepare(args.scenario, args.set or [], options) as prepared:
         sc = prepared.scenario
         print(
             f"{sc.source_path}: ok ({sc.name}: {len(sc.fmus)} FMUs, {len(sc.connections)} connections, "

@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from twin.config.durations import format_duration
 from twin.config.endpoints import check_range, endpoint
 from twin.config.reader import Problems, array_of_tables
 from twin.config.spec import Connection, Event, FMUSpec
@@ -26,11 +27,20 @@ class _Scope:
     fmus: Mapping[str, FMUSpec]
     fed: set[str]  # inputs fed by a connection
     duration_ns: int | None
+    #: a run that begins later (scenario.start) cannot apply what came before
+    start_ns: int = 0
 
     def when(self, at: int | None, key: str) -> int | None:
         """``at`` if it lies within the run (a problem if it does not), None if unknown."""
         if at is not None and (at < 0 or (self.duration_ns is not None and at >= self.duration_ns)):
             self.p.add(key + ".at", "must lie within the scenario's duration")
+            return None
+        if at is not None and at < self.start_ns:
+            self.p.add(
+                key + ".at",
+                f"{format_duration(at)} is before scenario.start ({format_duration(self.start_ns)}): a run "
+                "that begins later cannot apply it (start at or before it, or remove the event)",
+            )
             return None
         return at
 
@@ -91,9 +101,10 @@ def load_events(
     fmus: Mapping[str, FMUSpec],
     duration_ns: int | None,
     connections: Sequence[Connection],
+    start_ns: int = 0,
 ) -> list[Event]:
-    """Every event, checked, in time order."""
-    scope = _Scope(p, fmus, {c.dst for c in connections}, duration_ns)
+    """Every event, checked, in time order (none before ``start_ns``, when the run begins)."""
+    scope = _Scope(p, fmus, {c.dst for c in connections}, duration_ns, start_ns)
     out: list[Event] = []
     keys: list[str] = []
     for _i, key, raw in array_of_tables(p, data, "event", ""):

@@ -1,4 +1,5 @@
-"""The ``[fmu.<instance>]`` tables: which model, how often it steps, its parameter values.
+"""The ``[fmu.<instance>]`` tables: which model, how often it steps (its ``period``, default
+``scenario.step``), its parameter values.
 
 Parameter values come from ``parameter_files`` (each a TOML file with a ``[parameters]``
 table, relative to the scenario) and then the table's own ``parameters``, the later winning;
@@ -142,6 +143,10 @@ def _external(p: Problems, given: str, prefix: str, base_dir: Path) -> str | Non
 
 
 def _period(p: Problems, raw: Mapping[str, Any], prefix: str, step_ns: int | None) -> int | None:
+    """How often the instance steps: its ``period``, else every ``scenario.step`` (so that
+    ``twin run --step-size`` sets the step of an FMU that names no period of its own)."""
+    if "period" not in raw:
+        return step_ns
     period = p.duration(raw, "period", prefix)
     if period is not None and period <= 0:
         p.add(prefix + "period", "must be positive")

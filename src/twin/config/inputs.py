@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
@@ -10,7 +9,15 @@ from typing import Any
 from twin.config.durations import parse_duration
 from twin.config.endpoints import check_range, endpoint
 from twin.config.reader import Problems, finite_number, table
-from twin.config.spec import NS_PER_S, PROFILE_DURATIONS, PROFILE_PARAMS, Connection, FMUSpec, Profile
+from twin.config.spec import (
+    NS_PER_S,
+    PROFILE_DURATIONS,
+    PROFILE_PARAMS,
+    Connection,
+    FMUSpec,
+    Profile,
+    table_times_ok,
+)
 
 
 def _points(p: Problems, pts: Any, key: str) -> tuple[tuple[float, float], ...]:
@@ -29,8 +36,8 @@ def _points(p: Problems, pts: Any, key: str) -> tuple[tuple[float, float], ...]:
         p.add(key, "values must be finite numbers")
         return ()
     # compared as exact nanoseconds: two times 1 ns apart may be one float second
-    if any(b <= a for a, b in itertools.pairwise(times_ns)):
-        p.add(key, "times must increase strictly")
+    if not table_times_ok(times_ns):
+        p.add(key, "times must increase (a time given twice is a jump; never three times)")
         return ()
     return tuple(zip((t / NS_PER_S for t in times_ns), map(float, values), strict=True))
 

@@ -18,6 +18,7 @@ from typing import Any
 from twin.config.connections import check_inputs_fed, load_connections
 from twin.config.durations import MAX_DURATION_NS, format_duration, parse_duration
 from twin.config.events import FAULTS, load_events
+from twin.config.experiment import Experiment
 from twin.config.fmus import load_fmus
 from twin.config.inputs import load_profiles
 from twin.config.overrides import apply_overrides
@@ -57,10 +58,13 @@ _TOP_KEYS = {
 }
 
 
-def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None) -> None:
+def _check_periods(p: Problems, fmus: Sequence[FMUSpec], duration: int | None, start: int = 0) -> None:
     for f in fmus:
         if duration and duration > 0 and f.period_ns > 0 and duration % f.period_ns:
             p.add(f"fmu.{f.name}.period", f"{format_duration(f.period_ns)} does not divide scenario.duration")
+        elif start > 0 and f.period_ns > 0 and start % f.period_ns:
+            # the instance steps on its period's grid from 0: it would not step at the start
+            p.add(f"fmu.{f.name}.period", f"{format_duration(f.period_ns)} does not divide scenario.start")
 
 
 def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Scenario:
@@ -69,11 +73,12 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
     p.unknown_keys(data, _TOP_KEYS, "")
     sc = load_scenario_table(p, data, source)
     fmus = load_fmus(p, data, base_dir, sc.step_ns)
-    _check_periods(p, fmus, sc.duration_ns)
+    on_grid = bool(sc.step_ns) and sc.start_ns % (sc.step_ns or 1) == 0  # else said of scenario.start
+    _check_periods(p, fmus, sc.duration_ns, sc.start_ns if on_grid else 0)
     by_name = {f.name: f for f in fmus}
     connections = load_connections(p, data, by_name)
     profiles = load_profiles(p, data, by_name, connections)
-    events = load_events(p, data, by_name, sc.duration_ns, connections)
+    events = load_events(p, data, by_name, sc.duration_ns, connections, sc.start_ns)
     check_inputs_fed(p, data, fmus)
     errormodel = table(p, data, "errormodel")
     uncertainty, reference = table(p, data, "uncertainty"), table(p, data, "reference")
@@ -98,6 +103,7 @@ def load_scenario_data(data: dict[str, Any], source: str, base_dir: Path) -> Sce
         errormodel=MappingProxyType({k: Parameter(v) for k, v in errormodel.items()}),
         uncertainty=MappingProxyType(uncertainty),
         reference=MappingProxyType(reference),
+        start_ns=sc.start_ns,
     )
 
 
@@ -190,6 +196,10 @@ def read_scenario_data(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, An
         from twin.config.ssp import read_ssp_data
 
         return read_ssp_data(path)
+    if path.suffix == ".fmu":  # one FMU alone, as fmpy simulates it
+        from twin.config.single_fmu import read_fmu_data
+
+        return read_fmu_data(path)
     data = read_toml(path, str(path))
     parent = data.pop("extends", None)
     if parent is None:
@@ -229,9 +239,13 @@ def _anchor(base: dict[str, Any], folder: Path) -> None:
             base[name][key] = absolute(base[name][key])
 
 
-def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
-    """Read (resolving ``extends``), override (``--set``) and check a scenario file (TOML, or an
-    SSP archive: :mod:`twin.config.ssp`)."""
+def load_scenario(
+    path: str | Path, overrides: Sequence[str] = (), experiment: Experiment | None = None
+) -> Scenario:
+    """Read (resolving ``extends``), override (``--set``, then the ``experiment``'s times: the
+    command line's ``--start-time``, ``--stop-time``, ...) and check a scenario file (TOML, an
+    SSP archive: :mod:`twin.config.ssp`, or one FMU: :mod:`twin.config.single_fmu`); the
+    experiment's input file then drives the inputs it names."""
     path = Path(path)
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
@@ -239,16 +253,19 @@ def load_scenario(path: str | Path, overrides: Sequence[str] = ()) -> Scenario:
         from twin.config.ssp import finish_ssp_data
 
         finish_ssp_data(data, str(path))
-    return load_scenario_data(data, str(path), path.resolve().parent)
+    if experiment is not None:
+        experiment.set_times(data)
+    scenario = load_scenario_data(data, str(path), path.resolve().parent)
+    return experiment.drive(scenario) if experiment is not None else scenario
 
 
 def find_scenario(name: str | Path | None) -> Path:
-    """The scenario a command names: a file (TOML or SSP), or the name of a shipped scenario
+    """The scenario a command names: a file (TOML, SSP or one FMU), or the name of a shipped scenario
     (``sine-load`` for ``scenarios/sine-load.toml``); none: the paper's experiment."""
     if name is None:
         return default_scenario_path()
     path = Path(name)
-    if path.exists() or path.suffix in (".toml", ".ssp") or len(path.parts) > 1:
+    if path.exists() or path.suffix in (".toml", ".ssp", ".fmu") or len(path.parts) > 1:
         return path  # a file (a missing one is reported by the loader, naming it)
     shipped = {p.stem: p for p in sorted(scenarios_dir().glob("*.toml"))}
     if str(name) in shipped:

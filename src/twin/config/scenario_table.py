@@ -1,4 +1,9 @@
-"""The ``[scenario]`` table: name, timing (step, duration, output interval), seed."""
+"""The ``[scenario]`` table: name, timing (start, step, duration, output interval), seed.
+
+The scenario's clock starts at 0 and ends at ``duration``; a run may begin later, at ``start``
+(``twin run --start-time``), on the grid of the step and the output interval, and then covers
+``start`` to ``duration``. The output interval is the step unless given.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +20,7 @@ _SCENARIO_KEYS = {
     "name",
     "description",
     "duration",
+    "start",
     "step",
     "output_interval",
     "seed",
@@ -35,6 +41,8 @@ class ScenarioTable:
     seed: int
     drift_window_ns: int
     wear_limit_mm: float | None = None
+    #: when the run begins (the FMUs' start time): 0, or later within the scenario's clock
+    start_ns: int = 0
 
 
 def _check_duration(p: Problems, duration: int, step: int | None) -> None:
@@ -55,11 +63,29 @@ def _check_interval(p: Problems, interval: int, step: int | None) -> None:
         p.add("scenario.output_interval", f"{format_duration(interval)} is not a multiple of scenario.step")
 
 
-def _timing(p: Problems, sc: Mapping[str, Any]) -> tuple[int | None, int | None, int | None]:
-    """(step, duration, output interval), each checked alone and against the others."""
+def _check_start(p: Problems, start: int, step: int | None, duration: int | None) -> bool:
+    """A run that begins later begins on the step's grid, at least two steps before the end."""
+    n_problems = len(p.items)
+    if start < 0:
+        p.add("scenario.start", "must not be negative (the scenario's clock starts at 0)")
+    elif step and start % step:
+        p.add("scenario.start", f"{format_duration(start)} is not a multiple of scenario.step")
+    elif duration is not None and start >= duration:
+        p.add(
+            "scenario.start",
+            f"{format_duration(start)} is not before scenario.duration ({format_duration(duration)}), the end",
+        )
+    elif duration is not None and step and duration - start < 2 * step:
+        p.add("scenario.start", f"{format_duration(start)} leaves less than two steps before the end")
+    return len(p.items) == n_problems
+
+
+def _timing(p: Problems, sc: Mapping[str, Any]) -> tuple[int | None, int | None, int | None, int]:
+    """(step, duration, output interval, start), each checked alone and against the others."""
     step = p.duration(sc, "step", "scenario.")
     duration = p.duration(sc, "duration", "scenario.")
-    interval = p.duration(sc, "output_interval", "scenario.")
+    interval = p.duration(sc, "output_interval", "scenario.", required=False)
+    start = p.duration(sc, "start", "scenario.", required=False) or 0
     if step is not None and step <= 0:
         p.add("scenario.step", "must be positive")
         step = None
@@ -72,16 +98,35 @@ def _timing(p: Problems, sc: Mapping[str, Any]) -> tuple[int | None, int | None,
         )
         if interval is not None and interval <= 0:
             p.add("scenario.output_interval", "must be positive")
-        return None, None, interval
+        return None, None, interval, start
+    if interval is None and "output_interval" not in sc:
+        interval = step  # every step recorded, as fmpy records every communication point
     n_problems = len(p.items)
     if duration is not None:
         _check_duration(p, duration, step)
     if interval is not None:
         _check_interval(p, interval, step)
-    duration_ok = duration is not None and len(p.items) == n_problems
-    if duration_ok and interval and interval > 0 and interval > duration:
-        p.add("scenario.output_interval", "is longer than scenario.duration: nothing would be recorded")
-    return step, duration, interval
+    if duration is not None and len(p.items) == n_problems:
+        _check_window(p, start, step, duration, interval)
+    elif start < 0:
+        _check_start(p, start, step, None)
+    return step, duration, interval, start
+
+
+def _check_window(p: Problems, start: int, step: int | None, duration: int, interval: int | None) -> None:
+    """The run's window, ``start`` to ``duration``: begun on the grids of the step and of the
+    output interval (rows are recorded on its grid from 0: a run begun off it would lose its
+    first row), and long enough for a row."""
+    if start and not _check_start(p, start, step, duration):
+        return
+    if start and interval and interval > 0 and start % interval:
+        p.add(
+            "scenario.start",
+            f"{format_duration(start)} is not a multiple of scenario.output_interval ({format_duration(interval)})",
+        )
+    elif interval and interval > 0 and interval > duration - start:
+        run = "scenario.duration" if not start else "the run (scenario.start to scenario.duration)"
+        p.add("scenario.output_interval", f"is longer than {run}: nothing would be recorded")
 
 
 def _drift_window(p: Problems, sc: Mapping[str, Any]) -> int:
@@ -123,7 +168,7 @@ def load_scenario_table(p: Problems, data: Mapping[str, Any], source: str) -> Sc
     if why is not None:  # the name becomes the run folder's: runs/<name>
         p.add("scenario.name", why if "name" in sc else f"{why} (the file's name; set scenario.name)")
         name = "scenario"
-    step, duration, interval = _timing(p, sc)
+    step, duration, interval, start = _timing(p, sc)
     drift_window = _drift_window(p, sc)
     seed = _seed(p, sc)
     description = sc.get("description", "")
@@ -131,4 +176,4 @@ def load_scenario_table(p: Problems, data: Mapping[str, Any], source: str) -> Sc
         p.add("scenario.description", "expected a string")
         description = ""
     wear_limit = _wear_limit(p, sc)
-    return ScenarioTable(name, description, step, duration, interval, seed, drift_window, wear_limit)
+    return ScenarioTable(name, description, step, duration, interval, seed, drift_window, wear_limit, start)

@@ -40,6 +40,7 @@ __all__ = [
     "ParameterValue",
     "Profile",
     "Scenario",
+    "table_times_ok",
 ]
 
 #: the key a study sets a run's seed by (:meth:`Scenario.with_value`)
@@ -170,10 +171,8 @@ class Profile:
             )
         if not all(math.isfinite(v) for v in self.params.values()):
             return "its parameters must be finite numbers"
-        if self.kind == "table":
-            times = [t for t, _ in self.table]
-            if len(times) < 2 or any(b <= a for a, b in itertools.pairwise(times)):
-                return "a table needs at least two points, times increasing strictly"
+        if self.kind == "table" and not table_times_ok([t for t, _ in self.table]):
+            return "a table needs at least two points, times increasing (a time given twice is a jump)"
         return None
 
     def with_param(self, name: str, value: Any) -> Profile:
@@ -189,6 +188,16 @@ class Profile:
         return dataclasses.replace(
             self, params=_frozen({**self.params, name: _profile_number(self, name, value)})
         )
+
+
+def table_times_ok(times: Any) -> bool:
+    """Whether ``times`` can be a table profile's: at least two, the last after the first,
+    never decreasing, none given more than twice. A time given twice is a jump: the later value holds from that time on
+    (``numpy.interp``), as fmpy applies an input file's jump at a communication point."""
+    times = list(times)
+    if len(times) < 2 or times[-1] <= times[0] or any(b < a for a, b in itertools.pairwise(times)):
+        return False
+    return not any(a == c for a, c in zip(times, times[2:], strict=False))
 
 
 def _profile_number(profile: Profile, name: str, value: Any) -> float:
@@ -245,6 +254,9 @@ class Scenario:
     wear_limit_mm: float | None = None
     uncertainty: Mapping[str, Any] = field(default_factory=_frozen)
     reference: Mapping[str, Any] = field(default_factory=_frozen)
+    #: when the run begins: the FMUs' start time and the master's first tick (0, or later
+    #: within the scenario's clock, which ends at ``duration_ns``)
+    start_ns: int = 0
 
     def fmu(self, name: str) -> FMUSpec:
         for f in self.fmus:

@@ -85,17 +85,19 @@ def start(
 ) -> None:
     """Start every process of the run in ``env`` (whose clock is at the run's start).
 
-    ``controls.progress(now_ns, duration_ns)`` is told at each progress mark;
+    ``controls.progress(done_ns, total_ns)`` is told at each progress mark (the simulated time
+    done since the run's start, of the run's whole);
     ``checkpoint(tick)`` is called at each of ``controls``' checkpoint times. Progress marks
     and batch limits wake the master even without a listener: they are where batches end, so
     a run is cut the same way however it is observed.
     """
-    duration = plan.scenario.duration_ns
+    start = plan.scenario.start_ns
+    duration = plan.scenario.duration_ns - start
     step = plan.step_ns
 
     def report() -> None:
         if controls.progress is not None:
-            controls.progress(env.now, duration)
+            controls.progress(env.now - start, duration)
 
     def save() -> None:
         checkpoint(env.now // step)

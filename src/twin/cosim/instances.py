@@ -8,8 +8,9 @@ connected to is read, and makes their initial outputs visible.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+from twin.config.spec import NS_PER_S
 from twin.cosim.loops import initialize
 from twin.cosim.plan import Plan
 from twin.fmu import catalog
@@ -17,21 +18,26 @@ from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 
 
-def open_slots(plan: Plan, pool: SlotPool | None = None) -> list[FMUSlot]:
-    """One instantiated FMU per planned instance, parameters set; none left open on a failure.
+def open_slots(
+    plan: Plan, pool: SlotPool | None = None, log: Callable[[str, str, str, str], None] | None = None
+) -> list[FMUSlot]:
+    """One instantiated FMU per planned instance, its experiment set up at the run's start,
+    parameters set; none left open on a failure.
 
     With a ``pool``, an idle instance of the same FMU file and name is reset and reused
-    (:mod:`twin.fmu.pool`) instead of instantiating another."""
+    (:mod:`twin.fmu.pool`) instead of instantiating another. With a ``log`` (a run into its
+    folder, never a pooled study's point), the instances log everything (debug logging on) and
+    every message goes to it as well."""
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:
             path = catalog.fmu(inst.model)
             if pool is None:
-                slot = FMUSlot(path, inst.name)
+                slot = FMUSlot(path, inst.name, log=log)
             else:
                 slot = pool.open(path, inst.name, lambda p=path, n=inst.name: FMUSlot(p, n))
             slots.append(slot)
-            slot.setup(0.0)
+            slot.setup(plan.scenario.start_ns / NS_PER_S)
             for name, value in inst.parameters:
                 slot.set_value(name, value)
     except BaseException:

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from twin.config.spec import NS_PER_S
 from twin.cosim.plan import InputKind, Plan, PlannedInput, PlannedLoop, VarIndex
 from twin.cosim.state import Buffers, State
 from twin.cosim.stepping import Gather, non_finite
@@ -239,7 +240,7 @@ def _initial_cycle(plan: Plan, state: State, slots: Sequence[FMUSlot], loop: Pla
 def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
     """Initialization mode of every instance, variable by variable (see the module); the
     outputs become visible."""
-    drow = state.driven.row(0.0)
+    drow = state.driven.row(plan.scenario.start_ns / NS_PER_S)
     for slot in slots:
         slot.enter_initialization()
     known = []  # driven inputs and delayed ones (their initial value): known before anything is read

@@ -69,7 +69,7 @@ class RunResult:
     macro_steps: int = 0
     fmu_steps: int = 0
     end_ns: int = 0
-    start_ns: int = 0  # where this run started: a resumed run's checkpoint, else 0
+    start_ns: int = 0  # where this process started: a resumed run's checkpoint, else the run's start
     info: dict[str, Any] = field(default_factory=dict)
 
 
@@ -110,7 +110,7 @@ class Master:
     def _create(self) -> None:
         """The exchange state and the FMU instances."""
         self.state = make_state(self.plan)
-        self.slots = open_slots(self.plan, self.pool)
+        self.slots = open_slots(self.plan, self.pool, self.controls.fmi_log)
 
     def _initialize(self) -> None:
         initialize(self.plan, self.state, self.slots)
@@ -123,7 +123,11 @@ class Master:
                 self._initialize()
             self.solvers = loop_solvers(self.plan, self.state, self.slots)
             stepping = make_stepping(self.loop, self.plan, self.state, self.slots, self.solvers)
-            tick = 0 if self.resume is None else restore(self.plan, self.state, self.slots, self.resume)
+            tick = (
+                self.plan.start_tick
+                if self.resume is None
+                else restore(self.plan, self.state, self.slots, self.resume)
+            )
         except BaseException:
             self.close()
             raise
@@ -197,8 +201,9 @@ class Master:
             open_s=getattr(self, "_open_s", 0.0),
             macro_steps=int(c.macro_steps),
             fmu_steps=int(c.fmu_steps),
-            # every tick before the end, the failure or the interruption was done
-            end_ns=int(c.macro_steps) * self.plan.step_ns,
+            # every tick before the end, the failure or the interruption was done (counted from
+            # the run's start: a resumed run's counters are its whole run's)
+            end_ns=self.scenario.start_ns + int(c.macro_steps) * self.plan.step_ns,
             start_ns=getattr(self, "_start_ns", 0),
         )
 

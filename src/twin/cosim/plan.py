@@ -176,7 +176,13 @@ class Plan:
 
     @property
     def n_ticks(self) -> int:
+        """The tick the run ends at (tick k is at ``k * step``: the scenario's clock from 0)."""
         return self.scenario.duration_ns // self.scenario.step_ns
+
+    @property
+    def start_tick(self) -> int:
+        """The tick the run begins at: 0, or ``scenario.start`` (a run that begins later)."""
+        return self.scenario.start_ns // self.scenario.step_ns
 
     @property
     def out_every(self) -> int:
@@ -210,7 +216,8 @@ class Plan:
 
     def progress_ticks(self) -> list[int]:
         """The ticks after which the run reports its progress (the last one is the end)."""
-        return sorted({self.n_ticks * j // PROGRESS_MARKS for j in range(1, PROGRESS_MARKS + 1)})
+        k0, n = self.start_tick, self.n_ticks
+        return sorted({k0 + (n - k0) * j // PROGRESS_MARKS for j in range(1, PROGRESS_MARKS + 1)})
 
     def batch_limit_ticks(self) -> range:
         """The ticks a batch never runs past, so that its buffers stay bounded."""

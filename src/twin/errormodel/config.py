@@ -75,7 +75,8 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
     The coefficients come from the file ``[errormodel] coefficients`` names (relative to the
     scenario file), else from the committed default; ``[errormodel]`` may also set the
     temperature columns (``temperatures = { point = "column" }``), the reading, the true-wear
-    column and the factors.
+    column and the factors. ``evaluate = false`` says the scenario is not the tester (one FMU
+    alone, another tool's system): no error model, no plots, the run's signals only.
     """
     em = {k: p.value for k, p in scenario.errormodel.items()}
     return errormodel_config(None, em, scenario.source_path, scenario.drift_window_ns / NS_PER_S)
@@ -90,7 +91,7 @@ def errormodel_config(
     p = Problems(source)
     p.unknown_keys(
         em,
-        {"coefficients", "temperatures", "reading", "true_wear", "factors", *_sensor_fields()},
+        {"coefficients", "temperatures", "reading", "true_wear", "factors", "evaluate", *_sensor_fields()},
         "errormodel.",
     )
     named = coefficients_for(em, source)
@@ -105,6 +106,9 @@ def errormodel_config(
         **{k: _column(p, em, k, "") for k in _sensor_fields() if k in em},
     }
     factors = _factors(p, em.get("factors", list(PARTS)))
+    evaluate = em.get("evaluate", True)
+    if not isinstance(evaluate, bool):
+        p.add("errormodel.evaluate", f"expected true or false, got {evaluate!r}")
     p.check()
     return EvaluationConfig(
         thermal=ThermalCoefficients.from_values(values, source=source),
@@ -115,6 +119,7 @@ def errormodel_config(
         reading=str(columns["reading"]),
         true_wear=str(columns["true_wear"]) if columns["true_wear"] else None,
         window_s=window_s,
+        evaluate=evaluate,
     )
 
 
@@ -185,8 +190,10 @@ def input_columns(cfg: EvaluationConfig) -> set[str]:
     """The columns the error model and the plot read: the only ones a run keeps in memory.
 
     Those of every factor, switched on or not (the temperatures and the sensors' presence are
-    reported either way), and the true wear.
+    reported either way), and the true wear. None for a run that does not evaluate it.
     """
+    if not cfg.evaluate:
+        return set()
     names = {name for f in FACTORS for field in (*f.columns, *f.sensors) for name in cfg.names(field)}
     return names | set(cfg.names("true_wear"))
 

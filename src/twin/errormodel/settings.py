@@ -32,6 +32,9 @@ class EvaluationConfig(Columns):
     #: out loading and fluctuating (no load, no motion: its Eq. 10), so their sensors' noise
     #: does not enter
     factors: Collection[str] | None = None
+    #: whether the run evaluates the model at all: a scenario that is not the tester (one FMU
+    #: alone, ``twin run X.fmu``) says ``[errormodel] evaluate = false``
+    evaluate: bool = True
 
     def factor_on(self, name: str) -> bool:
         """Whether the factor ``name`` is evaluated (else it contributes zero)."""

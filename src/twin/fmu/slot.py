@@ -32,12 +32,12 @@ from twin.fmu.workdir import extraction_dir
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 
-#: where each instance's log messages go, by instance name: (status, message) -> None
-_SINKS: dict[str, Callable[[int, str], None]] = {}
+#: where each instance's log messages go, by instance name: (status, category, message) -> None
+_SINKS: dict[str, Callable[[int, str, str], None]] = {}
 _CALLBACKS: Any = None
 
 
-def logging_callbacks(instance_name: str, sink: Callable[[int, str], None]) -> Any:
+def logging_callbacks(instance_name: str, sink: Callable[[int, str, str], None]) -> Any:
     """The fmi2CallbackFunctions to instantiate ``instance_name`` with; its messages go to ``sink``.
 
     Every FMU instance of the process must be instantiated with these (fmpy's logger proxy is
@@ -83,7 +83,8 @@ def _callbacks() -> Any:
                 # go where fmpy's default logger would send them
                 printLogMessage(env, instance, status, category, message)
                 return
-            sink(int(status), message.decode(errors="replace") if message else "")
+            text = message.decode(errors="replace") if message else ""
+            sink(int(status), category.decode(errors="replace") if category else "", text)
 
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(logger)
@@ -92,6 +93,11 @@ def _callbacks() -> Any:
         addLoggerProxy(ctypes.byref(cb))
         _CALLBACKS = cb
     return _CALLBACKS
+
+
+def _status_name(status: int) -> str:
+    """``fmi2OK`` ... ``fmi2Pending``, as FMI names a status."""
+    return f"fmi2{_STATUS[status]}" if 0 <= status < len(_STATUS) else f"status {status}"
 
 
 class RealPort:
@@ -219,13 +225,19 @@ class FMUSlot:
     """An FMU instance with name-based setup and buffer-based stepping.
 
     ``messages`` collects what the FMU logged (its reasons for errors end up in FMUError).
+    With a ``log`` the instance is made with its debug logging on (``loggingOn``, as fmpy's
+    ``--debug-logging`` does) and ``log(instance, status, category, message)`` receives every
+    message as well (``twin run --fmi-logging``).
     """
 
-    def __init__(self, fmu_path: Path, instance_name: str) -> None:
+    def __init__(
+        self, fmu_path: Path, instance_name: str, log: Callable[[str, str, str, str], None] | None = None
+    ) -> None:
         self.name = instance_name
         self.description, self.unzipdir, self.library = _loaded(Path(fmu_path))
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
+        self._log = log
         self.time = 0.0
         self._slave = FMU2SlaveTyped(
             guid=self.description.guid,
@@ -234,7 +246,7 @@ class FMUSlot:
             instanceName=instance_name,
             libraryPath=self.library,
         )
-        self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=False)
+        self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
         dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
         self._set_real = dll.fmi2SetReal
         self._get_real = dll.fmi2GetReal
@@ -256,9 +268,11 @@ class FMUSlot:
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
     def _make_callbacks(self) -> Any:
-        def keep(_status: int, message: str) -> None:
+        def keep(status: int, category: str, message: str) -> None:
             self.messages.append(message)
             del self.messages[:-20]  # the last few say why a call failed
+            if self._log is not None:
+                self._log(self.name, _status_name(status), category, message)
 
         return logging_callbacks(self.name, keep)
 

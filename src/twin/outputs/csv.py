@@ -236,20 +236,35 @@ def write_signals_csv(table: SignalTable, path: str | os.PathLike[str], *, sidec
 class SignalsCsvSink(Sink):
     """``signals.csv`` as a sink: every recorded row, appended block by block as the run goes.
 
-    ``resume_at`` (a checkpoint's ``csv_position``) continues the file of a resumed run.
+    ``resume_at`` (a checkpoint's ``csv_position``) continues the file of a resumed run;
+    ``columns`` are the only columns it holds, in that order (``twin run --record``; None:
+    every recorded column).
     """
 
-    def __init__(self, path: Path, *, resume_at: tuple[int, float] | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        *,
+        resume_at: tuple[int, float] | None = None,
+        columns: Sequence[str] | None = None,
+    ) -> None:
         self.path = path
         self.resume_at = resume_at
+        self.columns = tuple(columns) if columns is not None else None
         self._writer: SignalsCsvWriter | None = None
 
     def open(self, signals: list[Signal]) -> None:
+        if self.columns is not None:
+            by_name = {s.name: s for s in signals}
+            signals = [by_name[n] for n in self.columns]
         self._writer = SignalsCsvWriter(self.path, signals, resume_at=self.resume_at)
 
     def write(self, block: Block) -> None:
         assert self._writer is not None, "write before open"
-        self._writer.append(block.time, block.columns)
+        columns = block.columns
+        if self.columns is not None:
+            columns = {n: columns[n] for n in self.columns}
+        self._writer.append(block.time, columns)
 
     def checkpoint(self) -> dict[str, Any]:
         """Where the file stands: (bytes written, last time), for a resumed run to continue."""

@@ -94,7 +94,8 @@ class RecordingSink(Sink):
             from twin.outputs.csv import read_signals_csv
 
             before = read_signals_csv(self.replay)
-            columns = {s.name: before[s.name] for s in signals}
+            # a run that recorded some columns only (--record) replays those
+            columns = {s.name: before[s.name] for s in signals if s.name in before}
             self._writer.append(before.time, columns, partial=True)
             if self.scene is not None:
                 self.scene.collect(before.time, columns)

@@ -4,6 +4,8 @@ A run folder holds
 
 ====================  ==========================================================
 ``signals.csv``       every recorded row, streamed while the run goes (FMPy reads it)
+``signals.mat``       the same as a MATLAB file, once the run is over (``--format mat``)
+``fmi.log``           what the FMUs logged (``--fmi-logging``)
 ``recording.rrd``     the same rows and the error model's columns, for the rerun viewer
 ``errormodel.csv``    the error model's columns, once the run is over
 ``error_budget.png``  the predicted error and its parts beside the probe's drift
@@ -25,7 +27,8 @@ import errno
 import hashlib
 import json
 import os
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -44,9 +47,11 @@ __all__ = [
     "CHECKPOINT_FILE",
     "ERRORMODEL_CSV",
     "ERROR_BUDGET_PNG",
+    "FMI_LOG",
     "RECORDING",
     "RUN_FILE",
     "SIGNALS_CSV",
+    "SIGNALS_MAT",
     "SUMMARY_JSON",
     "WEAR_PNG",
     "Checkpoint",
@@ -56,6 +61,8 @@ __all__ = [
 ]
 
 SIGNALS_CSV = "signals.csv"
+SIGNALS_MAT = "signals.mat"
+FMI_LOG = "fmi.log"
 RECORDING = "recording.rrd"
 ERRORMODEL_CSV = "errormodel.csv"
 ERROR_BUDGET_PNG = "error_budget.png"
@@ -73,6 +80,8 @@ LOCK_FILE = ".twin.lock"
 RUN_OUTPUTS = (
     "signals.csv",
     "signals.units.json",
+    "signals.mat",
+    "fmi.log",
     "recording.rrd",
     "errormodel.csv",
     "errormodel.units.json",
@@ -160,6 +169,11 @@ class RunOutputs:
     budget_view: tuple[str, ...]
     plot: BudgetColumns
     scene: TesterScene | None = None
+    #: the columns signals.csv (and signals.mat) hold, in order (``--record``; None: every
+    #: recorded column)
+    signals: tuple[str, ...] | None = None
+    #: signals.mat beside signals.csv (``--format mat``)
+    mat: bool = False
 
 
 @dataclass(frozen=True)
@@ -170,6 +184,13 @@ class RunMeta:
     overrides: tuple[str, ...] = ()
     loop: str = "fast"
     checkpoint_every_ns: int | None = None
+    #: the command line's times and input file (twin.config.experiment.Experiment.to_json)
+    experiment: Mapping[str, str] = field(default_factory=dict)
+    #: the columns signals.csv holds (``--record``; None: all)
+    record: tuple[str, ...] | None = None
+    #: the signal files besides signals.csv (``--format``)
+    formats: tuple[str, ...] = ()
+    fmi_logging: bool = False
 
 
 @dataclass(frozen=True)
@@ -256,6 +277,10 @@ class RunFolder:
                 "overrides": list(meta.overrides),
                 "loop": meta.loop,
                 "checkpoint_every_ns": meta.checkpoint_every_ns,
+                "experiment": dict(meta.experiment),
+                "record": list(meta.record) if meta.record is not None else None,
+                "formats": list(meta.formats),
+                "fmi_logging": meta.fmi_logging,
             },
             indent=2,
         )
@@ -345,8 +370,12 @@ class RunFolder:
             position = tuple(resume.recorder["csv_position"])
             with open(csv_path, "r+b") as f:  # before the recording replays the CSV's rows
                 f.truncate(position[0])
+        from twin.outputs.mat import SignalsMatSink
+
+        mat = [SignalsMatSink(self.file(SIGNALS_MAT), csv_path)] if outputs.mat else []
         return [
-            SignalsCsvSink(csv_path, resume_at=position),
+            SignalsCsvSink(csv_path, resume_at=position, columns=outputs.signals),
+            *mat,
             RecordingSink(
                 self.file(RECORDING),
                 recording_name=outputs.name,
@@ -403,5 +432,24 @@ def _run_meta(path: Path) -> RunMeta:
     every = data.get("checkpoint_every_ns")
     if every is not None and type(every) is not int:
         p.add("checkpoint_every_ns", f"malformed: expected null or an integer, got {every!r}")
+    experiment = data.get("experiment") or {}
+    if not isinstance(experiment, dict) or not all(isinstance(v, str) for v in experiment.values()):
+        p.add("experiment", "malformed: expected an object of strings")
+    record = data.get("record")
+    if record is not None:
+        record = p.strings(data, "record", "")
+    formats = p.strings(data, "formats", "") if "formats" in data else ()
+    fmi_logging = data.get("fmi_logging", False)
+    if not isinstance(fmi_logging, bool):
+        p.add("fmi_logging", f"malformed: expected true or false, got {fmi_logging!r}")
     p.check()
-    return RunMeta(data["scenario"], overrides, data.get("loop", "fast"), every)
+    return RunMeta(
+        data["scenario"],
+        overrides,
+        data.get("loop", "fast"),
+        every,
+        experiment,
+        tuple(record) if record is not None else None,
+        tuple(formats),
+        fmi_logging,
+    )

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from twin.config.durations import parse_duration
+from twin.config.experiment import Experiment
 from twin.config.load import find_scenario, load_scenario
 from twin.config.spec import Scenario
 from twin.cosim.controls import RunControls
@@ -38,7 +39,7 @@ from twin.cosim.plan import Plan, make_plan
 from twin.cosim.stepping import Loop, check_loop
 from twin.errormodel.config import check_recorded_columns, evaluation_config
 from twin.errormodel.settings import EvaluationConfig
-from twin.errors import ConfigError, FMUError, TwinError
+from twin.errors import ConfigError, ConfigErrors, FMUError, TwinError, did_you_mean
 from twin.fmu import catalog
 from twin.outputs.plot_process import PlotProcess
 from twin.outputs.run_folder import (
@@ -53,7 +54,16 @@ from twin.outputs.sink import ClosesOnExit
 from twin.pipeline.montecarlo import Uncertainty, parse_uncertainty
 from twin.pipeline.report import Report, Reports
 
-__all__ = ["PreparedRun", "RunOptions", "prepare", "prepare_resume", "prepare_scenario"]
+__all__ = [
+    "FORMATS",
+    "PreparedRun",
+    "RunOptions",
+    "check_formats",
+    "prepare",
+    "prepare_resume",
+    "prepare_scenario",
+    "record_columns",
+]
 
 
 @dataclass(frozen=True)
@@ -68,6 +78,14 @@ class RunOptions:
     before the run (what they refuse is bad input). ``reports``: what a measured experiment
     the scenario replays adds to its summary (:mod:`twin.pipeline.report`). ``started``: when
     the command began (``time.perf_counter()``; the summary's total time counts from it).
+
+    What a co-simulation engineer sets as in fmpy and cosim-cli: ``experiment``, the times
+    and input file of the run (:class:`~twin.config.experiment.Experiment`: ``--start-time``,
+    ``--stop-time``, ``--step-size``, ``--output-interval``, ``--input-file``; applied to a
+    scenario loaded from a file); ``record``, the columns signals.csv holds
+    (``instance.variable``, or ``variable`` alone for a scenario of one FMU; None: every
+    recorded column); ``formats``, the signal files besides signals.csv (``"mat"``:
+    signals.mat); ``fmi_logging``, the FMUs' own log messages into the run folder's fmi.log.
     """
 
     folder: bool = False
@@ -79,6 +97,10 @@ class RunOptions:
     check_fmus: bool = True
     reports: Reports | None = None
     started: float | None = None
+    experiment: Experiment = field(default_factory=Experiment)
+    record: tuple[str, ...] | None = None
+    formats: tuple[str, ...] = ()
+    fmi_logging: bool = False
 
 
 @dataclass
@@ -101,6 +123,8 @@ class PreparedRun(ClosesOnExit):
     resume: Checkpoint | None = None
     plots: PlotProcess | None = None
     started: float = field(default_factory=time.perf_counter)
+    #: the columns signals.csv holds, resolved (``options.record``; None: every recorded column)
+    record: tuple[str, ...] | None = None
 
     def keep(self) -> set[str]:
         """The columns a run keeps in memory: those the error model reads, the reports', and
@@ -161,10 +185,16 @@ def _prepare(
     controls: RunControls,
     plots: PlotProcess | None,
 ) -> PreparedRun:
-    scenario = source if isinstance(source, Scenario) else load_scenario(find_scenario(source), overrides)
+    scenario = (
+        source
+        if isinstance(source, Scenario)
+        else load_scenario(find_scenario(source), overrides, options.experiment)
+    )
     plan = make_plan(scenario)
     evaluation = evaluation_config(scenario)
     check_recorded_columns(scenario, plan.column_names())
+    record = record_columns(options.record, plan)
+    check_formats(options.formats, scenario)
     uncertainty = parse_uncertainty(scenario, options.samples)
     reports = options.reports(scenario) if options.reports is not None else ()
     every = _checkpoint_every(options.checkpoint_every, scenario.step_ns)
@@ -186,6 +216,7 @@ def _prepare(
         uncertainty,
         tuple(reports),
         plots=plots,
+        record=record,
     )
 
 
@@ -203,7 +234,8 @@ def prepare_resume(
     folder.lock()  # before its checkpoint is read: no other process may write there meanwhile
     try:
         meta = folder.resumable()
-        scenario = load_scenario(Path(meta.scenario), list(meta.overrides))
+        experiment = Experiment.from_json(meta.experiment, str(folder.file(RUN_FILE)))
+        scenario = load_scenario(Path(meta.scenario), list(meta.overrides), experiment)
         plan = make_plan(scenario)
         evaluation = evaluation_config(scenario)
         every = meta.checkpoint_every_ns
@@ -221,14 +253,88 @@ def prepare_resume(
             check_fmus=False,
             reports=options.reports,
             started=options.started,
+            experiment=experiment,
+            record=meta.record,
+            formats=meta.formats,
+            fmi_logging=meta.fmi_logging,
         )
         reports = options.reports(scenario) if options.reports is not None else ()
+        record = record_columns(meta.record, plan)
     except BaseException:
         folder.unlock()
         raise
     return PreparedRun(
-        scenario, plan, evaluation, options, meta.overrides, folder, every, None, tuple(reports), resume
+        scenario,
+        plan,
+        evaluation,
+        options,
+        meta.overrides,
+        folder,
+        every,
+        None,
+        tuple(reports),
+        resume,
+        record=record,
     )
+
+
+#: the signal files a run may write besides signals.csv (``--format``)
+FORMATS = ("csv", "mat")
+
+
+def record_columns(names: Sequence[str] | None, plan: Plan) -> tuple[str, ...] | None:
+    """The columns ``--record`` names, as signals.csv's columns (``variable`` alone stands for
+    ``instance.variable`` in a scenario of one FMU; ``time`` is always the first column):
+    every name one the run records, else one line each, with a close match."""
+    if names is None:
+        return None
+    recorded = [c.meta.name for c in plan.columns]
+    lone = plan.instances[0].name if len(plan.instances) == 1 else None
+    out: list[str] = []
+    problems: list[ConfigError] = []
+    for name in names:
+        column = f"{lone}.{name}" if lone is not None and "." not in name else name
+        if name == "time" or column in out:
+            continue
+        if column in recorded:
+            out.append(column)
+            continue
+        problems.append(ConfigError(_not_recorded(column, plan, recorded), source="--record"))
+    if problems:
+        raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
+    return tuple(out)
+
+
+def _not_recorded(column: str, plan: Plan, recorded: Sequence[str]) -> str:
+    """Why the run records no column ``column``, with a close match."""
+    instance, _, variable = column.partition(".")
+    inst = next((i for i in plan.instances if i.name == instance), None)
+    var = catalog.variables(inst.model).get(variable) if inst is not None else None
+    hint = did_you_mean(column, recorded)
+    if var is not None:
+        what = f"a {var.causality} ({var.type})" if var.causality != "input" else "an input nothing drives"
+        return f"{column!r} is {what}: signals.csv holds the Real outputs and the driven inputs{hint}"
+    if inst is None and len(plan.instances) > 1:
+        known = ", ".join(i.name for i in plan.instances)
+        return f"no column {column!r}{hint} (columns are 'instance.variable' of: {known})"
+    return f"no column {column!r}{hint}"
+
+
+def check_formats(formats: Sequence[str], scenario: Scenario) -> None:
+    """The signal files asked for are ones the twin writes, and a MAT file can hold the
+    instances' names."""
+    for name in formats:
+        if name not in FORMATS:
+            raise ConfigError(
+                f"unknown format {name!r}{did_you_mean(name, FORMATS)} (one of: {', '.join(FORMATS)})",
+                source="--format",
+            )
+    if "mat" in formats:
+        from twin.outputs.mat import mat_problem
+
+        why = mat_problem(f.name for f in scenario.fmus)
+        if why is not None:
+            raise ConfigError(why, source="--format")
 
 
 def _checkpoint_every(text: str | None, step_ns: int) -> int | None:
@@ -262,6 +368,12 @@ def _fmus_accept(scenario: Scenario, plan: Plan, controls: RunControls) -> None:
     try:
         check_initialization(plan)
     except FMUError as exc:
+        if exc.call == "fmi2SetupExperiment":  # an FMU that cannot begin at scenario.start
+            raise ConfigError(
+                f"FMU {exc.instance!r} refuses to begin at {exc.time_s:g} s: {exc.detail}",
+                source=scenario.source_path,
+                key="scenario.start",
+            ) from None
         raise ConfigError(
             f"the FMU refuses them in {exc.call}: {exc.detail}",
             source=scenario.source_path,

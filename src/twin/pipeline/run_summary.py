@@ -31,7 +31,8 @@ class Timing:
     macro_steps: int
     fmu_steps: int
     realtime_factor: float | None  # seconds simulated by this process per second of cosim_s
-    #: simulated time the process started from: a resumed run's checkpoint (``twin resume``), else 0
+    #: simulated time the process started from: a resumed run's checkpoint (``twin resume``), else
+    #: the run's start (0, or ``--start-time``)
     resumed_from_s: float = 0.0
     #: the run's phases, s: FMU set-up, opening the outputs, stepping, writing while it ran, the
     #: error model, a short run's rows written after it (``last_rows``: twin.signals.recorder's
@@ -135,6 +136,10 @@ class RunSummary:
         if "predicted" in d:
             paper = f" (paper {d['paper_measured']:+.3f} mm)" if "paper_measured" in d else ""
             return f"{self.scenario}: {self.status}; drift predicted {d['predicted']:+.4f} mm, probe {d['probe']:+.4f} mm{paper}"
+        note = self.results.get("errormodel")
+        if isinstance(note, str):  # a run that does not evaluate the error model says why
+            why = note.removeprefix("not evaluated: ")
+            return f"{self.scenario}: {self.status}; no error model or paper report ({why})"
         return f"{self.scenario}: {self.status}"
 
 

@@ -21,7 +21,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,9 +34,11 @@ from twin.errormodel.factors import FACTORS
 from twin.errormodel.settings import EvaluationConfig
 from twin.errors import ConfigError, RunError, TwinError
 from twin.fmu.pool import SlotPool
+from twin.outputs.fmi_log import FmiLogFile
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
     DISK_FULL_ERRNOS,
+    FMI_LOG,
     SUMMARY_JSON,
     Checkpoint,
     RunFolder,
@@ -76,6 +79,10 @@ class Simulation:
     table: SignalTable
     write_s: float = 0.0
     recorder: TeeRecorder | None = None
+
+
+#: what summary.json and the command's line say of a run that does not evaluate the error model
+NOT_EVALUATED = "not evaluated: [errormodel] evaluate = false, the scenario is not the tester"
 
 
 @dataclass
@@ -153,6 +160,8 @@ def evaluate_run(simulation: Simulation, cfg: EvaluationConfig | None = None) ->
     (adds its columns to that table), then what the run's reports add."""
     cfg = cfg or simulation.prepared.evaluation
     table = simulation.table
+    if not cfg.evaluate:  # not the tester (one FMU alone): said in the summary, not an error
+        return Evaluated(None, results={"errormodel": NOT_EVALUATED})
     if len(table) < 2:
         return Evaluated(None)
     try:
@@ -278,6 +287,8 @@ def run_outputs(prepared: PreparedRun) -> RunOutputs:
         budget_view=("errormodel.e_z", *[f.column for f in FACTORS], "errormodel.reading_change"),
         plot=budget_columns(cfg, prepared),
         scene=tester_scene(prepared.plan.roles(SCENE_ROLES)),
+        signals=prepared.record,
+        mat="mat" in prepared.options.formats,
     )
 
 
@@ -299,8 +310,9 @@ def run_into_folder(
         if prepared.resume is None:
             folder.start(_meta(prepared))
         sinks = folder.run_sinks(run_outputs(prepared), prepared.resume, prepared.plots)
-        # the last rows are written once the plots are begun: see write_outputs
-        simulation = simulate(prepared, sinks, controls, hold_last_rows=True)
+        with _fmi_logging(prepared, folder, controls) as logged:
+            # the last rows are written once the plots are begun: see write_outputs
+            simulation = simulate(prepared, sinks, logged, hold_last_rows=True)
         summary = _finish(simulation, sinks, controls)
     except OSError as exc:
         _fail(sinks, exc, simulation)
@@ -322,12 +334,33 @@ def run_into_folder(
 def _meta(prepared: PreparedRun) -> RunMeta:
     from pathlib import Path
 
+    options = prepared.options
     return RunMeta(
         str(Path(prepared.scenario.source_path).resolve()),
         prepared.overrides,
-        prepared.options.loop,
+        options.loop,
         prepared.checkpoint_every_ns,
+        options.experiment.to_json(),
+        prepared.record,
+        tuple(options.formats),
+        options.fmi_logging,
     )
+
+
+@contextmanager
+def _fmi_logging(prepared: PreparedRun, folder: RunFolder, controls: RunControls) -> Iterator[RunControls]:
+    """``controls`` whose ``fmi_log`` writes the run folder's fmi.log (``--fmi-logging``; a
+    resumed run's continues it); closed when the FMUs are freed, and its place said."""
+    if not prepared.options.fmi_logging:
+        yield controls
+        return
+    log = FmiLogFile(folder.file(FMI_LOG), append=prepared.resume is not None)
+    try:
+        yield dataclasses.replace(controls, fmi_log=log)
+    finally:
+        log.close()
+    lost = f"; writing it failed: {log.error.strerror}" if log.error is not None else ""
+    controls.echo(f"fmi log: {log.messages} messages of the FMUs in {log.path}{lost}")
 
 
 def _finish(simulation: Simulation, sinks: Sequence[Sink], controls: RunControls) -> RunSummary:

@@ -103,6 +103,10 @@ class CsvReader:
         #: the values are measurements (a lab's record): each a finite number of at most
         #: MAX_MEASURED; else (a run's own file) any number, nan and inf included
         self.measured = True
+        #: a time may be given twice in a row: a jump of an input file, whose later value
+        #: holds from that time on (as fmpy reads an input file); else times increase strictly
+        self.jumps = False
+        self._jumped = False  # the last row repeated the time before it
         self.read_rows = 0  # data rows seen (blank lines apart)
         self.flagged = 0
         self._last_time = -math.inf
@@ -181,6 +185,7 @@ class CsvReader:
         elif len(parsed):
             self.read_rows += len(parsed)
             self._last_time = float(parsed.time[-1])
+            self._jumped = False  # Arrow's rows increase strictly
         if len(parsed):
             yield parsed
 
@@ -267,6 +272,10 @@ class CsvReader:
                 "the record cannot be flagged away)",
                 source=self.source,
             )
+        if self.jumps and t == self._last_time and not self._jumped:
+            self._jumped = True
+            return t
+        self._jumped = False
         if t <= self._last_time:
             raise ConfigError(
                 f"line {lineno}: time {t!r} s is not after {self._last_time!r} s (time must increase)",
