@@ -8,9 +8,8 @@ value from one unit to another (``dst = factor * src + offset``: an offset only 
 temperature scales), or refuses units of different dimensions with a :class:`UnitError`.
 
 A unit may also come with its definition, as FMI's ``UnitDefinitions`` and SSP's ``ssc:Units``
-write it (:class:`BaseUnit`: exponents of the SI base units and rad, a factor and an offset);
-:func:`defined_conversion` converts between two definitions exactly as those standards define
-them, whatever the units are called.
+write it: :class:`twin.fmu.description.BaseUnit` converts between two definitions exactly as
+those standards define them, whatever the units are called.
 
 pint is imported the first time a unit is parsed: a run whose connections all agree in unit
 never loads it.
@@ -20,18 +19,14 @@ from __future__ import annotations
 
 import functools
 import re
-from dataclasses import dataclass
 from typing import Any
 
 from twin.errors import UnitError
 
 __all__ = [
-    "BASE_UNITS",
-    "BaseUnit",
     "UnitError",
     "conversion",
     "convert",
-    "defined_conversion",
     "dimensionless",
     "parse",
     "registry",
@@ -114,42 +109,3 @@ def convert(value: float, src: str, dst: str) -> float:
 def _dimension(unit: Any) -> str:
     text = str(unit.dimensionality)
     return "no dimension" if text == "dimensionless" else text
-
-
-#: the base units of FMI's and SSP's unit definitions, in their order
-BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-
-
-@dataclass(frozen=True)
-class BaseUnit:
-    """A unit as FMI 2.0 (``<BaseUnit>``) and SSP 1.0 (``ssc:BaseUnit``) define it: the
-    exponents of :data:`BASE_UNITS`, and ``value_in_base = factor * value + offset``."""
-
-    exponents: tuple[int, ...] = (0,) * len(BASE_UNITS)
-    factor: float = 1.0
-    offset: float = 0.0
-
-    def dimension(self) -> str:
-        """The exponents as text (``kg.m.s-2``), for messages."""
-        parts = [f"{b}{e if e != 1 else ''}" for b, e in zip(BASE_UNITS, self.exponents, strict=True) if e]
-        return ".".join(parts) or "no dimension"
-
-
-def defined_conversion(
-    src: BaseUnit, dst: BaseUnit, names: tuple[str, str] = ("", "")
-) -> tuple[float, float]:
-    """``(factor, offset)`` carrying a value from the unit defined by ``src`` to the one defined
-    by ``dst`` (``value_in_dst = factor * value_in_src + offset``), through their common base
-    unit; exactly ``(1.0, 0.0)`` for equal definitions. :class:`UnitError` (naming ``names``)
-    when their exponents differ."""
-    if src.exponents != dst.exponents:
-        a, b = names
-        raise UnitError(
-            f"'{a}' ({src.dimension()}) cannot be converted to '{b}' ({dst.dimension()})"
-            if a or b
-            else f"{src.dimension()} cannot be converted to {dst.dimension()}"
-        )
-    if (src.factor, src.offset) == (dst.factor, dst.offset):
-        return 1.0, 0.0
-    # base = fs v + os = fd w + od  ->  w = (fs / fd) v + (os - od) / fd
-    return src.factor / dst.factor, (src.offset - dst.offset) / dst.factor

@@ -54,7 +54,7 @@ from twin.config.ssp import (
 )
 from twin.errors import ConfigError, ConfigErrors
 from twin.files import write_atomic
-from twin.units import BASE_UNITS, BaseUnit
+from twin.fmu.description import BASE_UNITS, BaseUnit
 
 __all__ = ["Exported", "export_ssp"]
 

@@ -20,10 +20,46 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from twin.errors import ConfigError
-from twin.units import BASE_UNITS, BaseUnit
+from twin.errors import ConfigError, UnitError
 
-__all__ = ["Description", "Variable", "describe"]
+__all__ = ["BASE_UNITS", "BaseUnit", "Description", "Variable", "describe"]
+
+#: the base units of FMI's and SSP's unit definitions, in their order
+BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
+
+
+@dataclass(frozen=True)
+class BaseUnit:
+    """A unit as FMI 2.0 (``<BaseUnit>``) and SSP 1.0 (``ssc:BaseUnit``) define it: the
+    exponents of :data:`BASE_UNITS`, and ``value_in_base = factor * value + offset``. Two such
+    definitions convert into each other exactly as those standards say, whatever the units are
+    called (:meth:`conversion_to`); units known by name only go through :mod:`twin.units`."""
+
+    exponents: tuple[int, ...] = (0,) * len(BASE_UNITS)
+    factor: float = 1.0
+    offset: float = 0.0
+
+    def dimension(self) -> str:
+        """The exponents as text (``kg.m.s-2``), for messages."""
+        parts = [f"{b}{e if e != 1 else ''}" for b, e in zip(BASE_UNITS, self.exponents, strict=True) if e]
+        return ".".join(parts) or "no dimension"
+
+    def conversion_to(self, dst: BaseUnit, names: tuple[str, str] = ("", "")) -> tuple[float, float]:
+        """``(factor, offset)`` carrying a value from this unit to ``dst`` (``value_in_dst =
+        factor * value + offset``), through their common base unit; exactly ``(1.0, 0.0)`` for
+        equal definitions. :class:`~twin.errors.UnitError` (naming ``names``) when their
+        exponents differ."""
+        if self.exponents != dst.exponents:
+            a, b = names
+            raise UnitError(
+                f"'{a}' ({self.dimension()}) cannot be converted to '{b}' ({dst.dimension()})"
+                if a or b
+                else f"{self.dimension()} cannot be converted to {dst.dimension()}"
+            )
+        if (self.factor, self.offset) == (dst.factor, dst.offset):
+            return 1.0, 0.0
+        # base = fs v + os = fd w + od  ->  w = (fs / fd) v + (os - od) / fd
+        return self.factor / dst.factor, (self.offset - dst.offset) / dst.factor
 
 
 @dataclass(frozen=True)

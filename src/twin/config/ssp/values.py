@@ -28,7 +28,8 @@ from typing import Any
 
 from twin.config.ssp.names import NS, TWIN_TYPE, article, describe, path_of, q, tag_of
 from twin.errors import UnitError
-from twin.units import BASE_UNITS, BaseUnit, conversion, defined_conversion
+from twin.fmu.description import BASE_UNITS, BaseUnit
+from twin.units import conversion
 
 __all__ = ["Definitions", "Refusal", "Value", "definitions", "parameter_set", "resolve"]
 
@@ -259,7 +260,7 @@ def unit_conversion(
         raise Refusal(v.where, v.element, f"a value in {src[0]!r} for a variable without a unit")
     try:
         if src[1] is not None and dst[1] is not None:
-            return defined_conversion(src[1], dst[1], (src[0], dst[0]))
+            return src[1].conversion_to(dst[1], (src[0], dst[0]))
         return conversion(src[0], dst[0])
     except UnitError as exc:
         raise Refusal(v.where, v.element, exc.message or str(exc)) from None
