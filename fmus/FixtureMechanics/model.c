@@ -3,7 +3,13 @@
  * (equations in readme.md). Z is the wear direction, positive DOWN.
  *
  * Branch 1 (bearing side): base -> heel block + bearing block -> spindle -> bearing -> T-plate.
- * Branch 2 (detecting side): base -> detecting frame -> sensor -> clamp -> long pole.
+ * Branch 2 (detecting side): base (its inset) -> detecting frame -> probe body -> clamp -> long pole.
+ * The loop closes: from the base top, branch 1 rises by the heel and bearing blocks and comes
+ * down by spindle radius, rings and T-plate to the T-plate's bottom (-0.140 m as drawn), the pole
+ * and clamp come down 0.512 m to the contact face (0.372 m); branch 2 comes down by the base's
+ * inset and the frame (0.050 + 0.362 m) and back up by the probe's body (0.040 m) to the same
+ * 0.372 m. So a uniform rise with one expansion coefficient moves the reading by alpha dT times
+ * the probe's own few-millimetre reading only (tests/fmus/test_mechanics_loop.py).
  * The spring keeps the long pole's top on the T-plate's bottom; the clamp on the pole
  * presses the probe's head; the probe reads the clamp's Z position relative to the sensor.
  * All displacements are small (micrometres), so each body's thermal term is linear:
@@ -21,8 +27,9 @@
 
 static const int VR_TEMPS[FM_TEMPS] = {VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
                                        VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base,
-                                       VR_t_pole_lower, VR_t_clamp, VR_t_detecting_frame_lower};
-enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, FRAME_LOWER };
+                                       VR_t_pole_lower, VR_t_clamp, VR_t_detecting_frame_lower, VR_t_base,
+                                       VR_t_sensor};
+enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, FRAME_LOWER, BASE, SENSOR };
 
 int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
     double *r = comp->v.r;
@@ -116,18 +123,21 @@ static void frame_bending(double *r, const double *dt) {
     r[VR_dz_frame_bending] = r[VR_abbe_offset] * r[VR_frame_tilt];
 }
 
-/* Branch 2: the frame hangs from the base and grows down, carrying the sensor; the pole grows
- * down from its top (held on the T-plate) to the clamp, and the clamp down to the head's
- * contact face. */
+/* Branch 2: the frame hangs from a face inset in the base (the base's material between its top
+ * and that face grows with the base) and grows down, carrying the probe, whose body grows up
+ * from its fixing to the tip; the pole grows down from its top (held on the T-plate) to the
+ * clamp, and the clamp down to the head's contact face. */
 static void detecting_branch(double *r, const double *dt) {
     double a_st = r[VR_alpha_steel];
+    r[VR_dz_base_inset] = r[VR_alpha_cast_iron] * r[VR_l_base_inset] * dt[BASE];
+    r[VR_dz_probe_body] = -a_st * r[VR_l_probe_body] * dt[SENSOR];
     /* two lumps along the frame: each half grows with its own temperature */
     r[VR_dz_detecting_frame] = a_st * r[VR_l_detecting_frame] * 0.5 * (dt[FRAME] + dt[FRAME_LOWER]);
     r[VR_dz_long_pole] = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
                                  r[VR_l_pole_lower] * dt[POLE_LOWER]);
     r[VR_dz_clamp] = a_st * r[VR_l_clamp] * dt[CLAMP];
     frame_bending(r, dt);
-    r[VR_z_sensor] = r[VR_dz_detecting_frame] + r[VR_dz_frame_bending];
+    r[VR_z_sensor] = r[VR_dz_base_inset] + r[VR_dz_detecting_frame] + r[VR_dz_probe_body] + r[VR_dz_frame_bending];
 }
 
 /* Contact: with the pole top at z_top, the spring pushes up with f_spring0 + k_spring*z_top,

@@ -115,9 +115,15 @@ def test_a_connection_is_removed_by_giving_its_output_no_input(tmp_path: Path) -
     base = scenarios_dir() / "base" / "tester-system.toml"
     path = tmp_path / "s.toml"
     path.write_text(f'extends = "{base}"\n[connections]\n"thermal.t_sensor" = []\n', encoding="utf-8")
-    sc = load_scenario(path, ['fmu.sensors.unconnected.t_probe_body="the probe body at its start value"'])
+    sc = load_scenario(
+        path,
+        [
+            'fmu.sensors.unconnected.t_probe_body="the probe body at its start value"',
+            'fmu.mechanics.unconnected.t_sensor="the probe body at its start value"',
+        ],
+    )
     assert not any(c.src == "thermal.t_sensor" for c in sc.connections)
-    assert len(sc.connections) == len(load_scenario(base).connections) - 1
+    assert len(sc.connections) == len(load_scenario(base).connections) - 2  # the DAQ's and the mechanics'
 
 
 def test_values_and_arrays_of_values_are_replaced(tmp_path: Path) -> None:

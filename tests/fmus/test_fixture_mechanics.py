@@ -14,6 +14,7 @@ T0 = 293.15
 TEMPS = (
     "t_heel_block", "t_bearing_block", "t_spindle", "t_bearing", "t_t_plate",
     "t_detecting_frame", "t_pole_heel", "t_pole_base", "t_pole_lower", "t_clamp", "t_detecting_frame_lower",
+    "t_base", "t_sensor",
 )  # fmt: skip
 M_POLE = 0.650072  # kg, the default: 730 mm x 10 mm steel rod + 0.2 kg clamp (tester-geometry.toml)
 # the paper's measured rises, applied where its FEM applied them (facts.md 2)
@@ -55,6 +56,29 @@ def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> 
     # the frame bends too (its rise is above the bearing's here: it radiates towards it), by 0.01 um
     assert abs(bending) < 2e-8
     assert probe - 4.805e-3 == pytest.approx(bb + sp + br + tp + pole + cl - fr - bending, abs=1e-12)
+
+
+def test_the_loop_closes_a_uniform_rise_with_one_alpha_leaves_the_reading(fmu_paths: dict[str, Path]) -> None:
+    """Both branches, from the base top to the probe's contact, add up to the same Z as drawn
+    (-0.140 + 0.512 = 0.050 + 0.362 - 0.040 = 0.372 m): with every body of one material warmed
+    alike, the reading moves by alpha dT times nothing but its own zero offset. Without the base's
+    inset and the probe's body the 10 mm left over moved it by about +1 um at 8.9 K."""
+    alpha, rise = 11.7e-6, 8.9
+    d = Driver(fmu_paths["FixtureMechanics"])
+    try:
+        d.init(
+            parameters={"alpha_cast_iron": alpha, "alpha_steel": alpha, "alpha_bearing_steel": alpha},
+            inputs=dict.fromkeys(TEMPS, T0),
+        )
+        before = d.get(["probe_true"])[0]
+        d.set({k: T0 + rise for k in TEMPS})
+        after, inset, probe_body = d.get(["probe_true", "dz_base_inset", "dz_probe_body"])
+    finally:
+        d.close()
+    assert abs(after - before) < 1e-9
+    # and the two new segments are what close it: each alone is microns
+    assert inset == pytest.approx(alpha * 0.050 * rise, rel=1e-12)
+    assert probe_body == pytest.approx(-alpha * 0.040 * rise, rel=1e-12)
 
 
 def test_hand_calculation_of_the_frames_thermal_bending(mech: Driver) -> None:

@@ -53,6 +53,12 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
         "l_pole_base": Derived(pos["pole_base"].value, "drawing: " + pos["pole_base"].source),
         "l_pole_lower": Derived(pos["pole_lower"].value, "drawing: " + pos["pole_lower"].source),
         "l_clamp": Derived(g.dim("bodies.clamp.thickness"), "drawing estimate: clamp fixing to contact face"),
+        "l_base_inset": Derived(
+            g.dim("bodies.detecting_frame.inset"), "drawing estimate: frame's fixing face below the base top"
+        ),
+        "l_probe_body": Derived(
+            g.dim("bodies.sensor.length"), "drawing estimate: probe body plus head above the frame's bottom"
+        ),
         "contact_area": Derived(
             g.dim(f"{bearing}.ball_diameter") * g.dim(f"{bearing}.liner_width"), "handbook: GE 30 ES d_k x B"
         ),
