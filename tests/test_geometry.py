@@ -107,6 +107,8 @@ def test_the_thermal_priors_are_alpha_times_the_drawn_length() -> None:
         "alpha_l_bearing_rings": a_b * m["t_bearing_rings"].value,
         "alpha_l_t_plate": a_st * m["l_t_plate"].value,
         "alpha_l_detecting_frame": a_st * m["l_detecting_frame"].value,
+        "alpha_l_base_inset": a_ci * m["l_base_inset"].value,
+        "alpha_l_probe_body": a_st * m["l_probe_body"].value,
         "alpha_l_clamp": a_st * m["l_clamp"].value,
         "alpha_l_pole_heel": a_st * m["l_pole_heel"].value,
         "alpha_l_pole_base": a_st * m["l_pole_base"].value,

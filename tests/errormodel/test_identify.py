@@ -42,7 +42,13 @@ POINTS = list(COLUMNS.temperatures)
 THERMAL = list(ThermalCoefficients.units())
 PRIORS = load_priors()
 #: a tester unlike the priors: each thermal coefficient off its prior by up to 1.2 prior sigma
-SHIFT = dict(zip(THERMAL, [0.9, -1.2, 0.5, -0.7, 1.1, 0.6, -0.8, 0.3, -0.4, 1.0, -1.1], strict=True))
+SHIFT = {
+    "alpha_l_heel_block": 0.9, "alpha_l_bearing_block": -1.2, "alpha_l_spindle": 0.5,
+    "alpha_l_bearing_rings": -0.7, "alpha_l_t_plate": 1.1, "alpha_l_base_inset": 0.7,
+    "alpha_l_detecting_frame": 0.6, "alpha_l_probe_body": -0.5, "probe_zero_drift": -0.8,
+    "alpha_l_clamp": 0.3, "alpha_l_pole_heel": -0.4, "alpha_l_pole_base": 1.0, "alpha_l_pole_lower": -1.1,
+}  # fmt: skip
+assert set(SHIFT) == set(THERMAL)
 TRUTH = {
     **{n: PRIORS[n].value + SHIFT[n] * (PRIORS[n].sigma or 0.0) for n in THERMAL},
     "load_compliance": 2.6e-10,
@@ -211,7 +217,7 @@ def test_the_fit_recovers_what_each_point_temperature_does(fitted: Coefficients)
         assert se < 0.05 * abs(w[i] @ true), p  # the data determine it, not the priors
         assert abs(w[i] @ (prior - true)) > 4 * se, p  # and the truth is not the prior's
     fit = fitted.fits["thermal"]
-    # 7 independent temperature histories for 11 coefficients: 7 directions, the rest priors
+    # 7 independent temperature histories for 13 coefficients: 7 directions, the rest priors
     assert fit.rank == 7 and fit.informative_directions == 7
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import tomllib
 from importlib import resources
@@ -101,6 +102,37 @@ def test_thermal_experiment_hand_calculation() -> None:
     series = m.e_z({b: {k: v * ramp for k, v in p.items()} for b, p in errors.items()})
     np.testing.assert_allclose(series, -15.875e-6 * ramp, rtol=1e-12, atol=1e-20)
     assert np.all(np.diff(series) < 0)  # the reading falls throughout
+
+
+def test_the_loop_closes_a_uniform_rise_with_one_alpha_predicts_no_error() -> None:
+    """The error model's thermal sources with every coefficient one alpha times the drawn length
+    (tester-geometry.toml, as the FMUs get them) and every measuring point warmed alike: the
+    two branches grow by the same Z, so e_z stays within 1 nm. Without the base's inset and the
+    probe's body the error model predicted alpha * 10 mm * dT (+1.04 um at 8.9 K, 11.7e-6/K)."""
+    from twin.calibration.geometry import derive
+    from twin.config.drawing import load_geometry
+    from twin.config.load import scenarios_dir
+    from twin.errormodel.sources import DEFAULT_TEMPERATURES, ThermalCoefficients, thermal_errors
+
+    m = derive(load_geometry(scenarios_dir()))["FixtureMechanics"]
+    alpha, rise = 11.7e-6, 8.9
+    lengths = {
+        "alpha_l_heel_block": "h_heel_block", "alpha_l_bearing_block": "h_bearing_block",
+        "alpha_l_spindle": "r_spindle", "alpha_l_bearing_rings": "t_bearing_rings",
+        "alpha_l_t_plate": "l_t_plate", "alpha_l_base_inset": "l_base_inset",
+        "alpha_l_detecting_frame": "l_detecting_frame", "alpha_l_probe_body": "l_probe_body",
+        "alpha_l_clamp": "l_clamp", "alpha_l_pole_heel": "l_pole_heel",
+        "alpha_l_pole_base": "l_pole_base", "alpha_l_pole_lower": "l_pole_lower",
+    }  # fmt: skip
+    g = ThermalCoefficients.from_values(
+        {**{k: alpha * m[v].value for k, v in lengths.items()}, "probe_zero_drift": 0.0}
+    )
+    rises = {point: np.array([0.0, rise]) for point in DEFAULT_TEMPERATURES}
+    model = tester_model()
+    e_z = model.e_z(thermal_errors(rises, g))
+    assert abs(e_z[1] - e_z[0]) < 1e-9
+    without = dataclasses.replace(g, alpha_l_base_inset=0.0, alpha_l_probe_body=0.0)
+    assert model.e_z(thermal_errors(rises, without))[1] == pytest.approx(alpha * 0.010 * rise, rel=1e-6)
 
 
 def test_positioning_errors_give_abbe_terms() -> None:

@@ -136,7 +136,9 @@ class ThermalCoefficients(_Coefficients):
     alpha_l_spindle: float = _declare("m/K", "spindle radius' growth under the bearing, per K of the bearing")
     alpha_l_bearing_rings: float = _declare("m/K", "bearing rings' radial growth, per K of the bearing")
     alpha_l_t_plate: float = _declare("m/K", "T-plate's growth below the outer ring, per K of the T-plate")
+    alpha_l_base_inset: float = _declare("m/K", "base's growth between its top and the frame's fixing face inset in it, lowering the frame, per K of the base")
     alpha_l_detecting_frame: float = _declare("m/K", "detecting frame's growth lowering the probe, per K of the frame")
+    alpha_l_probe_body: float = _declare("m/K", "probe body's growth lifting its tip, per K of the frame it is fixed on")
     probe_zero_drift: float = _declare("m/K", "probe reading's zero drift, per K of the frame it is fixed on")
     alpha_l_clamp: float = _declare("m/K", "clamp's growth down to the probe head, per K of the long pole")
     alpha_l_pole_heel: float = _declare("m/K", "long pole's growth inside the heel block, per K of the heel block")
@@ -154,6 +156,11 @@ def thermal_errors(
     Unmeasured parts take the nearest sensor: the spindle the bearing's, the pole inside the
     heel block and the base those bodies', the clamp the lower pole's, the probe body the
     detecting frame's (it is fixed on it).
+
+    The loop closes as drawn (``tester_topology.toml``): from the base top, branch 1 and the
+    pole reach the clamp's contact face by the same Z as branch 2 through the base's inset, the
+    frame and the probe's body, so coefficients of one alpha times the drawn lengths predict no
+    error for a uniform rise.
     """
     r = rises
     return {
@@ -164,10 +171,14 @@ def thermal_errors(
         "testing_spindle": {"p_dz": g.alpha_l_spindle * r["bearing"]},
         "spherical_plain_bearing": {"p_dz": g.alpha_l_bearing_rings * r["bearing"]},
         "t_plate": {"p_dz": g.alpha_l_t_plate * r["t_plate"]},
-        # branch 2: the frame hangs from the base and grows down
-        "detecting_frame": {"p_dz": g.alpha_l_detecting_frame * r["detecting_frame"]},
-        # the probe's zero drift raises the reading by k*dT, as if its body had moved up
-        "displacement_sensor": {"p_dz": -g.probe_zero_drift * r["detecting_frame"]},
+        # branch 2: the frame hangs from a face inset in the base (the base's growth over the
+        # inset lowers it) and grows down
+        "detecting_frame": {
+            "p_dz": g.alpha_l_base_inset * r["base"] + g.alpha_l_detecting_frame * r["detecting_frame"]
+        },
+        # the probe's body grows up from its fixing to its tip; its zero drift raises the
+        # reading by k*dT, as if its body had moved up
+        "displacement_sensor": {"p_dz": -(g.alpha_l_probe_body + g.probe_zero_drift) * r["detecting_frame"]},
         # clamp and pole grow down from the pole's top: the contact face goes down
         "contacting_clamp": {"p_dz": -g.alpha_l_clamp * r["long_pole"]},
         "long_pole": {
