@@ -252,8 +252,22 @@ def thermal_joints(g: Geometry) -> dict[str, Derived]:
         "g_clamp__sensor": Derived(0.005, "estimate: point contact of the measuring head"),
         "g_sensor__detecting_frame_lower": Derived(0.1, "estimate: probe clamped in the frame's lower end"),
         "g_t_plate__pole_heel": Derived(0.005, "estimate: point contact of the pole top"),
-        "g_oil__base": Derived(0.0, "estimate: the station stands apart from the tester"),
+        "g_oil__base": Derived(0.0, "estimate: the station's heat reaches the tester through the cabinet air (the shares), not through a joint"),
     }
+
+
+#: the network's nodes that hang under the base, in the cabinet air the embedded station warms
+UNDER_BASE = ("base", "pole_lower", "detecting_frame_lower")
+
+
+def thermal_heat(g: Geometry) -> dict[str, Derived]:
+    """Where the hydraulic station's lost heat goes: a share to each part under the base (the
+    station is embedded in the tester, the paper says), the rest into its oil."""
+    share = g.dim("hydraulic_station.embedded_share")
+    why = "drawing estimate: the embedded station's heat reaching a part under the base"
+    shares = {f"hyd_share_{node}": Derived(share, why) for node in UNDER_BASE}
+    shares["hyd_share_oil"] = Derived(1.0 - share * len(UNDER_BASE), "the rest of the station's heat, into its oil")
+    return shares
 
 
 def oscillation(g: Geometry) -> dict[str, Derived]:
@@ -268,7 +282,7 @@ def derive(g: Geometry) -> dict[str, dict[str, Derived]]:
     """Every derived FMU parameter, by model."""
     return {
         "FixtureMechanics": mechanics(g),
-        "ThermalNetwork": thermal_capacities(g) | thermal_room(g) | thermal_joints(g),
+        "ThermalNetwork": thermal_capacities(g) | thermal_room(g) | thermal_joints(g) | thermal_heat(g),
         "OscillationDrive": oscillation(g),
     }
 

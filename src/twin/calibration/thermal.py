@@ -44,7 +44,7 @@ NODE_OUTPUTS: dict[str, str] = {
     "t_plate": "t_t_plate",
     "base": "t_base",
     "long_pole": "t_pole_lower",
-    "detecting_frame": "t_detecting_frame",
+    "detecting_frame": "t_detecting_frame_lower",  # the paper: "the bottom of the detecting frame"
     "room": "t_ambient",
 }
 
@@ -67,9 +67,17 @@ PRIORS: dict[str, tuple[float, str]] = {
     "c_heel_block": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_bearing_block": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_spindle": (0.5, "the drive train's mass is a guess (estimate): 50 %"),
+    # the embedded station's heat under the base: nothing measured, a factor e either way
+    "hyd_share_base": (1.0, "the embedded station's heat share, an estimate: a factor e"),
+    "hyd_share_pole_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
+    "hyd_share_detecting_frame_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
 }
 #: parameters that move with a fitted one (the frame's two halves share one surface factor)
 TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"}
+#: a share that is the rest of the others: the oil keeps what the parts under the base do not take
+REST: dict[str, tuple[str, ...]] = {
+    "hyd_share_oil": ("hyd_share_base", "hyd_share_pole_lower", "hyd_share_detecting_frame_lower")
+}
 #: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
 #: offset, not its local placement on the body]
 SIGMA_MEAS_K = 0.3
@@ -132,7 +140,7 @@ def node_rises(scenario: Scenario, params: Mapping[str, float]) -> dict[str, flo
 
 def _estimates(scenario: Scenario) -> dict[str, float]:
     spec = scenario.fmu(thermal_instance(scenario))
-    names = list(PRIORS) + list(TIED)
+    names = list(PRIORS) + list(TIED) + list(REST)
     missing = [k for k in names if k not in spec.parameters]
     if missing:
         raise ConfigError(
@@ -158,6 +166,7 @@ def calibrate(scenario: Scenario) -> ThermalFit:
     def params_of(x: np.ndarray) -> dict[str, float]:
         p = {k: est[k] * float(np.exp(xi)) for k, xi in zip(names, x, strict=True)}
         p.update({k: est[k] * p[src] / est[src] for k, src in TIED.items()})
+        p.update({k: 1.0 - sum(p[s] for s in shares) for k, shares in REST.items()})
         return p
 
     def data_part(x: np.ndarray) -> np.ndarray:
@@ -210,6 +219,12 @@ def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, The
         lines.append(f"#   {k}: " + " / ".join(f"{by_shape[s].values[k]:.4g}" for s in by_shape))
     lines += ["", "[parameters]"]
     for k in sorted(cal.values):
+        if k in REST:
+            lines.append(
+                f'{k} = {{ value = {float(f"{cal.values[k]:.6g}")!r}, source = "calibrated: the rest of the '
+                f'station\'s heat, 1 - {" - ".join(REST[k])} (drawing {cal.estimates[k]:.4g})" }}'
+            )
+            continue
         src = TIED.get(k, k)
         sigma, why = PRIORS[src]
         se = cal.rel_std_error[src]
