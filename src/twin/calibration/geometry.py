@@ -266,7 +266,10 @@ def thermal_heat(g: Geometry) -> dict[str, Derived]:
     share = g.dim("hydraulic_station.embedded_share")
     why = "drawing estimate: the embedded station's heat reaching a part under the base"
     shares = {f"hyd_share_{node}": Derived(share, why) for node in UNDER_BASE}
-    shares["hyd_share_oil"] = Derived(1.0 - share * len(UNDER_BASE), "the rest of the station's heat, into its oil")
+    cylinder = g.dim("hydraulic_station.cylinder_share")
+    shares["hyd_share_t_plate"] = Derived(cylinder, "drawing estimate: the loading cylinder's oil warming the T-plate")
+    rest = 1.0 - share * len(UNDER_BASE) - cylinder
+    shares["hyd_share_oil"] = Derived(rest, "the rest of the station's heat, into its oil")
     return shares
 
 

@@ -71,12 +71,13 @@ PRIORS: dict[str, tuple[float, str]] = {
     "hyd_share_base": (1.0, "the embedded station's heat share, an estimate: a factor e"),
     "hyd_share_pole_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
     "hyd_share_detecting_frame_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
+    "hyd_share_t_plate": (1.0, "the loading cylinder's heat share, an estimate: a factor e"),
 }
 #: parameters that move with a fitted one (the frame's two halves share one surface factor)
 TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"}
 #: a share that is the rest of the others: the oil keeps what the parts under the base do not take
 REST: dict[str, tuple[str, ...]] = {
-    "hyd_share_oil": ("hyd_share_base", "hyd_share_pole_lower", "hyd_share_detecting_frame_lower")
+    "hyd_share_oil": ("hyd_share_base", "hyd_share_pole_lower", "hyd_share_detecting_frame_lower", "hyd_share_t_plate")
 }
 #: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
 #: offset, not its local placement on the body]
