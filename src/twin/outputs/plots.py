@@ -236,20 +236,20 @@ def _robust_limits(
 ) -> None:
     """Scale ``ax`` to where its ``curves`` (values, colour) mostly are, and mark the samples
     beyond that scale as triangles on its edge, with one legend entry saying how many and how
-    far they reach. A side is cut only where samples reach more than :data:`OUTLIER_REACH`
-    ranges beyond the :data:`OUTLIER_SHARE` quantile: a curve without outliers keeps its own
-    limits. ``also`` are values the scale must show (a measured value, zero)."""
+    far they reach. A sample is beyond only when it lies more than :data:`OUTLIER_REACH`
+    ranges beyond the :data:`OUTLIER_SHARE` quantiles: every other sample stays inside, and a
+    panel without such samples keeps matplotlib's own limits. ``also`` are values the scale
+    must show (a measured value, zero)."""
     values = np.concatenate([v[np.isfinite(v)] for v, _ in curves]) if curves else np.zeros(0)
     if values.size < 20:
         return
     lo, hi = (float(q) for q in np.quantile(values, [OUTLIER_SHARE, 1.0 - OUTLIER_SHARE]))
-    vmin, vmax = float(values.min()), float(values.max())
     reach = OUTLIER_REACH * max(hi - lo, 1e-9 * max(abs(lo), abs(hi), 1e-30))
-    cut_low, cut_high = vmin < lo - reach, vmax > hi + reach
-    if not (cut_low or cut_high):
-        return
-    bottom = min(lo if cut_low else vmin, *also)
-    top = max(hi if cut_high else vmax, *also)
+    inside = values[(values >= lo - reach) & (values <= hi + reach)]
+    bottom, top = min([float(inside.min()), *also]), max([float(inside.max()), *also])
+    vmin, vmax = float(values.min()), float(values.max())
+    if bottom <= vmin and vmax <= top:
+        return  # nothing far out (or what is, a measured value shows anyway)
     margin = 0.08 * max(top - bottom, reach)
     bottom, top = bottom - margin, top + margin
     ax.set_ylim(bottom, top)
@@ -260,8 +260,10 @@ def _robust_limits(
                 outside += int(beyond.sum())
                 ax.plot(t[beyond], np.full(int(beyond.sum()), edge), linestyle="none", marker=marker,
                         color=color, markersize=7, clip_on=False, zorder=5)  # fmt: skip
-    ax.plot([], [], linestyle="none", marker="v", color="0.3",
-            label=f"{outside} sample(s) beyond the scale,\non its edge ({vmin:.3g} to {vmax:.3g} {unit})")  # fmt: skip
+    reaching = [f"down to {vmin:.3g}"] if vmin < bottom else []
+    reaching += [f"up to {vmax:.3g}"] if vmax > top else []
+    ax.plot([], [], linestyle="none", marker="v" if vmin < bottom else "^", color="0.3",
+            label=f"{outside} sample(s) beyond the scale,\non its edge ({' and '.join(reaching)} {unit})")  # fmt: skip
 
 
 def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
@@ -339,10 +341,10 @@ def _draw_drift(ax: Axes, t: np.ndarray, um: Any, columns: BudgetColumns) -> Non
     also = [0.0]
     if columns.measured_drift_m is not None and t.size:
         measured = columns.measured_drift_m * _UM_PER_M
-        by = f", {columns.measured_by}" if columns.measured_by else ""
+        by = f" ({columns.measured_by})" if columns.measured_by else ""
         ax.axhline(measured, color=_MEASURED_COLOR, linestyle=":", linewidth=1.2)
         ax.plot([t[-1]], [measured], color=_MEASURED_COLOR, marker="*", markersize=12, linestyle="none",
-                label=f"measured drift at the end{by}:\n{measured:+.1f} µm", zorder=6)  # fmt: skip
+                label=f"measured drift{by}:\n{measured:+.1f} µm at the end", zorder=6)  # fmt: skip
         also.append(measured)
     ax.axhline(0.0, color="0.6", linewidth=0.6)
     ax.set_ylabel("displacement (µm)")
