@@ -140,17 +140,18 @@ def test_a_missing_build_tool_is_named_with_its_debian_package_in_one_line(
     assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").glob("*.fmu"))
 
 
-def test_ninja_builds_where_make_is_missing(tmp_path: Path) -> None:
+def test_ninja_builds_where_make_is_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from twin.fmu.build import build_fmu
     from twin.fmu.toolchain import generator_flags
 
-    path = _path_with(tmp_path, ["cc", "c++", "ninja"])
-    old = os.environ.get("PATH", "")
-    try:
-        os.environ["PATH"] = path
-        assert generator_flags() == ["-G", "Ninja"]
-    finally:
-        os.environ["PATH"] = old
     assert generator_flags() == []  # make is on the real PATH: cmake's default
+    # the compilers, their assembler and linker, ninja and cmake: no make
+    monkeypatch.setenv("PATH", _path_with(tmp_path, ["cc", "gcc", "c++", "g++", "as", "ld", "ninja"]))
+    for name in ("CC", "CXX", "CMAKE_GENERATOR"):
+        monkeypatch.delenv(name, raising=False)
+    assert generator_flags() == ["-G", "Ninja"]
+    fmu = build_fmu("SignalSource", tmp_path / "out")
+    assert "binaries/linux64/SignalSource.so" in zipfile.ZipFile(fmu).namelist()
 
 
 def test_the_readme_names_every_package_the_check_asks_for() -> None:
