@@ -48,6 +48,10 @@ def _columns() -> BudgetColumns:
         true_wear="mechanics.wear_depth_true",
         cycles="oscillation.cycles",
         wear_limit_m=1.52e-4,
+        # what only a scenario gives (a factor off, a replayed experiment): through JSON too
+        disabled=("fluctuating",),
+        measured_drift_m=-2.1e-5,
+        measured_by="Li et al. 2017",
     )
 
 
