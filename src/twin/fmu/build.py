@@ -39,6 +39,7 @@ from twin.fmu.toolchain import (
     digest_file,
     find_tools,
     private_cache_dir,
+    progress,
     run_cmake,
 )
 
@@ -187,6 +188,8 @@ def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug:
     m = model(model_name, src)
     files = m.files()
     find_tools()  # before any work: a missing tool is the one thing to report
+    # one line per model, terminal or not: a first build is seconds of silence per FMU
+    progress(f"building FMU {model_name} (first use of its sources)")
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"twin-build-{model_name}-") as tmp:
         tree, build_dir = Path(tmp) / "fmu", Path(tmp) / "build"
