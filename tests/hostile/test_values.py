@@ -98,3 +98,24 @@ def test_a_1_ns_step_is_refused_by_the_tick_bound(tmp_path: Path) -> None:
     path = _scenario(tmp_path, 'step = "1 ns"')
     line = one_line(twin("validate", str(path)))
     assert "scenario.step: 1 ns over 2 h is 7.2e+12 steps, more than the 1e+09" in line, line
+
+
+@pytest.mark.parametrize(
+    ("room", "said"),
+    [
+        ("input.nope.x", "no profile drives nope.x in scenario"),
+        ("thermal", "expected 'input.<instance>.<variable>'"),
+    ],
+)
+def test_a_heldout_room_key_is_checked_before_any_tester_runs(tmp_path: Path, room: str, said: str) -> None:
+    shipped = REPO / "scenarios" / "validation" / "heldout.toml"
+    text = shipped.read_text().replace('room = "input.thermal.t_room"', f'room = "{room}"', 1)
+    text = text.replace('"../', f'"{shipped.parent.parent}/').replace(
+        '"testers-as-built', f'"{shipped.parent}/testers-as-built'
+    )
+    path = tmp_path / "heldout.toml"
+    path.write_text(text)
+    started = time.perf_counter()
+    line = one_line(twin("heldout", str(path), "--testers", "1", "--out", str(tmp_path / "ho")))
+    assert time.perf_counter() - started < 60 and not (tmp_path / "ho").exists()
+    assert "heldout.room" in line and said in line, line
