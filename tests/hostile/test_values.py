@@ -119,3 +119,24 @@ def test_a_heldout_room_key_is_checked_before_any_tester_runs(tmp_path: Path, ro
     line = one_line(twin("heldout", str(path), "--testers", "1", "--out", str(tmp_path / "ho")))
     assert time.perf_counter() - started < 60 and not (tmp_path / "ho").exists()
     assert "heldout.room" in line and said in line, line
+
+
+def test_unknown_geometry_keys_are_refused_before_any_file_is_written(tmp_path: Path) -> None:
+    import shutil
+
+    folder = tmp_path / "scenarios"
+    shutil.copytree(REPO / "scenarios" / "base", folder / "base")
+    geometry = folder / "base" / "tester-geometry.toml"
+    text = geometry.read_text().replace(
+        "[surfaces]\n", '[surfaces]\nh_convecton = { value = 5.0, source = "typo" }\n', 1
+    )
+    geometry.write_text(text + "\n[bogus_table]\nx = 1\n")
+    derived = {p.name: p.read_bytes() for p in (folder / "base").glob("geometry-*.toml")}
+    proc = twin("geometry", "--scenarios", str(folder))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert lines == [
+        f"twin: {geometry}: bogus_table.x: unknown key",
+        f"twin: {geometry}: surfaces.h_convecton: unknown key (did you mean 'surfaces.h_convection'?)",
+    ]
+    assert {p.name: p.read_bytes() for p in (folder / "base").glob("geometry-*.toml")} == derived

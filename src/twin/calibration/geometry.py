@@ -293,7 +293,11 @@ def derived_file(scenarios_dir: Path, model: str) -> Path:
 def write_derived_files(scenarios_dir: Path) -> list[Path]:
     """Write every derived parameter file; returns their paths."""
     out = []
-    for model, params in derive(load_geometry(scenarios_dir)).items():
+    geometry = load_geometry(scenarios_dir)
+    derived = derive(geometry)
+    positions(geometry)
+    geometry.check_unread()  # a misspelt or unknown key: refused before any file is written
+    for model, params in derived.items():
         path = derived_file(scenarios_dir, model)
         path.write_text(derived_file_text(model, params), encoding="utf-8")
         out.append(path)
