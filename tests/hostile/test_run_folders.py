@@ -298,3 +298,12 @@ def test_compensate_template_on_a_file_is_bad_input(tmp_path: Path) -> None:
     target.write_text("x")
     line = one_line(twin("compensate", "--template", str(target)))
     assert "--template" in line and str(target) in line, line
+
+
+def test_a_crafted_override_in_run_json_is_said_of_run_json(killed: Path) -> None:
+    meta = json.loads((killed / "run.json").read_text())
+    (killed / "run.json").write_text(json.dumps({**meta, "overrides": ["scenario.bogus=1"]}))
+    before = _snapshot(killed)
+    line = one_line(twin("resume", str(killed), "--quiet"))
+    assert line.startswith(f"twin: {killed / 'run.json'}: overrides of ") and "scenario.bogus" in line, line
+    assert _snapshot(killed) == before

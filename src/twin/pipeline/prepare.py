@@ -241,7 +241,7 @@ def prepare_resume(
         meta = folder.resumable()
         folder.refuse_completed()
         experiment = Experiment.from_json(meta.experiment, str(folder.file(RUN_FILE)))
-        scenario = load_scenario(Path(meta.scenario), list(meta.overrides), experiment)
+        scenario = _resumed_scenario(meta.scenario, meta.overrides, experiment, folder.file(RUN_FILE))
         plan = make_plan(scenario)
         evaluation = evaluation_config(scenario)
         every = meta.checkpoint_every_ns
@@ -286,6 +286,29 @@ def prepare_resume(
         folder.unlock()
         raise
     return prepared
+
+
+def _resumed_scenario(
+    path: str, overrides: Sequence[str], experiment: Experiment, run_file: Path
+) -> Scenario:
+    """The scenario a resumed run was started with. Its overrides come from run.json, not the
+    command line: when the file loads without them and not with them, the problems are said
+    of run.json's overrides (a crafted or stale run.json), not of a ``--set`` never typed."""
+    try:
+        return load_scenario(Path(path), list(overrides), experiment)
+    except ConfigError as exc:
+        if not overrides:
+            raise
+        try:
+            load_scenario(Path(path), [], experiment)
+        except ConfigError:
+            raise exc from None  # the scenario itself has problems: said of it
+        problems = getattr(exc, "problems", [exc])
+        said = [
+            ConfigError(e.message or str(e), source=f"{run_file}: overrides of {path}", key=e.key)
+            for e in problems
+        ]
+        raise (said[0] if len(said) == 1 else ConfigErrors(said)) from None
 
 
 #: the signal files a run may write besides signals.csv (``--format``)
