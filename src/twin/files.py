@@ -1,8 +1,8 @@
 """Files written whole or not at all, and never through a link planted in an output folder.
 
-Every write of the twin goes through this module. A file written whole goes through a hidden
-temporary file beside the target, created exclusively (``O_EXCL | O_NOFOLLOW``, a unique
-name), then renamed over the target: a symbolic link in the target's place is replaced, never
+Every file a command writes into an output folder goes through this module. A file written
+whole goes through a hidden temporary file beside the target, created exclusively
+(``O_EXCL | O_NOFOLLOW``, a unique name), then renamed over the target: a symbolic link in the target's place is replaced, never
 followed. A file written in place (a run's signals.csv as it grows, its lock, fmi.log) is
 opened by :func:`open_output` with ``O_NOFOLLOW``: a link there is refused with one line (exit
 2), as is anything but a regular file (a FIFO would block, a device would swallow the run).

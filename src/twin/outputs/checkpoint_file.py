@@ -121,7 +121,7 @@ class _Archive:
     """The parts of a checkpoint's zip archive, read one by one with their sizes checked.
 
     ``np.savez`` stores its members uncompressed: a compressed member (a deflate bomb whose
-    1 MB inflate to gigabytes) is refused from its header, and every member's size is checked
+    1 MB inflates to gigabytes) is refused from its header, and every member's size is checked
     against the limits and its own ``.npy`` header before its bytes are read."""
 
     def __init__(self, zf: zipfile.ZipFile, source: str) -> None:
@@ -195,7 +195,8 @@ def _depth(x: Any) -> int:
     return deepest
 
 
-def _manifest(archive: _Archive, source: str) -> dict[str, Any]:
+def _manifest_bytes(archive: _Archive, source: str) -> bytes:
+    """The manifest's bytes, at most :data:`MAX_MANIFEST_BYTES`, checked by their SHA-256."""
     for key in ("manifest", "manifest_sha256"):
         if key not in archive.files:
             raise CheckpointError(f"not a twin checkpoint (no {key})", source=source)
@@ -207,10 +208,16 @@ def _manifest(archive: _Archive, source: str) -> dict[str, Any]:
         raise CheckpointError(
             "the manifest's SHA-256 does not match: the file was changed or damaged", source=source
         )
-    # the parser recurses: a crafted 100 000-deep manifest ends in RecursionError, refused
+    return text
+
+
+def _manifest(archive: _Archive, source: str) -> dict[str, Any]:
+    text = _manifest_bytes(archive, source)
     try:
         manifest = json.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError):
+    except RecursionError:  # the parser recurses: a crafted 100 000-deep manifest ends here
+        raise CheckpointError(f"manifest nested more than {MAX_DEPTH} deep", source=source) from None
+    except (UnicodeDecodeError, ValueError):
         raise CheckpointError("malformed manifest", source=source) from None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         raise CheckpointError("not a twin checkpoint", source=source)
