@@ -45,7 +45,6 @@ os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd=off,re_sdk::recordi
 import rerun as rr  # after RUST_LOG is set
 import rerun.blueprint as rrb
 
-from twin.files import refuse_links
 from twin.outputs.sink import ClosesOnExit
 from twin.signals.table import Signal, SignalTable
 
@@ -179,10 +178,6 @@ class RecordingWriter(ClosesOnExit):
         # An explicit stream (not rr.init's global one) with a fresh id: several recordings
         # can be written from one process without mixing.
         self._rec: rr.RecordingStream | None = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        # rerun opens the file by name, following a link: one planted there is refused, and an
-        # earlier file removed, so that rerun makes a new one (twin.files)
-        refuse_links(self.path.parent, [self.path.name])
-        self.path.unlink(missing_ok=True)
         self._rec.save(
             self.path, default_blueprint=_blueprint(self.signals, self.paths, budget, scene is not None)
         )
