@@ -140,3 +140,11 @@ def test_unknown_geometry_keys_are_refused_before_any_file_is_written(tmp_path: 
         f"twin: {geometry}: surfaces.h_convecton: unknown key (did you mean 'surfaces.h_convection'?)",
     ]
     assert {p.name: p.read_bytes() for p in (folder / "base").glob("geometry-*.toml")} == derived
+
+
+def test_a_misspelt_drift_window_in_lab_toml_is_named_with_its_close_match(lab: Path, tmp_path: Path) -> None:
+    config = tmp_path / "LAB.toml"
+    config.write_text((lab / "LAB.toml").read_text().replace("drift_window = ", "drift_windw = ", 1))
+    proc = twin("compensate", str(lab / "lab.csv"), "--config", str(config), "--out", str(tmp_path / "out"))
+    line = one_line(proc)
+    assert "errormodel.drift_windw: unknown key (did you mean 'drift_window'?)" in line, line

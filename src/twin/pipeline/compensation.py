@@ -252,7 +252,7 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
                 window_s = window_ns / NS_PER_S
             em.pop("drift_window")
         p.check()
-    return errormodel_config(model_defaults(), em, source, window_s), source
+    return errormodel_config(model_defaults(), em, source, window_s, also=("drift_window",)), source
 
 
 @dataclass(frozen=True)
