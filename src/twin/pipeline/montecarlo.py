@@ -45,6 +45,7 @@ import numpy as np
 from twin.config.reader import Problems
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
+from twin.files import write_atomic
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
 from twin.uncertainty.spreads import calibrated_rows, merge_rows
@@ -191,8 +192,8 @@ def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
 
     frame = pd.DataFrame.from_records(list(rows))
     parts = sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))
-    frame.reindex(columns=[*SAMPLE_COLUMNS, *parts]).to_csv(path, index=False)
-    return path
+    frame = frame.reindex(columns=[*SAMPLE_COLUMNS, *parts])
+    return write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))  # never through a link
 
 
 def line(summary: Mapping[str, Any]) -> str | None:

@@ -23,6 +23,8 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from twin.files import write_atomic
+
 DPI = 100
 #: at most this many inputs get a scatter panel (the most correlated ones)
 MAX_PANELS = 12
@@ -35,9 +37,11 @@ def _figure(width: float, height: float) -> Figure:
 
 
 def _save(fig: Figure, path: Path) -> Path:
+    """Whole or not at all, and a link planted at ``path`` replaced, not written through."""
     fig.tight_layout()
-    fig.savefig(path, format="png", dpi=DPI, metadata={"Software": None})
-    return path
+    return write_atomic(
+        path, lambda tmp: fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
+    )
 
 
 def _short(name: str) -> str:

@@ -15,6 +15,7 @@ from typing import Any
 
 from twin.cosim.controls import RunControls
 from twin.errors import ConfigError
+from twin.files import output_dir, refuse_links, write_bytes_atomic
 from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
 from twin.pipeline.point import point_task
 from twin.pipeline.prepare import prepare_scenario
@@ -25,14 +26,16 @@ from twin.sweep.spec import Spec
 
 #: called after every point: (points done, of which failed, total)
 Progress = Callable[[int, int, int], None]
+#: the figures a sweep draws (twin.sweep.plots)
+_FIGURES = ("sensitivity.png", "scatter.png", "histogram.png")
 
 
 def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
-    folder = out / "runs" / f"point-{index:06d}"
-    folder.mkdir(parents=True, exist_ok=True)
+    output_dir(out / "runs")  # a runs/ link planted in the output folder is refused
+    folder = output_dir(out / "runs" / f"point-{index:06d}")
     for name, data in files.items():
         if Path(name).name == name:  # a plain file name: nothing lands outside the folder
-            (folder / name).write_bytes(data)
+            write_bytes_atomic(folder / name, data)
 
 
 class _Collector:
@@ -141,6 +144,9 @@ def run_sweep(
         "points": len(design),
         "fingerprint": fingerprint(design),
     }
+    # a link planted where the sweep writes (a figure, its table, runs/) is refused before
+    # any point runs: the twin writes nothing through one (twin.files)
+    refuse_links(out, ("runs", "sweep.json", "results.parquet", "results.csv", "summary.json", *_FIGURES))
     store = ResultStore(out, design.names, meta, resume=options.resume)
     todo = [i for i in range(len(design)) if i not in store.done]
     collector = _Collector(spec, design, store, out)

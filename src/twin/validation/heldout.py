@@ -78,22 +78,43 @@ class HeldOut:
     goals: Mapping[str, float] = field(default_factory=dict)
 
 
-def _loads(p: Problems, key: str, path: Path, sets: Sequence[str]) -> None:
+def _loads(p: Problems, key: str, path: Path, sets: Sequence[str]) -> Scenario | None:
     """The problems of a scenario file the held-out file names, loaded with its overrides as
-    every tester's run will be: found before any tester runs, not by every tester's worker."""
+    every tester's run will be: found before any tester runs, not by every tester's worker.
+    The scenario, or None when it has problems."""
     from twin.pipeline.prepare import prepare_scenario
 
     try:
-        prepare_scenario(load_scenario(path, list(sets)))
+        scenario = load_scenario(path, list(sets))
+        prepare_scenario(scenario)
+        return scenario
     except ConfigError as exc:
         problems = getattr(exc, "problems", [exc])
         first = problems[0]
         where = ": ".join(x for x in (path.name, first.key) if x)
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         p.add(key, f"{where}: {first.message or first}{more}")
+        return None
 
 
-def _scenarios(p: Problems, folder: Path, raw: Any) -> list[HeldOutScenario]:
+def _check_room(p: Problems, room: Any, loaded: Sequence[tuple[str, Scenario]]) -> str:
+    """``heldout.room``: ``input.<instance>.<variable>``, a profile of every held-out scenario
+    (its drift is added to that profile): checked before any tester runs."""
+    if not isinstance(room, str) or not room.startswith("input.") or room.count(".") != 2:
+        p.add("heldout.room", f"expected 'input.<instance>.<variable>' (a profile's key), got {room!r}")
+        return str(room)
+    target = room.split(".", 1)[1]
+    for name, scenario in loaded:
+        if not any(pr.target == target for pr in scenario.profiles):
+            known = ", ".join(f"input.{pr.target}" for pr in scenario.profiles) or "none"
+            p.add("heldout.room", f"no profile drives {target} in scenario {name!r} (its profiles: {known})")
+            break
+    return room
+
+
+def _scenarios(
+    p: Problems, folder: Path, raw: Any, loaded: list[tuple[str, Scenario]]
+) -> list[HeldOutScenario]:
     if not isinstance(raw, list) or not raw:
         p.add("scenario", "expected at least one [[scenario]]")
         return []
@@ -106,11 +127,11 @@ def _scenarios(p: Problems, folder: Path, raw: Any) -> list[HeldOutScenario]:
         p.unknown_keys(s, _SCENARIO_KEYS, f"{where}.")
         path = (folder / s["file"]).resolve()
         sets = p.strings(s, "set", f"{where}.")
+        name = s.get("name", path.stem)
         if not path.is_file():
             p.add(f"{where}.file", f"no such file {s['file']!r}")
-        else:
-            _loads(p, f"{where}.file", path, sets)
-        name = s.get("name", path.stem)
+        elif (scenario := _loads(p, f"{where}.file", path, sets)) is not None:
+            loaded.append((str(name), scenario))
         thermal = p.boolean(s, "thermal_only", f"{where}.", default=False)
         out.append(HeldOutScenario(str(name), path, sets, thermal))
     names = [s.name for s in out]
@@ -142,15 +163,21 @@ def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     p.unknown_keys(goals_raw, set(GOAL_KEYS), "goals.")
     goals = {k: p.number(goals_raw, k, "goals.", lo=0.0) for k in GOAL_KEYS if k in goals_raw}
     count = {"testers": testers} if testers is not None else h
+    loaded: list[tuple[str, Scenario]] = []
+    scenarios = tuple(_scenarios(p, folder, raw.get("scenario"), loaded))
+    room_drift = p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0
+    room = h.get("room", "input.thermal.t_room")
+    if room_drift > 0:  # the room's key is used only to drift it
+        room = _check_room(p, room, loaded)
     cfg = HeldOut(
         path=path,
         spreads=spreads,
         testers=p.integer(count, "testers", "heldout.", default=50, lo=1, hi=10**6),
         seed=p.integer(h, "seed", "heldout.", default=0, lo=0, hi=2**63 - 1),
-        room=str(h.get("room", "input.thermal.t_room")),
-        room_drift_K=p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0,
+        room=str(room),
+        room_drift_K=room_drift,
         calibration=calibration,
-        scenarios=tuple(_scenarios(p, folder, raw.get("scenario"))),
+        scenarios=scenarios,
         goals={k: v for k, v in goals.items() if v is not None},
     )
     p.check()
