@@ -261,12 +261,12 @@ def load_scenario(
 def _load_scenario(path: Path, overrides: Sequence[str], experiment: Experiment | None) -> Scenario:
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
+    if experiment is not None:
+        experiment.set_times(data)
     if path.suffix == ".ssp":  # what an archive may leave to the command line (its step)
         from twin.config.ssp import finish_ssp_data
 
         finish_ssp_data(data, str(path))
-    if experiment is not None:
-        experiment.set_times(data)
     scenario = load_scenario_data(data, str(path), path.resolve().parent)
     return experiment.drive(scenario) if experiment is not None else scenario
 

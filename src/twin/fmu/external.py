@@ -1,11 +1,15 @@
 """FMUs the twin did not build: any FMI 2.0 co-simulation ``.fmu`` a scenario names by path.
 
 A scenario's ``model = "filters/lowpass.fmu"`` (relative to the scenario file) names one. Before
-the run it is checked as fmpy checks an FMU (``fmpy validate``: the modelDescription against the
-schema and its rules), and it must be FMI 2.0, offer co-simulation and carry a binary for this
-platform; every problem is one line naming the file. Its SHA-256 is taken when it is checked,
-and the file is hashed again before it is unpacked and loaded: a file replaced between the check
-and the run is refused (the twin never loads a binary it has not checked).
+the run it is checked (:func:`check`): a regular file, a zip whose members pass
+:mod:`twin.fmu.safezip` (names, kinds, sizes; every member unpacked once, so a damaged one is
+found), a modelDescription.xml in UTF-8 or UTF-16 without a document type, checked as fmpy
+checks an FMU (``fmpy validate``), FMI 2.0 with co-simulation, a ``modelIdentifier`` that is a
+plain C name, and a library for this platform whose headers say it can be loaded
+(:mod:`twin.fmu.library`); every problem is one line naming the file. Its SHA-256 is taken when
+it is checked; to be loaded the file is copied into the process's private folder and hashed as
+it is copied, and only a copy with the checked SHA-256 is unpacked (:func:`unpack`): the
+library loaded is the member that was checked, never a file outside the FMU.
 
 Within the twin an external model's name is its resolved path (it ends in ``.fmu``, which no
 built-in model's name does), so :mod:`twin.fmu.catalog` answers its variables and its file.
@@ -66,10 +70,9 @@ class ExternalFMU:
 
 def check(path: str | Path) -> ExternalFMU:
     """Check the FMU file ``path`` (see the module); one :class:`ConfigError` line otherwise."""
-    path = Path(path).resolve()
-    with open_regular(path, str(path), _WHAT, MAX_FMU_BYTES) as f:
+    with open_regular(Path(path), str(path), _WHAT, MAX_FMU_BYTES) as f:  # named as given
         st = os.fstat(f.fileno())
-    return _check(path, st.st_size, st.st_mtime_ns)
+    return _check(Path(path).resolve(), st.st_size, st.st_mtime_ns)
 
 
 def _sha256(f: BinaryIO) -> str:

@@ -331,6 +331,8 @@ def safe_xml(data: bytes, what: str, source: str) -> tuple[bytes, Any]:
     if declared not in (None, family):
         raise ConfigError(f"{what}: declares {declared} but is encoded in {family}", source=source)
     text = _DECLARATION.sub("", text.lstrip("\ufeff"), count=1)
+    if "<!DOCTYPE" in text:  # before parsing: an entity it declares may stop the parse first
+        raise ConfigError(f"{what}: XML with a document type declaration is not read", source=source)
     utf8 = text.encode("utf-8")
     parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False)
     try:
