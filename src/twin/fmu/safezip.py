@@ -69,6 +69,7 @@ RATIO_FLOOR = 1 << 20
 MAX_PART_BYTES = 255
 MAX_NAME_BYTES = 1024
 
+_METHODS = {zipfile.ZIP_BZIP2: "bzip2", zipfile.ZIP_LZMA: "LZMA"}
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
@@ -132,13 +133,12 @@ def _kind_problem(info: zipfile.ZipInfo) -> str | None:
             return "not a regular file (a device, FIFO or socket)"
     if info.flag_bits & 0x1:
         return "encrypted"
-    if info.compress_type not in (
-        zipfile.ZIP_STORED,
-        zipfile.ZIP_DEFLATED,
-        zipfile.ZIP_BZIP2,
-        zipfile.ZIP_LZMA,
-    ):
-        return f"packed with compression method {info.compress_type}, which the twin does not read"
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        # FMI 2.0 (and SSP, which packs as FMI does) allows these two only; zipfile hands a bzip2
+        # or LZMA decompressor a whole block at once, so a few KB of it unpack gigabytes in
+        # memory before any size could be counted
+        method = _METHODS.get(info.compress_type, f"compression method {info.compress_type}")
+        return f"packed with {method}: FMUs and SSP archives are packed with deflate or stored"
     return None
 
 
