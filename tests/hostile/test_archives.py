@@ -429,12 +429,15 @@ def test_a_fifo_or_a_device_is_refused_at_once(kind: str, suffix: str, tmp_path:
         os.mkfifo(path)
     else:
         path.symlink_to("/dev/zero")
-    done = subprocess.run(
-        [sys.executable, "-m", "twin", "validate", str(path)], capture_output=True, text=True, timeout=60
-    )
-    lines = done.stderr.strip().splitlines()
-    assert done.returncode == 2 and len(lines) == 1, done.stderr
-    assert str(path) in lines[0] and "is not a regular file" in lines[0], lines[0]
+    out = tmp_path / "out"
+    for args in (["validate", str(path)], ["run", str(path), "--out", str(out), "--quiet"]):
+        done = subprocess.run(
+            [sys.executable, "-m", "twin", *args], capture_output=True, text=True, timeout=60
+        )
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2 and len(lines) == 1, done.stderr
+        assert str(path) in lines[0] and "is not a regular file" in lines[0], lines[0]
+    assert not out.exists()
 
 
 # ---------------------------------------------------------------------------------- SSP archives
