@@ -404,6 +404,16 @@ def test_headers_that_lie_are_caught_from_the_headers_and_while_unpacking(
     assert code == 2 and len(lines) == 1 and f"more than {safezip.MAX_UNPACKED_BYTES >> 20} MB" in lines[0], (
         lines
     )
+    # a header claiming 10 MB packed into 200 MB (a ratio of 20) in a file of a few hundred bytes
+    claims = _write(tmp_path / "packed.fmu", [("resources/r", b"x" * 100)], zipfile.ZIP_STORED)
+    data = bytearray(claims.read_bytes())
+    at = data.find(b"PK\x01\x02")
+    data[at + 20 : at + 28] = (10 << 20).to_bytes(4, "little") + (200 << 20).to_bytes(4, "little")
+    claims.write_bytes(bytes(data))
+    code, lines = _cli(["validate", str(claims)], capsys)
+    assert (
+        code == 2 and len(lines) == 1 and "its headers claim 10485760 packed bytes in a file of" in lines[0]
+    ), lines
     # a header that says 1 000 bytes of a member that unpacks to 800 KB: never more than it said
     small = tmp_path / "small.zip"
     with zipfile.ZipFile(small, "w", zipfile.ZIP_DEFLATED) as zf:

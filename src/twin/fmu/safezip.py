@@ -188,6 +188,7 @@ def check_members(zf: zipfile.ZipFile, source: str) -> list[zipfile.ZipInfo]:
         total += m.file_size
     if total > MAX_UNPACKED_BYTES:
         raise ConfigError(f"unpacks to {total} bytes, more than {MAX_UNPACKED_BYTES >> 20} MB", source=source)
+    _packed_within(zf, members, source)
     for name in seen:
         parts = name.split("/")
         for k in range(1, len(parts)):
@@ -197,6 +198,24 @@ def check_members(zf: zipfile.ZipFile, source: str) -> list[zipfile.ZipInfo]:
                     f"member {name!r} lies in {folder!r}, which is a file of the archive", source=source
                 )
     return members
+
+
+def _packed_within(zf: zipfile.ZipFile, members: list[zipfile.ZipInfo], source: str) -> None:
+    """The packed sizes the headers claim fit in the file, one after another: a header claiming
+    more (to pass the ratio) or members sharing their bytes (a bomb of overlapping members,
+    each unpacking the same data) are refused."""
+    fp = zf.fp
+    if fp is None:
+        return
+    here = fp.tell()
+    size = fp.seek(0, io.SEEK_END)
+    fp.seek(here)
+    packed = sum(m.compress_size for m in members)
+    if packed > size or any(m.header_offset + m.compress_size > size for m in members):
+        raise ConfigError(
+            f"its headers claim {packed} packed bytes in a file of {size}: members overlap or lie",
+            source=source,
+        )
 
 
 def _damaged(info: zipfile.ZipInfo, exc: BaseException, source: str) -> ConfigError:

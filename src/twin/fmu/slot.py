@@ -127,11 +127,13 @@ def file_key(path: Path) -> tuple[str, int, int]:
 
 class Loaded(NamedTuple):
     """What an instance of an FMU file loads: its description, the folder fmpy is given as the
-    unpacked FMU (its ``resources/`` are there, had it any) and its library."""
+    unpacked FMU (its ``resources/`` are there, had it any), its library, and whether the FMU
+    is from elsewhere (a library that does not load is then bad input)."""
 
     description: Description
     unzipdir: str
     library: str
+    foreign: bool = False
 
 
 @functools.cache
@@ -167,16 +169,16 @@ def _loaded(path: Path) -> Loaded:
     (:func:`twin.fmu.catalog.fmu` has just verified it) loads its library from the cache, where
     it was taken out once and is checked against its recorded SHA-256 for every instance
     (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last
-    instance is freed, so each instance opens the file anew. Any other FMU is unpacked."""
+    instance is freed, so each instance opens the file anew. Any other FMU is unpacked
+    (:func:`twin.fmu.external.unpack`)."""
     from twin.fmu.build import built_library
 
     key = file_key(path)
-    description = _description(key)
     library = built_library(path)
     if library is not None:
-        return Loaded(description, str(library.parent), str(library))
-    unpacked = _unpacked(key)
-    return Loaded(description, str(unpacked.folder), str(unpacked.library))
+        return Loaded(_description(key), str(library.parent), str(library))
+    unpacked = _unpacked(key)  # the description, as the library, is that of the bytes checked
+    return Loaded(external.check(path).description, str(unpacked.folder), str(unpacked.library), foreign=True)
 
 
 class FMU2SlaveTyped(FMU2Slave):
@@ -209,7 +211,7 @@ class FMU2SlaveTyped(FMU2Slave):
             self._functions[name] = c_fun
 
 
-def _load(fmu_path: Path, description: Description, unzipdir: str, library: str, name: str) -> FMU2SlaveTyped:
+def _load(fmu_path: Path, loaded: Loaded, name: str) -> FMU2SlaveTyped:
     """fmpy's binding of ``library``, loaded. A library the loader or fmpy refuses (a missing
     dependency, a missing function: :mod:`twin.fmu.library` checked its headers before) is one
     line naming the FMU file, a :class:`ConfigError` for an FMU from elsewhere (bad input) and a
@@ -218,18 +220,18 @@ def _load(fmu_path: Path, description: Description, unzipdir: str, library: str,
     cwd = os.getcwd()
     try:
         return FMU2SlaveTyped(
-            guid=description.guid,
-            unzipDirectory=unzipdir,
-            modelIdentifier=description.model_identifier,
+            guid=loaded.description.guid,
+            unzipDirectory=loaded.unzipdir,
+            modelIdentifier=loaded.description.model_identifier,
             instanceName=name,
-            libraryPath=library,
+            libraryPath=loaded.library,
         )
     except Exception as exc:  # fmpy raises Exception and AttributeError for a library it cannot bind
-        why = " ".join(str(exc).split()).replace(f"Failed to load shared library {library}. ", "")
+        why = " ".join(str(exc).split()).replace(f"Failed to load shared library {loaded.library}. ", "")
         if isinstance(exc, AttributeError):
             why = f"a function is missing ({why})"
         why = why[:300]
-        if external.is_external(str(fmu_path)):
+        if loaded.foreign:
             raise ConfigError(f"cannot load its library: {why}", source=str(fmu_path)) from None
         raise RunError(f"{fmu_path}: cannot load its library: {why}") from None
     finally:
@@ -250,12 +252,13 @@ class FMUSlot:
         self, fmu_path: Path, instance_name: str, log: Callable[[str, str, str, str], None] | None = None
     ) -> None:
         self.name = instance_name
-        self.description, self.unzipdir, self.library = _loaded(Path(fmu_path))
+        loaded = _loaded(Path(fmu_path))
+        self.description, self.unzipdir, self.library = loaded.description, loaded.unzipdir, loaded.library
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self._log = log
         self.time = 0.0
-        self._slave = _load(Path(fmu_path), self.description, self.unzipdir, self.library, instance_name)
+        self._slave = _load(Path(fmu_path), loaded, instance_name)
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
         dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
         self._set_real = dll.fmi2SetReal
