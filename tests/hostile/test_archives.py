@@ -482,7 +482,10 @@ SSP_CASES: dict[str, tuple[Callable[[Path, Path], Path], str]] = {
     ),
     "climbing-name": (lambda p, f: _ssp(p, f, extra=[("../../escaped", b"x")]), "a '..' in its name"),
     "colon-name": (lambda p, f: _ssp(p, f, extra=[("c:x", b"x")]), "a colon in its name"),
-    "dot-name": (lambda p, f: _ssp(p, f, extra=[(".", b"x")]), "an empty name"),
+    "dot-name": (
+        lambda p, f: _ssp(p, f, extra=[(".", b"x")]),
+        "member '.': an empty or '.' part in its name",
+    ),
     "300-characters": (lambda p, f: _ssp(p, f, extra=[(LONG, b"x")]), "longer than 255 bytes"),
     "file-and-folder": (
         lambda p, f: _ssp(p, f, extra=[("zz", b"x"), ("zz/inner", b"y")]),

@@ -100,7 +100,7 @@ def open_regular(path: Path, source: str, what: str, limit: int = MAX_ARCHIVE_BY
 
 def _name_problem(name: str) -> str | None:
     """What is wrong with a member's name, None when it is a plain relative path."""
-    if not name or name in ("/", "."):
+    if not name:
         return "an empty name"
     if name.startswith(("/", "\\")):
         return "an absolute path (it would land outside the archive's folder)"
