@@ -591,6 +591,27 @@ def test_an_ssp_refused_after_it_was_unpacked_leaves_no_copy_in_the_cache(
     assert not list((cache_dir() / "ssp").glob(f".{_unpacked(ssp).name}.*"))
 
 
+def test_an_ssp_whose_fmu_refuses_its_parameter_leaves_no_copy_in_the_cache(
+    tmp_path: Path, lowpass_fmu: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Refused only when the FMU is initialized (LowPass, its declared minimum of T taken out,
+    refuses T <= 0 in fmi2ExitInitializationMode): the copy the archive was unpacked to goes too."""
+    binding = (
+        "<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>"
+        '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="p">'
+        '<ssv:Parameters><ssv:Parameter name="T"><ssv:Real value="-1.0"/></ssv:Parameter></ssv:Parameters>'
+        "</ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"
+    )
+    ssd = _ssd().replace(
+        'source="resources/LowPass.fmu"/>', f'source="resources/LowPass.fmu">{binding}</ssd:Component>'
+    )
+    unbounded = _edit(lowpass_fmu, tmp_path / "LowPass.fmu", _md(lambda t: t.replace(' min="1e-6"', "")))
+    ssp = _ssp(tmp_path / "negative.ssp", unbounded, ssd.encode())
+    code, lines = _cli(["validate", str(ssp), "--step-size", "0.1"], capsys)
+    assert code == 2 and len(lines) == 1 and "T must be a positive finite time constant" in lines[0], lines
+    assert not _unpacked(ssp).exists()
+
+
 def test_a_sound_archive_of_the_same_shape_runs(
     tmp_path: Path, lowpass_fmu: Path, capsys: pytest.CaptureFixture
 ) -> None:
