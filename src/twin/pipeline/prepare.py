@@ -161,9 +161,13 @@ def prepare(
     plots = PlotProcess.started() if options.folder else None  # imports matplotlib meanwhile
     try:
         prepared = _prepare(source, overrides, options, controls, plots)
-    except BaseException:
+    except BaseException as exc:
         if plots is not None:
             plots.close()
+        if isinstance(exc, ConfigError) and isinstance(source, (str, Path)) and str(source).endswith(".ssp"):
+            from twin.config.ssp import discard_unpacked
+
+            discard_unpacked(Path(source))  # refused (its FMUs refuse their parameters): no copy stays
         raise
     prepared.started = started
     return prepared
