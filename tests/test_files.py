@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from twin.errors import ConfigError
-from twin.files import open_output, output_dir, refuse_links, write_text_atomic
+from twin.files import write_text_atomic
+from twin.outputs.guard import open_output, output_dir, refuse_links
 
 
 def test_open_output_refuses_a_link_and_a_fifo_and_writes_a_regular_file(tmp_path: Path) -> None:

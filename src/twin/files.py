@@ -1,13 +1,9 @@
-"""Files written whole or not at all, and never through a link planted in an output folder.
+"""Files written whole or not at all, and never through a link planted where they go.
 
-Every file a command writes into an output folder goes through this module. A file written
-whole goes through a hidden temporary file beside the target, created exclusively
-(``O_EXCL | O_NOFOLLOW``, a unique name), then renamed over the target: a symbolic link in the target's place is replaced, never
-followed. A file written in place (a run's signals.csv as it grows, its lock, fmi.log) is
-opened by :func:`open_output` with ``O_NOFOLLOW``: a link there is refused with one line (exit
-2), as is anything but a regular file (a FIFO would block, a device would swallow the run).
-:func:`refuse_links` says the same for a whole folder's outputs before anything runs, and
-:func:`output_dir` makes a folder that is not a link.
+A file written whole goes through a hidden temporary file beside the target, created
+exclusively (``O_EXCL | O_NOFOLLOW``, a unique name), then renamed over the target: a symbolic
+link in the target's place is replaced, never followed. (A file written in place, and the
+folders outputs go to, are guarded by :mod:`twin.outputs.guard`.)
 
 A reader (or a run that resumes) then sees the old file or the new one, never a cut one: a
 full disk, a kill or a failing writer leaves at most the hidden ``.<name>.<pid>.<random>.tmp``
@@ -18,105 +14,21 @@ through :func:`write_atomic`.
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import os
-import stat
 import uuid
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Literal
-
-from twin.errors import ConfigError
 
 __all__ = [
-    "open_output",
-    "output_dir",
-    "read_text_capped",
-    "refuse_links",
+    "NOFOLLOW",
     "temporary_name",
     "write_atomic",
     "write_bytes_atomic",
     "write_text_atomic",
 ]
 
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
-_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
-_LINK = "is a symbolic link: the twin writes no file through a link (remove it, or choose another folder)"
-
-
-def _link_error(path: Path) -> ConfigError:
-    return ConfigError(_LINK, source=str(path))
-
-
-def refuse_links(folder: Path, names: Iterable[str]) -> None:
-    """Refuse (one line, exit 2) when one of the files ``names`` in ``folder`` is a symbolic
-    link: said before a command runs, not found when it writes there."""
-    for name in names:
-        if (folder / name).is_symlink():
-            raise _link_error(folder / name)
-
-
-def output_dir(path: Path, option: str | None = None) -> Path:
-    """Make the folder ``path`` (and its parents) unless it is there; a symbolic link in its
-    place (a runs/ folder pointing elsewhere) is refused, not followed, and a file there or a
-    folder that cannot be made is one line (naming ``option`` when the user named the
-    folder). The parents are the user's choice (a link among them is the user's own)."""
-    where = f"{option} {path}" if option else str(path)
-    if path.is_symlink():
-        raise _link_error(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise ConfigError("is a file, expected a folder", source=where) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot be made: {exc.strerror}", source=where) from None
-    if path.is_symlink() or not path.is_dir():
-        raise ConfigError("is not a folder", source=where)
-    return path
-
-
-def open_output(path: str | os.PathLike[str], mode: Literal["w", "a", "r+"] = "w") -> IO[bytes]:
-    """Open ``path`` for writing in binary, never through a link: "w" empties it, "a" appends,
-    "r+" keeps it (read and write, a run's lock); made when missing. A symbolic link, a FIFO or
-    a device in its place is refused with one line (:class:`~twin.errors.ConfigError`)."""
-    path = Path(path)
-    access = os.O_RDWR if mode == "r+" else os.O_WRONLY
-    flags = access | os.O_CREAT | _NOFOLLOW | _CLOEXEC | os.O_NONBLOCK  # a FIFO does not block
-    if mode == "a":
-        flags |= os.O_APPEND
-    try:
-        fd = os.open(path, flags, 0o666)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP or path.is_symlink():
-            raise _link_error(path) from None
-        if exc.errno == errno.ENXIO:  # a FIFO nobody reads
-            raise ConfigError("is not a regular file", source=str(path)) from None
-        exc.filename = exc.filename or str(path)
-        raise
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise ConfigError("is not a regular file", source=str(path))
-        fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
-        if mode == "w":
-            os.ftruncate(fd, 0)
-    except BaseException:
-        os.close(fd)
-        raise
-    return os.fdopen(fd, {"w": "wb", "a": "ab", "r+": "r+b"}[mode])
-
-
-def read_text_capped(path: Path, limit: int) -> str:
-    """A small file the twin wrote itself (summary.json), read as UTF-8 without following a
-    link and at most ``limit`` bytes (ValueError beyond it, OSError when it cannot be read)."""
-    fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | os.O_NONBLOCK)
-    with os.fdopen(fd, "rb") as f:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise ValueError(f"{path} is not a regular file")
-        data = f.read(limit + 1)
-    if len(data) > limit:
-        raise ValueError(f"{path} holds more than {limit} bytes")
-    return data.decode("utf-8")
+#: open flags that never follow a link and never leak into a child process
+NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
 
 
 def temporary_name(path: Path) -> Path:
@@ -133,7 +45,7 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
     path = Path(path)
     tmp = temporary_name(path)
     try:
-        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o666))
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | NOFOLLOW, 0o666))
         write(tmp)
         os.replace(tmp, path)
     except BaseException as exc:
@@ -149,7 +61,7 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, sync: bool 
     rename makes them visible. The file gets the umask's permissions (not a private 0o600)."""
 
     def write(tmp: Path) -> None:
-        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | _NOFOLLOW | _CLOEXEC)
+        fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | NOFOLLOW)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             if sync:

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from twin.errors import CheckpointError
-from twin.files import open_output, write_atomic
+from twin.files import write_atomic
+from twin.outputs.guard import open_output
 
 FORMAT = "twin-checkpoint"
 VERSION = 1

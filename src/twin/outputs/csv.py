@@ -30,7 +30,7 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from twin.errors import ConfigError
-from twin.files import open_output
+from twin.outputs.guard import open_output
 from twin.outputs.sink import ClosesOnExit, OutcomeSink, Sink
 from twin.outputs.summary import write_summary
 from twin.signals.csv import TIME, _default_subsystem, read_table

@@ -17,7 +17,7 @@ import io
 from pathlib import Path
 from typing import IO
 
-from twin.files import open_output
+from twin.outputs.guard import open_output
 from twin.outputs.sink import ClosesOnExit
 
 __all__ = ["FmiLogFile"]

@@ -15,7 +15,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
-from twin.files import refuse_links
+from twin.outputs.guard import refuse_links
 from twin.outputs.sink import Outcome, Sink
 from twin.signals.table import Block, Signal
 

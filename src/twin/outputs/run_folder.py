@@ -37,8 +37,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from twin.errors import CheckpointError, ConfigError
-from twin.files import open_output, output_dir, read_text_capped, refuse_links, write_text_atomic
+from twin.files import write_text_atomic
 from twin.outputs import checkpoint_file
+from twin.outputs.guard import open_output, output_dir, read_text_capped, refuse_links
 
 if TYPE_CHECKING:
     from twin.outputs.plot_process import PlotProcess

@@ -24,8 +24,9 @@ from twin.errormodel.config import errormodel_config, input_columns, model_defau
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.streaming import CHUNK_ROWS, Block, StreamingEvaluation
 from twin.errors import ConfigError
-from twin.files import open_output, output_dir, refuse_links, write_text_atomic
+from twin.files import write_text_atomic
 from twin.outputs.csv import SignalsCsvWriter, units_sidecar_path
+from twin.outputs.guard import open_output, output_dir, refuse_links
 from twin.outputs.run_folder import (
     ERROR_BUDGET_PNG,
     ERRORMODEL_CSV,

@@ -15,7 +15,8 @@ from typing import Any
 
 from twin.cosim.controls import RunControls
 from twin.errors import ConfigError
-from twin.files import output_dir, refuse_links, write_bytes_atomic
+from twin.files import write_bytes_atomic
+from twin.outputs.guard import output_dir, refuse_links
 from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
 from twin.pipeline.point import point_task
 from twin.pipeline.prepare import prepare_scenario
