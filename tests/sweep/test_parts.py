@@ -106,11 +106,74 @@ def test_store_writes_complete_tables_and_resumes(tmp_path: Path) -> None:
     assert json.loads((tmp_path / META).read_text()) == meta
     with pytest.raises(ConfigError, match="already holds a sweep"):
         ResultStore(tmp_path, ["x"], meta, resume=False)
-    with pytest.raises(ConfigError, match="holds another design"):
+    with pytest.raises(ConfigError, match="holds another study"):
         ResultStore(tmp_path, ["x"], {"fingerprint": "other"}, resume=True)
     again = ResultStore(tmp_path, ["x"], meta, resume=True)
     assert again.done == {0, 1, 2}
     pd.testing.assert_frame_equal(again.table(), table)
+
+
+def _stored(folder: Path, inputs: dict[str, str]) -> dict[str, object]:
+    meta = {"fingerprint": "f", "inputs": inputs}
+    store = ResultStore(folder, ["x"], meta, resume=False, size=3)
+    store.start()
+    for i in range(2):
+        store.add(_row(i))
+    store.flush(force=True)
+    return meta
+
+
+def test_a_resume_names_every_input_that_changed(tmp_path: Path) -> None:
+    inputs = {"sweep.set": "a", "file base.toml": "b", "FMU sources": "c"}
+    meta = _stored(tmp_path, inputs)
+    assert ResultStore(tmp_path, ["x"], meta, resume=True, size=3).done == {0, 1}
+    for key in inputs:
+        other = {"fingerprint": "f", "inputs": inputs | {key: "changed"}}
+        with pytest.raises(
+            ConfigError, match=f"--resume: holds another study \\({key} changed since it ran\\)"
+        ):
+            ResultStore(tmp_path, ["x"], other, resume=True, size=3)
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda d: (d / META).write_text("{"), "sweep.json: not a sweep's record"),
+        (lambda d: (d / META).write_text("[]"), "sweep.json: not a sweep's record .a JSON list"),
+        (lambda d: (d / TABLE).write_bytes(b"garbage" * 10), "results.parquet: not a results table"),
+        (lambda d: pd.DataFrame({"point": [0], "seed": [1]}).to_parquet(d / TABLE), "no 'status' column"),
+        (lambda d: _table(d, [999, -1]), "point 999 is not a point of this study .0 to 2."),
+        (lambda d: _table(d, ["a", "b"]), "point 'a' is not a point of this study"),
+        (lambda d: _table(d, [1, 1]), "point 1 appears twice"),
+    ],
+)
+def test_a_damaged_folder_is_one_line_on_resume(tmp_path: Path, damage: object, message: str) -> None:
+    meta = _stored(tmp_path, {"design": "d"})
+    damage(tmp_path)  # type: ignore[operator]
+    with pytest.raises(ConfigError, match=message) as info:
+        ResultStore(tmp_path, ["x"], meta, resume=True, size=3)
+    assert "\n" not in str(info.value)
+
+
+def _table(folder: Path, points: list[object]) -> None:
+    rows = {"point": points, "seed": [0] * len(points), "x": [0.0] * len(points)}
+    rows |= {"status": ["ok"] * len(points), "error": [""] * len(points)}
+    pd.DataFrame(rows).to_parquet(folder / TABLE)
+
+
+def test_the_store_keeps_numbers_packed_not_a_dict_per_row(tmp_path: Path) -> None:
+    import tracemalloc
+
+    store = ResultStore(tmp_path, ["x"], {"fingerprint": "f"}, resume=False)
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    for i in range(20_000):
+        store.add(_row(i) | {f"f{k}": float(k) for k in range(20)})
+    grown = tracemalloc.get_traced_memory()[0] - before
+    tracemalloc.stop()
+    # 24 numbers a row at 8 bytes each, plus the point's index: a dict per row would be ~3 KB
+    assert grown / 20_000 < 400, grown / 20_000
+    assert store.table()["f3"].sum() == 3.0 * 20_000
 
 
 def test_store_writes_at_most_about_once_a_second(tmp_path: Path) -> None:

@@ -40,8 +40,8 @@ class _Collector:
 
     def __init__(self, spec: Spec, design: Design, store: ResultStore, out: Path) -> None:
         self.spec, self.design, self.store, self.out = spec, design, store, out
-        self.total, self.done = len(design), len(store.rows)
-        self.failed = sum(1 for r in store.rows.values() if r["status"] != "ok")
+        self.total, self.done = len(design), len(store)
+        self.failed = store.count_failed()
         self.run = 0
         self.point_s = 0.0
         self.peak_rss_mb: dict[int, float] = {}
@@ -105,6 +105,26 @@ class _Collector:
         }
 
 
+def inputs(spec: Spec, design: Design) -> dict[str, str]:
+    """What decides a row, by name (:mod:`twin.pipeline.provenance`): the sweep file's fixed
+    overrides and outputs, the design (every point's values and seed), the base scenario's
+    files and the scenario they make, the code that runs a point. A resume with any of them
+    changed is refused, naming it."""
+    from twin.outputs.run_folder import scenario_fingerprint
+    from twin.pipeline.provenance import code_digests, digest, file_digests, scenario_files
+
+    return (
+        {
+            "sweep.set": digest(list(spec.fixed)),
+            "sweep.outputs": digest(list(spec.outputs)),
+            "design": fingerprint(design),
+        }
+        | file_digests(scenario_files(spec.scenario.source_path))
+        | {"base scenario": scenario_fingerprint(spec.scenario)[:16]}
+        | code_digests()
+    )
+
+
 class SweepInterrupted(Exception):
     """A sweep stopped by a signal (its name is the message); the finished points are kept."""
 
@@ -140,8 +160,9 @@ def run_sweep(
         "spec_file": str(spec.path),
         "points": len(design),
         "fingerprint": fingerprint(design),
+        "inputs": inputs(spec, design),
     }
-    store = ResultStore(out, design.names, meta, resume=options.resume)
+    store = ResultStore(out, design.names, meta, resume=options.resume, size=len(design))
     todo = [i for i in range(len(design)) if i not in store.done]
     collector = _Collector(spec, design, store, out)
     controls.echo(

@@ -60,6 +60,8 @@ _SWEEP_KEYS = {
     "vary_seed",
     "run_folders",
 }
+#: designs whose indices compare points: their points share the base's seed by default
+_SENSITIVITY = ("saltelli", "morris")
 _TOP_KEYS = {"sweep", "problem", "spread", "grid"}
 _PROBLEM_KEYS = {"names", "bounds", "dists", "groups", "num_vars"}
 #: designs whose sample size must be a power of two (a Sobol' sequence is balanced only then)
@@ -89,8 +91,10 @@ class Spec:
     main: str | None = None
     second_order: bool = False
     morris_levels: int = 4
-    vary_seed: bool = True
+    vary_seed: bool = False
     run_folders: bool = False
+    #: the fixed overrides (``set``) already applied to ``scenario``, as written
+    fixed: tuple[str, ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -130,7 +134,9 @@ def _sweep_table(p: Problems, raw: Mapping[str, Any], path: Path) -> dict[str, A
         "main": main,
         "second_order": p.boolean(sw, "second_order", "sweep.", default=False),
         "morris_levels": p.integer(sw, "levels", "sweep.", default=4, lo=2, hi=100),
-        "vary_seed": p.boolean(sw, "vary_seed", "sweep.", default=True),
+        # a sensitivity design compares points that differ in one key: a seed of their own
+        # would add its noise to every difference (common random numbers, unless asked)
+        "vary_seed": p.boolean(sw, "vary_seed", "sweep.", default=design not in _SENSITIVITY),
         "run_folders": p.boolean(sw, "run_folders", "sweep.", default=False),
     }
 
@@ -265,7 +271,8 @@ def load_spec(path: str | Path, base: Scenario | None = None) -> Spec:
     p.unknown_keys(raw, _TOP_KEYS, "")
     sw = _sweep_table(p, raw, path)
     p.check()
-    scenario = _base(path, raw, sw.pop("fixed"), base)
+    sw["fixed"] = tuple(sw["fixed"])
+    scenario = _base(path, raw, sw["fixed"], base)
     if sw["design"] == "grid":
         p.unknown_keys(raw, {"sweep", "grid"}, "")
         names, levels = _grid(p, p.table(raw, "grid"))
