@@ -1,4 +1,4 @@
-"""``twin sweep SPEC.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--resume] [--quiet]``:
+"""``twin sweep SPEC.toml [--out DIR] [--scheduler ADDRESS | --scheduler-file FILE] [--workers N] [--resume] [--quiet]``:
 a sweep, Monte Carlo or sensitivity analysis of a scenario on Dask.
 
 Exit codes as the rest of ``twin``: 0 done (failed points are results, not errors), 2 bad
@@ -39,6 +39,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         "--scheduler",
         metavar="ADDRESS",
         help="an existing Dask scheduler (tcp://host:8786); default: a local cluster",
+    )
+    p.add_argument(
+        "--scheduler-file",
+        metavar="FILE",
+        help="an existing Dask scheduler by its scheduler file (dask scheduler --scheduler-file FILE)",
     )
     p.add_argument(
         "--workers", type=_positive, metavar="N", help="workers of the local cluster (default: one per core)"
@@ -88,14 +93,15 @@ def command(args: argparse.Namespace) -> int:
     from twin.sweep.runner import SweepInterrupted, run_sweep, summary_line
     from twin.sweep.spec import load_spec
 
-    if args.scheduler is not None and args.workers is not None:
+    if (args.scheduler or args.scheduler_file) is not None and args.workers is not None:
         raise ConfigError("applies to the local cluster only, not with --scheduler", source="--workers")
+    scheduler = _scheduler(args)
     spec = load_spec(args.spec)
     out = Path(args.out) if args.out is not None else Path("sweeps") / spec.name
     check_output_folder(out, "--out")
     controls = RunControls(stop=stop_on_signals(), echo=(lambda _: None) if args.quiet else _print)
     with _progress_bar(args.quiet) as update:
-        options = StudyOptions(args.scheduler, args.workers, args.resume, update)
+        options = StudyOptions(scheduler, args.workers, args.resume, update)
         try:
             summary = run_sweep(spec, out, controls, options)
         except SweepInterrupted as name:
@@ -105,6 +111,20 @@ def command(args: argparse.Namespace) -> int:
             return EXIT_ON_SIGNAL.get(str(name), 130)
     controls.echo(summary_line(summary, out))
     return 0
+
+
+def _scheduler(args: argparse.Namespace) -> str | None:
+    """The existing scheduler's address, checked at once: its form, then that a Dask
+    scheduler answers there (within the connect and answer timeouts), before any Client."""
+    from twin.pipeline.cluster import check_scheduler, read_scheduler_file
+
+    if args.scheduler is not None and args.scheduler_file is not None:
+        raise ConfigError("give one of --scheduler and --scheduler-file, not both", source="--scheduler-file")
+    if args.scheduler_file is not None:
+        return check_scheduler(
+            read_scheduler_file(args.scheduler_file), f"--scheduler-file {args.scheduler_file}"
+        )
+    return None if args.scheduler is None else check_scheduler(args.scheduler)
 
 
 def _print(line: str) -> None:
