@@ -18,7 +18,7 @@ from twin.pipeline import RunSummary, Timing, prepare_scenario, run_point, shipp
 from twin.pipeline.cluster import MAX_BATCH, TASK_SECONDS, TASKS_PER_THREAD_LEFT, _Batcher
 from twin.pipeline.point import figures, point_task
 from twin.pipeline.results import CSV, META, TABLE, ResultStore
-from twin.sweep.analysis import indices, statistics
+from twin.sweep.analysis import indices, rank_correlations, statistics
 from twin.sweep.spec import Spec
 
 
@@ -233,12 +233,42 @@ def test_morris_ranks_a_known_function() -> None:
     assert found["mu_star"]["x3"] == pytest.approx(0.0)
 
 
-def test_indices_need_every_point() -> None:
-    spec, table = _linear_spec("saltelli", 8)
+@pytest.mark.parametrize("design", ["saltelli", "morris"])
+def test_failed_points_take_their_block_out_and_are_named(design: str) -> None:
+    spec, table = _linear_spec(design, 512 if design == "saltelli" else 20)
     table.loc[3, "status"] = "failed"
-    assert "skipped" in indices(spec, table, ["y"], len(table))["y"]
-    spec, table = _linear_spec("saltelli", 8)
-    assert "skipped" in indices(spec, table.iloc[:-1], ["y"], len(table))["y"]
+    table.loc[3, "y"] = np.nan
+    found = indices(spec, table.iloc[:-1], ["y"], len(table))["y"]  # the last point did not run
+    assert found["failed_points"] == [3, len(table) - 1]
+    n = len(table) // (5 if design == "saltelli" else 4)
+    assert found["blocks_used"] == f"{n - 2} of {n}"
+    if design == "saltelli":
+        assert found["S1"]["x1"] == pytest.approx(16 / 17, abs=0.06)
+    else:
+        assert found["mu_star"]["x1"] == pytest.approx(4.0)
+
+
+def test_indices_are_skipped_naming_the_points_only_without_two_whole_blocks() -> None:
+    spec, table = _linear_spec("saltelli", 2)
+    table.loc[[1, 7], "status"] = "failed"
+    found = indices(spec, table, ["y"], len(table))["y"]
+    assert found["skipped"].startswith("points 1, 7 failed or gave no value: 0 of 2 whole blocks left")
+
+
+def test_pawn_ranks_a_two_sided_driver_that_spearman_misses() -> None:
+    """y = (x1 - 0.5)^2 + 0.05 x2: x1 drives y at both ends of its range, its rank correlation
+    is about zero; PAWN ranks it first, far above the dummy's noise floor, x3 (unused) not."""
+    from twin.sweep.analysis import pawn_indices
+
+    spec, table = _linear_spec("lhs", 400)
+    table["point"] = range(len(table))
+    table["y"] = (table["x1"] - 0.5) ** 2 + 0.05 * table["x2"]
+    ranks = rank_correlations(table, spec.names, "y")
+    assert abs(ranks["x1"]) < 0.15 and abs(ranks["x2"]) > abs(ranks["x1"])
+    found = pawn_indices(spec, table, "y")
+    assert max(found["pawn"], key=found["pawn"].get) == "x1"
+    assert found["pawn"]["x1"] > 3 * found["pawn_dummy"]
+    assert found["pawn"]["x3"] < 2 * found["pawn_dummy"]
 
 
 # ------------------------------------------------------------------------------ shipping

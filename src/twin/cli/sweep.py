@@ -49,15 +49,48 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         "--workers", type=_positive, metavar="N", help="workers of the local cluster (default: one per core)"
     )
     flag(p, "--resume", "complete the sweep in --out: run only the missing points")
-    flag(p, "--quiet", "no progress bar, no messages")
+    flag(p, "--quiet", "no progress bar or lines, no messages")
     return p
+
+
+#: seconds between two progress lines without a terminal
+LINE_EVERY_S = 10.0
+
+
+def _progress_lines() -> Callable[[int, int, int], None]:
+    """Without a terminal (a batch job's log, a pipe): a plain line on stderr every
+    :data:`LINE_EVERY_S` and at the last point (done of total, failed, rate, time left)."""
+    import time
+
+    state = {"start": 0.0, "first": 0, "last": 0.0}
+
+    def update(done: int, n_failed: int, total: int) -> None:
+        now = time.monotonic()
+        if not state["start"]:
+            state.update(start=now, first=done - 1, last=now)
+        if now - state["last"] < LINE_EVERY_S and done < total:
+            return
+        state["last"] = now
+        rate = (done - state["first"]) / max(now - state["start"], 1e-9)
+        left = f", about {(total - done) / rate:.0f} s left" if rate > 0 and done < total else ""
+        print(
+            f"points: {done}/{total} done, {n_failed} failed, {rate:.1f} points/s{left}",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return update
 
 
 @contextmanager
 def _progress_bar(quiet: bool) -> Iterator[Callable[[int, int, int], None] | None]:
-    """A tqdm bar on a terminal (points done, failed, rate, ETA); nothing otherwise."""
-    if quiet or not sys.stderr.isatty():
+    """A tqdm bar on a terminal (points done, failed, rate, ETA), plain lines otherwise
+    (:func:`_progress_lines`); nothing with ``--quiet``."""
+    if quiet:
         yield None
+        return
+    if not sys.stderr.isatty():
+        yield _progress_lines()
         return
     import shutil
 

@@ -110,6 +110,8 @@ class ResultStore:
         self._dirty = False
         self._last = 0.0
         self._interval = 1.0
+        #: the folder held this study already (``--resume``): its outputs were checked then
+        self.resumed = False
         self._read(resume)
 
     def _read(self, resume: bool) -> None:
@@ -135,6 +137,7 @@ class ResultStore:
                 source=str(self.out),
                 key="--resume",
             )
+        self.resumed = True
         if (self.out / TABLE).is_file():
             for row in self._read_table().to_dict("records"):
                 self._rows.put(row)
@@ -176,6 +179,17 @@ class ResultStore:
         self.out.mkdir(parents=True, exist_ok=True)
         text = json.dumps(self.meta, indent=2) + "\n"
         write_atomic(self.out / META, lambda p: p.write_text(text, encoding="utf-8"))
+
+    def discard(self) -> None:
+        """Remove what :meth:`start` and :meth:`flush` wrote into a fresh folder (a sweep
+        refused after it started leaves nothing that blocks the corrected one); a resumed
+        folder is left as it is."""
+        if self.resumed:
+            return
+        for name in (META, TABLE, CSV):
+            (self.out / name).unlink(missing_ok=True)
+        self._rows = _Columns()
+        self._dirty = False
 
     @property
     def done(self) -> set[int]:

@@ -14,12 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from twin.cosim.controls import RunControls
-from twin.errors import ConfigError
+from twin.errors import ConfigError, did_you_mean
 from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
 from twin.pipeline.point import point_task
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.results import ResultStore
 from twin.pipeline.shipping import BinariesPlugin, collect
+from twin.sweep.analysis import named_points
 from twin.sweep.design import Design, fingerprint, make_design
 from twin.sweep.spec import Spec
 
@@ -54,7 +55,12 @@ class _Collector:
 
     def take(self, record: Record) -> None:
         if record["status"] == "ok" and not self.checked:
-            self._check_outputs(record)
+            try:
+                check_outputs(self.spec, record["figures"])
+            except ConfigError:
+                self.store.discard()  # the corrected sweep file runs into the same --out
+                raise
+            self.checked = True
         if record.get("files"):
             _write_folder(self.out, record["index"], record["files"])
         self.store.add(self._row(record))
@@ -75,18 +81,6 @@ class _Collector:
         row.update(zip(self.design.names, self.design.rows[i], strict=True))
         row.update(figures)
         return row
-
-    def _check_outputs(self, record: Record) -> None:
-        """The first finished point shows whether the outputs the sweep file names exist."""
-        missing = [k for k in self.spec.outputs if k not in record["figures"]]
-        if missing:
-            known = ", ".join(sorted(record["figures"]))
-            raise ConfigError(
-                f"no figure {missing[0]!r} (the figures are: {known})",
-                source=str(self.spec.path),
-                key="sweep.outputs",
-            )
-        self.checked = True
 
     def timing(self, threads: int) -> dict[str, Any]:
         elapsed = time.perf_counter() - self.start
@@ -125,6 +119,40 @@ def inputs(spec: Spec, design: Design) -> dict[str, str]:
     )
 
 
+def check_outputs(spec: Spec, figures: Iterable[str]) -> None:
+    """The outputs (and main output) the sweep file names are among a point's ``figures``."""
+    known = set(figures)
+    for key, wanted in [("sweep.outputs", o) for o in spec.outputs] + [("sweep.main", spec.main)]:
+        if wanted is not None and wanted not in known:
+            raise ConfigError(
+                f"no figure {wanted!r}{did_you_mean(wanted, known)} (the figures are: {', '.join(sorted(known))})",
+                source=str(spec.path),
+                key=key,
+            )
+
+
+def _probe(
+    spec: Spec, todo: list[int], payload: Callable[[int], Payload | Record], controls: RunControls
+) -> bool:
+    """Run the first point that can run here, before the cluster starts, and check the
+    outputs the sweep file names against its figures (a misspelt output is bad input, found
+    before anything is written). True when checked; False when that point failed (the first
+    point that finishes on the cluster is checked instead)."""
+    from twin.pipeline.point import figures
+    from twin.pipeline.stages import run_point
+
+    for i in todo[:8]:
+        item = payload(i)
+        if "status" in item:
+            continue
+        summary = run_point(item["run"], controls)
+        if summary.status != "completed":
+            return False
+        check_outputs(spec, figures(summary))
+        return True
+    return False
+
+
 class SweepInterrupted(Exception):
     """A sweep stopped by a signal (its name is the message); the finished points are kept."""
 
@@ -149,7 +177,7 @@ def run_sweep(
     """
     from twin.outputs.summary import write_summary
     from twin.sweep.analysis import summarise
-    from twin.sweep.plots import draw_all
+    from twin.sweep.plots import draw_all, labels
 
     design = make_design(spec)
     base = prepare_scenario(spec.scenario)  # the error model's configuration, checked once
@@ -163,7 +191,8 @@ def run_sweep(
         "inputs": inputs(spec, design),
     }
     store = ResultStore(out, design.names, meta, resume=options.resume, size=len(design))
-    todo = [i for i in range(len(design)) if i not in store.done]
+    done = store.done
+    todo = [i for i in range(len(design)) if i not in done]
     collector = _Collector(spec, design, store, out)
     controls.echo(
         f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}"
@@ -177,6 +206,8 @@ def run_sweep(
         return {"index": i, "run": point, "folders": spec.run_folders}
 
     threads = 0
+    if todo and (spec.outputs or spec.main) and not store.resumed:
+        collector.checked = _probe(spec, todo, payload, controls)
     if not todo:
         store.start()
     try:
@@ -195,7 +226,8 @@ def run_sweep(
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
-    draw_all(out, spec.design, table, design.names, summary)
+    names = labels(design.names, list(summary["outputs"]), spec.scenario)
+    draw_all(out, spec.design, table, design.names, summary, names)
     return summary
 
 
@@ -238,8 +270,13 @@ def summary_line(summary: dict[str, Any], out: Path) -> str:
         f"sweep {summary['sweep']}: {summary['points']} points, {summary['ok']} ok, {summary['failed']} failed"
         f" ({t['points_run']} run in {t['elapsed_s']:.1f} s)"
     )
+    if summary["failed"]:
+        line += f"; failed points: {named_points(summary['failed_points'])} (errors in results.csv)"
     main = summary.get("main_output")
     stats = summary["outputs"].get(main, {}) if main else {}
     if stats.get("n"):
         line += f"; {main}: median {stats['q50']:.4g}, 5-95 % [{stats['q05']:.4g}, {stats['q95']:.4g}]"
+    skipped = summary.get("indices", {}).get(main, {}).get("skipped") if main else None
+    if skipped:
+        line += f"; no indices: {skipped}"
     return f"{line}; outputs: {out}"
