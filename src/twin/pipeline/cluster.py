@@ -139,6 +139,28 @@ def open_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
             cluster.close()
 
 
+#: Dask's developer logs, each a deque of the last N messages per connection, process and
+#: kind: the client's and the scheduler's keep every message they sent (a point's task, its
+#: prepared run of some 30 KB, among them) and a worker every task it was given. At Dask's
+#: 1000 a long sweep's client grew by ~90 KB a point until each log filled (some 500 MB) and
+#: its workers by ~13 KB a point; ten keep them small and flat. The system monitor's
+#: history is cut from an hour to a minute. Read when the client, the scheduler and the
+#: workers start (a local cluster's workers inherit it; an existing scheduler keeps its own).
+BOUNDED_LOGS = {
+    "distributed.admin.low-level-log-length": 10,
+    "distributed.admin.system-monitor.log-length": 120,
+}
+
+
+def bounded_logs() -> Any:
+    """Dask's configuration with :data:`BOUNDED_LOGS`, for the life of a study's cluster
+    (``with bounded_logs(), open_client(...)``)."""
+    import dask
+    import distributed  # noqa: F401 (its defaults join dask's config first, not inside the set)
+
+    return dask.config.set(BOUNDED_LOGS)
+
+
 # ------------------------------------------------------------------ an existing scheduler
 
 #: seconds to open a connection to an existing scheduler (and exchange Dask's handshake)

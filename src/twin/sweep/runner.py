@@ -15,7 +15,16 @@ from typing import Any
 
 from twin.cosim.controls import RunControls
 from twin.errors import ConfigError, did_you_mean
-from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
+from twin.pipeline.cluster import (
+    Payload,
+    Record,
+    StudyOptions,
+    bounded_logs,
+    execute,
+    failed,
+    one_line,
+    open_client,
+)
 from twin.pipeline.point import point_task
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.results import ResultStore
@@ -212,7 +221,7 @@ def run_sweep(
         store.start()
     try:
         if todo:
-            with open_client(options.scheduler, options.workers) as client:
+            with bounded_logs(), open_client(options.scheduler, options.workers) as client:
                 threads = _announce(client, controls.echo, local=options.scheduler is None)
                 client.register_plugin(BinariesPlugin(collect()))
                 store.start()

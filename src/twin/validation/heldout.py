@@ -335,7 +335,7 @@ def run_heldout(
     tester as it finishes."""
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.summary import write_summary
-    from twin.pipeline.cluster import execute, failed, one_line, open_client
+    from twin.pipeline.cluster import bounded_logs, execute, failed, one_line, open_client
     from twin.pipeline.results import ResultStore
     from twin.pipeline.shipping import BinariesPlugin, collect
 
@@ -365,7 +365,7 @@ def run_heldout(
             return failed(i, one_line(exc)) | {"rows": []}
 
     start = time.perf_counter()
-    with open_client(options.scheduler, options.workers) as client:
+    with bounded_logs(), open_client(options.scheduler, options.workers) as client:
         threads = max(1, sum(client.nthreads().values()))
         controls.echo(
             f"heldout: {cfg.testers} testers x {len(cfg.scenarios)} scenarios on {threads} workers; results in {out}"
