@@ -9,6 +9,7 @@
     seed = 7                            # design and per-point seeds derive from it
     set = ['scenario.duration = "1 h"'] # fixed overrides of the base (--set syntax, applied first)
     outputs = ["compensation.residual_rms_um.before"]   # summary figures kept (default: all)
+    vary_seed = false                   # one seed for every point (default for saltelli, morris)
 
     [problem]                           # SALib's problem dict, one to one
     names = ["input.thermal.t_room.amplitude", "fmu.hydraulic.parameters.load_amplitude"]
