@@ -186,8 +186,13 @@ def scatter_png(path: Path, table: pd.DataFrame, keys: list[str], main: str, nam
         return _save(fig, path)
 
 
-def histogram_png(path: Path, values: pd.Series, main: str, label: str) -> Path:
-    """The distribution of ``main`` over the finished points, with its 5/50/95 % quantiles."""
+def histogram_png(path: Path, values: pd.Series, label: str) -> Path:
+    """The distribution of an output over the finished points, with its 5/50/95 % quantiles."""
+    return _save(histogram_figure(values, label), path)
+
+
+def histogram_figure(values: pd.Series, label: str) -> Figure:
+    """The figure of :func:`histogram_png` (``label``: the output's axis label)."""
     v = values.to_numpy(dtype=float)
     v = v[np.isfinite(v)]
     with matplotlib.style.context("default"):
@@ -201,7 +206,8 @@ def histogram_png(path: Path, values: pd.Series, main: str, label: str) -> Path:
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count of points is whole
         ax.set_title(f"{v.size} points; 5, 50 and 95 % quantiles in red", fontsize="medium")
         ax.grid(True, linewidth=0.3)
-        return _save(fig, path)
+        fig.tight_layout()
+        return fig
 
 
 def ranking(design: str, summary: dict[str, Any], names: list[str]) -> tuple[str, dict[str, Any], list[str]]:
@@ -240,5 +246,5 @@ def draw_all(
     drawn = [scatter_png(out / "scatter.png", table, order, main, names)]
     if found:
         drawn.append(sensitivity_png(out / "sensitivity.png", kind, found, main, names))
-    drawn.append(histogram_png(out / "histogram.png", table[main], main, names.get(main, main)))
+    drawn.append(histogram_png(out / "histogram.png", table[main], names.get(main, main)))
     return drawn
