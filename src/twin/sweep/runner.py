@@ -217,6 +217,9 @@ def run_sweep(
     threads = 0
     if todo and (spec.outputs or spec.main) and not store.resumed:
         collector.checked = _probe(spec, todo, payload, controls)
+    collector.checked |= store.resumed  # its outputs were checked when it began
+    if controls.stopped():  # a signal during the first point: no cluster to start
+        raise SweepInterrupted(str(controls.stopped()))
     if not todo:
         store.start()
     try:
