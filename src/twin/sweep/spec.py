@@ -41,7 +41,7 @@ from typing import Any
 from twin.config.load import load_scenario
 from twin.config.reader import Problems, read_toml, unsafe_name
 from twin.config.spec import Scenario
-from twin.errors import ConfigError
+from twin.errors import ConfigError, ConfigErrors
 from twin.uncertainty.spreads import Row, centre, check_dist, ends, problem, spread_rows
 
 __all__ = ["DESIGNS", "MAX_POINTS", "Spec", "load_spec", "point_count"]
@@ -252,7 +252,7 @@ def _base(path: Path, raw: Mapping[str, Any], fixed: Sequence[str], base: Scenar
         return base
     base_path = (path.resolve().parent / raw["sweep"]["base"]).resolve()
     try:
-        return load_scenario(base_path, fixed)
+        scenario = load_scenario(base_path)
     except ConfigError as exc:
         if exc.source != str(base_path) or exc.key is not None:
             raise
@@ -260,6 +260,21 @@ def _base(path: Path, raw: Mapping[str, Any], fixed: Sequence[str], base: Scenar
         raise ConfigError(
             f"{raw['sweep']['base']}: {exc.message}", source=str(path), key="sweep.base"
         ) from None
+    if not fixed:
+        return scenario
+    try:
+        return load_scenario(base_path, fixed)
+    except ConfigErrors as exc:  # the base loads alone: each problem is the set's
+        raise ConfigErrors([_in_set(e, path) for e in exc.problems]) from None
+    except ConfigError as exc:
+        raise _in_set(exc, path) from None
+
+
+def _in_set(exc: ConfigError, path: Path) -> ConfigError:
+    """A problem of the base scenario with the sweep's ``set`` applied (the base alone has
+    none): named where the override is written, ``sweep.set``."""
+    what = f"{exc.key}: {exc.message}" if exc.key else exc.message
+    return ConfigError(what, source=str(path), key="sweep.set")
 
 
 def load_spec(path: str | Path, base: Scenario | None = None) -> Spec:
