@@ -311,3 +311,22 @@ def test_a_workers_peak_memory_is_its_own_not_its_starters() -> None:
     done = subprocess.run([sys.executable, "-c", parent], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert 5.0 < float(done.stdout) < 150.0  # twin.pipeline.cluster and its imports: about 60 MB
+
+
+def test_a_points_run_folder_never_follows_a_planted_symlink(tmp_path: Path) -> None:
+    from twin.sweep.runner import _write_folder
+
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (out / "runs").symlink_to(outside)
+    with pytest.raises(ConfigError, match="runs: is a symbolic link"):
+        _write_folder(out, 3, {"summary.json": b"{}"})
+    assert list(outside.iterdir()) == []
+    (out / "runs").unlink()
+    folder = out / "runs" / "point-000003"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").symlink_to(outside / "victim.json")
+    _write_folder(out, 3, {"summary.json": b"{}", "../escape.txt": b"x"})
+    assert (folder / "summary.json").read_bytes() == b"{}" and not (folder / "summary.json").is_symlink()
+    assert list(outside.iterdir()) == [] and not (out / "runs" / "escape.txt").exists()

@@ -38,11 +38,18 @@ Progress = Callable[[int, int, int], None]
 
 
 def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
+    """A point's run folder under ``out/runs``; a symlink planted for ``runs``, the point's
+    folder or one of its files is refused or replaced, never followed out of ``out``."""
+    from twin.files import write_bytes_atomic
+
     folder = out / "runs" / f"point-{index:06d}"
-    folder.mkdir(parents=True, exist_ok=True)
+    for d in (folder.parent, folder):
+        if d.is_symlink():
+            raise ConfigError("is a symbolic link: a sweep writes only into its own folder", source=str(d))
+        d.mkdir(exist_ok=True)
     for name, data in files.items():
         if Path(name).name == name:  # a plain file name: nothing lands outside the folder
-            (folder / name).write_bytes(data)
+            write_bytes_atomic(folder / name, data)
 
 
 class _Collector:
