@@ -362,7 +362,7 @@ def run_heldout(
     tester as it finishes."""
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.summary import write_summary
-    from twin.pipeline.cluster import execute, failed, one_line, open_client
+    from twin.pipeline.cluster import bounded_logs, execute, failed, one_line, open_client
     from twin.pipeline.results import ResultStore
     from twin.pipeline.shipping import BinariesPlugin, collect
 
@@ -373,9 +373,14 @@ def run_heldout(
         "testers": cfg.testers,
         "seed": cfg.seed,
         "fingerprint": fingerprint(cfg),
+        "inputs": inputs(cfg),
     }
     store = ResultStore(
-        out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=options.resume
+        out,
+        ["tester", "scenario", "thermal_only", *testers.names],
+        meta,
+        resume=options.resume,
+        size=cfg.testers * len(cfg.scenarios),
     )
     todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
     timings: list[dict[str, float]] = []
@@ -387,7 +392,7 @@ def run_heldout(
             return failed(i, one_line(exc)) | {"rows": []}
 
     start = time.perf_counter()
-    with open_client(options.scheduler, options.workers) as client:
+    with bounded_logs(), open_client(options.scheduler, options.workers) as client:
         threads = max(1, sum(client.nthreads().values()))
         controls.echo(
             f"heldout: {cfg.testers} testers x {len(cfg.scenarios)} scenarios on {threads} workers; results in {out}"
@@ -423,11 +428,22 @@ def fingerprint(cfg: HeldOut) -> str:
     return h.hexdigest()[:16]
 
 
+def inputs(cfg: HeldOut) -> dict[str, str]:
+    """What decides the rows, by name (:mod:`twin.pipeline.provenance`): the number of
+    testers and the seed, the held-out and spreads files, every scenario and every file it
+    reads, the code that runs a tester; a resume with any of them changed is refused naming it."""
+    from twin.pipeline.provenance import code_digests, digest, file_digests, scenario_files
+
+    files = [cfg.path.resolve(), cfg.spreads.resolve()]
+    for s in cfg.scenarios:
+        files += [f for f in scenario_files(s.path) if f not in files]
+    return {"testers": digest(cfg.testers), "seed": digest(cfg.seed)} | file_digests(files) | code_digests()
+
+
 def _complete(store: Any, cfg: HeldOut, i: int) -> bool:
     """Tester ``i`` has an ok row for every scenario in the table already."""
     n = len(cfg.scenarios)
-    rows = [store.rows.get(i * n + j) for j in range(n)]
-    return all(r is not None and r["status"] == "ok" for r in rows)
+    return all(store.status(i * n + j) == "ok" for j in range(n))
 
 
 def _timing(
