@@ -165,17 +165,36 @@ def run_sweep(
                 client.register_plugin(BinariesPlugin(collect()))
                 store.start()
                 collector.started()
-                records = execute(client, todo, payload, task)
+                records = execute(client, todo, payload, task, controls.stop)
                 _take(records, collector, on_record, options.progress, controls)
+                if caught := controls.stopped():
+                    # before the cluster closes: its close takes seconds the command may not get
+                    store.flush(force=True)
+                    write_summary(out / "summary.json", interrupted(spec, collector, caught))
     finally:
         store.flush(force=True)
-    if controls.stopped():
-        raise SweepInterrupted(str(controls.stopped()))
+    if caught := controls.stopped():
+        if not todo:
+            write_summary(out / "summary.json", interrupted(spec, collector, caught))
+        raise SweepInterrupted(caught)
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
     draw_all(out, spec.design, table, design.names, summary)
     return summary
+
+
+def interrupted(spec: Spec, collector: _Collector, name: str) -> dict[str, Any]:
+    """The summary of a sweep a signal stopped: how far it came (its table holds those points;
+    ``twin sweep --resume`` runs the rest)."""
+    return {
+        "sweep": spec.name,
+        "status": "interrupted",
+        "error": f"interrupted by {name}",
+        "points": collector.total,
+        "done": collector.done,
+        "failed": collector.failed,
+    }
 
 
 def _take(
