@@ -46,6 +46,7 @@ def console() -> int:
     process it started is ended first."""
     code = main(own_process=True)
     if interrupt.caught() is not None:
+        interrupt.park()
         interrupt.end_children()
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):

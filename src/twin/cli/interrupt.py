@@ -30,6 +30,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from typing import Any
@@ -44,6 +45,7 @@ __all__ = [
     "install",
     "installed",
     "on_hard_exit",
+    "park",
     "record",
     "say",
 ]
@@ -51,7 +53,7 @@ __all__ = [
 #: a command stopped by a signal ends with the shell's code for it
 EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
 #: seconds a cooperative stretch has, after the first signal, to write its outputs and end
-GRACE_S = 2.5
+GRACE_S = 3.0
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -61,6 +63,7 @@ class _State:
         self.name: str | None = None
         self.said = False
         self.ending = False
+        self.ender: int | None = None  # the thread that ends the command
         self.depth = 0  # nesting of cooperative stretches
         self.hooks: list[Callable[[str], str | None]] = []
         self.where: str | None = None
@@ -90,6 +93,7 @@ def exit_code(name: str | None = None) -> int:
 def say(line: str | None = None) -> bool:
     """Print the command's one line about the interruption (``line``, or a plain one), unless
     it has been printed already; True when this call printed it."""
+    park()
     with _state.lock:
         if _state.said:
             return False
@@ -99,6 +103,13 @@ def say(line: str | None = None) -> bool:
     with suppress(OSError, ValueError):
         print(line, file=sys.stderr, flush=True)
     return True
+
+
+def park() -> None:
+    """Wait here for the end when another thread is ending the command: what this one would
+    print goes nowhere now, and its own exit must not come first."""
+    if _state.ending and _state.ender != threading.get_ident():
+        threading.Event().wait()
 
 
 def on_hard_exit(hook: Callable[[str], str | None], where: str | None = None) -> None:
@@ -150,7 +161,6 @@ def install() -> None:
     os.set_blocking(write, False)
     signal.set_wakeup_fd(write, warn_on_full_buffer=False)
     for signum in _SIGNALS:
-        # the Python-level handler: the watcher has acted already (its byte came first)
         signal.signal(signum, _ignore)
     threading.Thread(target=_watch, args=(read,), name="twin signals", daemon=True).start()
     # from here on every thread and process this one starts inherits the block
@@ -159,7 +169,8 @@ def install() -> None:
 
 
 def _ignore(signum: int, frame: object) -> None:
-    record(signum)  # the watcher's byte is read first; this only covers a lost one
+    """The main thread's Python-level handler: nothing to do (the watcher acts on the byte
+    the C-level handler wrote; recording here could win the race and leave it idle)."""
 
 
 def _watch(read: int) -> None:
@@ -190,6 +201,7 @@ def _hard_exit() -> None:
         if _state.ending:
             return
         _state.ending = True
+        _state.ender = threading.get_ident()
         hooks = list(_state.hooks)
     name = _state.name or "SIGINT"
     for stream in (sys.stdout, sys.stderr):
@@ -216,7 +228,7 @@ def _told(hook: Callable[[str], str | None], name: str) -> str | None:
 
 def _line() -> str:
     line = f"twin: interrupted by {_state.name or 'a signal'}"
-    if _state.where:
+    if _state.where and os.path.isdir(_state.where):  # not made yet: nothing was recorded
         line += f"; what was recorded so far is in {_state.where}"
     return line
 
@@ -244,15 +256,18 @@ def end_children() -> None:
     except ImportError:  # pragma: no cover
         return
     killed: list[Any] = []
-    for _ in range(5):
+    quiet = 0
+    for _ in range(40):  # a thread of this process may be starting one meanwhile: look again
         try:
             children = psutil.Process().children(recursive=True)
         except psutil.Error:
             break
-        if not children:
+        quiet = 0 if children else quiet + 1
+        if quiet == 3:
             break
         for child in children:
             with suppress(psutil.Error):
                 child.kill()
         killed += children
+        time.sleep(0.03)
     psutil.wait_procs(killed, timeout=1.0)

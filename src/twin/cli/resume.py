@@ -29,7 +29,7 @@ def command(args: argparse.Namespace) -> int:
     stop = stop_on_signals()
     out = Path(args.run_dir)
     with prepare_resume(out, RunOptions(reports=reports, started=started)) as prepared:
-        watch_folder(out, prepared.uncertainty is not None)
+        watch_folder(out, prepared.uncertainty is not None, prepared.scenario.name)
         with interrupt.cooperative(), progress_bar(args.quiet) as update:
             summary = run(prepared, RunControls(stop=stop, progress=update))
             return finish(summary, out, args.quiet, stop())

@@ -102,13 +102,13 @@ def command(args: argparse.Namespace) -> int:
             process.settle()
         assert prepared.folder is not None
         folder = prepared.folder.path
-        watch_folder(folder, prepared.uncertainty is not None)
+        watch_folder(folder, prepared.uncertainty is not None, prepared.scenario.name)
         with interrupt.cooperative(), progress_bar(args.quiet) as update:
             summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
             return finish(summary, folder, args.quiet, stop())
 
 
-def watch_folder(folder: Path, monte_carlo: bool) -> None:
+def watch_folder(folder: Path, monte_carlo: bool, scenario: str) -> None:
     """If the signal's watcher has to end the run itself (a stretch that did not stop in
     time, :mod:`twin.cli.interrupt`), the run folder's summary says "interrupted" and the one
     line says why."""
@@ -116,7 +116,7 @@ def watch_folder(folder: Path, monte_carlo: bool) -> None:
     from twin.pipeline.run import mark_interrupted
 
     def hard_exit(name: str) -> str | None:
-        why = mark_interrupted(folder, name, monte_carlo)
+        why = mark_interrupted(folder, name, monte_carlo, scenario)
         return f"twin: run {why}; everything recorded so far is in {folder}" if why else None
 
     interrupt.on_hard_exit(hard_exit, where=str(folder))

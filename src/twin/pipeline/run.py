@@ -133,12 +133,18 @@ def run_samples(
 _AFTER = "interrupted by {} after the run's outputs were written (they are complete)"
 
 
-def mark_interrupted(folder: Path, name: str, monte_carlo: bool) -> str | None:
+def mark_interrupted(folder: Path, name: str, monte_carlo: bool, scenario: str) -> str | None:
     """Make the run folder's summary.json say "interrupted" (by the signal ``name``) where it
-    says "completed" (the run's own outputs, before or during its ``monte_carlo``): what the signal's watcher does when it has to end a ``twin run`` itself (a
-    stretch that did not stop in time). A folder without a summary is left as it is. Returns
-    why the run is "interrupted" (None when its summary does not say so)."""
+    says "completed" (the run's own outputs, before or during its ``monte_carlo``), or write a
+    short one where the run had not written its own yet (as a failed run's, so the folder is
+    never left without one): what the signal's watcher does when it has to end a ``twin run``
+    itself (a stretch that did not stop in time). Returns why the run is "interrupted" (None
+    when its summary says it failed)."""
     path = folder / SUMMARY_JSON
+    if not path.exists():
+        why = f"interrupted by {name} while the run was under way (what it had recorded is kept)"
+        write_summary(path, {"scenario": scenario, "status": "interrupted", "error": why})
+        return why
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
