@@ -334,6 +334,8 @@ def execute(
     alone (:class:`_Tasks`), so the points beside a crashing one still finish and only the
     crashing one is recorded as failed.
     """
+    if stop is not None and stop() is not None:
+        return  # the cluster took its time to start: nothing is submitted any more
     tasks = _Tasks(client, indices, payload, task)
     yield from tasks.fill()
     for future in _completed(tasks.queue, stop):
