@@ -318,7 +318,7 @@ def test_ctrl_c_on_a_terminal_while_the_fmus_build_exits_130_and_writes_nothing(
     os.killpg(p.pid, signal.SIGINT)
     err = p.communicate(timeout=120)[1]
     assert p.returncode == 130, err
-    assert _one_line(err) == "twin: interrupted"
+    assert _one_line(err) == "twin: interrupted by SIGINT"
     assert not out.exists()  # the folder is made after the build
 
 

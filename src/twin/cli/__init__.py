@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -24,13 +25,14 @@ def main(argv: Sequence[str] | None = None, *, own_process: bool = False) -> int
     the twin imports). Whatever a command raises after a signal came is part of its stopping:
     the one line says "interrupted", the exit code is the signal's.
     """
-    if own_process:
-        interrupt.install()
-    else:
-        interrupt.reset()
     try:
+        if own_process:
+            interrupt.install()
+        else:
+            interrupt.reset()
         from twin.cli.parser import run_command
-    except KeyboardInterrupt:  # a program's own Ctrl-C (the watcher raises none)
+    except KeyboardInterrupt:  # before the watcher took the signals, or a program's own Ctrl-C
+        interrupt.record(signal.SIGINT)
         interrupt.say()
         return 130
     code = run_command(argv, own_process=own_process)

@@ -160,12 +160,13 @@ def install() -> None:
     read, write = os.pipe()
     os.set_blocking(write, False)
     signal.set_wakeup_fd(write, warn_on_full_buffer=False)
-    for signum in _SIGNALS:
-        signal.signal(signum, _ignore)
+    # a signal from here on reaches the watcher (its byte waits in the pipe until it reads)
     threading.Thread(target=_watch, args=(read,), name="twin signals", daemon=True).start()
     # from here on every thread and process this one starts inherits the block
     signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     _state.installed = True
+    for signum in _SIGNALS:
+        signal.signal(signum, _ignore)
 
 
 def _ignore(signum: int, frame: object) -> None:
