@@ -52,9 +52,9 @@ def command(args: argparse.Namespace) -> int:
     interrupt.on_hard_exit(lambda name: mark_study(out, interrupted(cfg, name)), where=str(out))
     with interrupt.cooperative():
         summary = run_heldout(cfg, out, controls, StudyOptions(args.scheduler, args.workers, args.resume))
-    if summary.get("status") == "interrupted":
-        interrupt.say(f"twin: heldout {summary['error']}; the testers that finished are in {out}")
-        return interrupt.exit_code()
+        if summary.get("status") == "interrupted":
+            interrupt.say(f"twin: heldout {summary['error']}; the testers that finished are in {out}")
+            return interrupt.exit_code()
     for line in report_lines(summary):
         echo(line)
     print(f"heldout: {summary['testers']} testers, outputs in {out}")

@@ -11,11 +11,11 @@ In a process of its own (the console script, ``python -m twin``: :func:`install`
   process ends them itself. Nor does the main thread ever see a KeyboardInterrupt: raised in
   a library's callback it was the tracebacks and hangs of the command's own shutdown.
 * A command marks the stretches that stop cleanly on :func:`caught` (``controls.stop``: a
-  run's co-simulation, a Monte Carlo's, a sweep's or a held-out validation's loop) as
-  :func:`cooperative`: a signal there gives the main thread :data:`GRACE_S` to write what it
-  recorded (the summary saying "interrupted") and end. Anywhere else (the imports, an FMU's
-  build, a Dask cluster's start), or once the grace has run out, the watcher ends the
-  command itself: it runs what the command registered with :func:`on_hard_exit` (a run
+  run with its Monte Carlo, a sweep, a held-out validation) as :func:`cooperative`: a signal
+  there gives the main thread :data:`GRACE_S` to write what it recorded (the summary saying
+  "interrupted") and end. Anywhere else (the imports, ``twin build``, the FMUs' first-use
+  build, ``twin identify``), once the grace has run out (a Dask cluster still starting), or
+  when the stretch ends, the watcher ends the command itself: it runs what the command registered with :func:`on_hard_exit` (a run
   marks its summary.json "interrupted"), kills every process the command started, says the
   one line and leaves without the interpreter's teardown (which waits for Dask's threads).
 * A second signal changes nothing: the first one's ending is under way.
