@@ -240,7 +240,9 @@ def test_monte_carlo_interrupted_and_a_second_signal_changes_nothing(
 ) -> None:
     rng = random.Random(334 + sig)
     out = tmp_path / "run"
-    cmd = Command(short_run(out, 30, minutes=2), tmp_path)
+    # 64 samples of 4 h: about 5 s of Monte Carlo on two free cores (2 min samples all finish
+    # within half a second of the first)
+    cmd = Command(short_run(out, 64, minutes=240), tmp_path)
     cmd.wait_for("the Monte Carlo's progress", cmd.line(PROGRESS.pattern))
     delay = rng.uniform(0.0, 1.0)
     second = threading.Timer(delay + rng.uniform(0.05, 0.5), lambda: _signal_group(cmd, sig))
