@@ -53,7 +53,7 @@ __all__ = [
 #: a command stopped by a signal ends with the shell's code for it
 EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
 #: seconds a cooperative stretch has, after the first signal, to write its outputs and end
-GRACE_S = 3.0
+GRACE_S = 2.5
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -249,6 +249,26 @@ def _silence() -> int | None:
     return err
 
 
+def _no_more_workers() -> None:
+    """A Dask nanny (a thread of this process) starts its worker again when it finds it dead,
+    and multiprocessing its resource tracker: from here each such start fails at once (the
+    executable it would start is /dev/null), so killing them is not a race."""
+    mp = sys.modules.get("multiprocessing")
+    if mp is not None:
+        with suppress(Exception):
+            mp.set_executable(os.devnull)
+
+
+def _living(proc: Any) -> bool:
+    """Not a zombie (a killed child stays one until this process reaps it: it has ended)."""
+    import psutil
+
+    try:
+        return bool(proc.status() != psutil.STATUS_ZOMBIE)
+    except psutil.Error:
+        return False
+
+
 def end_children() -> None:
     """Kill every process this one started, and theirs (SIGKILL: they have SIGTERM blocked).
     A few rounds: a nanny of the Dask cluster may start a worker again meanwhile."""
@@ -256,11 +276,12 @@ def end_children() -> None:
         import psutil  # distributed's dependency, so there with the twin
     except ImportError:  # pragma: no cover
         return
+    _no_more_workers()
     killed: list[Any] = []
     quiet = 0
-    for _ in range(40):  # a thread of this process may be starting one meanwhile: look again
+    for _ in range(20):  # a thread of this process may be starting one meanwhile: look again
         try:
-            children = psutil.Process().children(recursive=True)
+            children = [c for c in psutil.Process().children(recursive=True) if _living(c)]
         except psutil.Error:
             break
         quiet = 0 if children else quiet + 1
@@ -271,4 +292,5 @@ def end_children() -> None:
                 child.kill()
         killed += children
         time.sleep(0.03)
-    psutil.wait_procs(killed, timeout=1.0)
+    # a killed orphan may stay a zombie where the first process reaps none: no long wait
+    psutil.wait_procs(killed, timeout=0.3)
