@@ -15,7 +15,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import EXIT_ON_SIGNAL, flag, stop_on_signals
+from twin.cli import interrupt
+from twin.cli.common import EXIT_ON_SIGNAL, flag, mark_study, stop_on_signals
 from twin.errors import ConfigError
 
 NAME = "sweep"
@@ -133,14 +134,16 @@ def command(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out is not None else Path("sweeps") / spec.name
     check_output_folder(out, "--out")
     controls = RunControls(stop=stop_on_signals(), echo=(lambda _: None) if args.quiet else _print)
-    with _progress_bar(args.quiet) as update:
+    stopped = {"sweep": spec.name, "status": "interrupted"}
+    interrupt.on_hard_exit(
+        lambda name: mark_study(out, stopped | {"error": f"interrupted by {name}"}), str(out)
+    )
+    with interrupt.cooperative(), _progress_bar(args.quiet) as update:
         options = StudyOptions(scheduler, args.workers, args.resume, update)
         try:
             summary = run_sweep(spec, out, controls, options)
         except SweepInterrupted as name:
-            print(
-                f"twin: sweep interrupted by {name}; the points that finished are in {out}", file=sys.stderr
-            )
+            interrupt.say(f"twin: sweep interrupted by {name}; the points that finished are in {out}")
             return EXIT_ON_SIGNAL.get(str(name), 130)
     controls.echo(summary_line(summary, out))
     return 0

@@ -234,6 +234,25 @@ def _build_failure(what: str, step: str, cc: str, output: str) -> BuildError:
     return BuildError(f"building {what} failed ({step}): {first}{where}")
 
 
+#: the scratch folders of builds in the cache: ``.scratch-<pid>-<name>-<random>``
+SCRATCH = ".scratch-"
+
+
+def clean_scratch(folder: Path) -> list[Path]:
+    """Remove the scratch folders in ``folder`` of builds whose process no longer runs (a
+    build that an interruption ended: its command leaves without the interpreter's teardown,
+    and a SIGKILL leaves one too); returns them. A running build's folder is left alone."""
+    from twin.fmu.workdir import alive
+
+    gone = []
+    for scratch in folder.glob(f"{SCRATCH}*"):
+        pid = scratch.name.removeprefix(SCRATCH).split("-", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not alive(int(pid)):
+            shutil.rmtree(scratch, ignore_errors=True)
+            gone.append(scratch)
+    return gone
+
+
 def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *, prune: bool = True) -> Path:
     """The cache entry ``<name>-<digest><suffix>``, made by ``make(scratch_dir)`` when missing.
 
@@ -244,7 +263,8 @@ def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *,
     if verified(target):
         return target
     # missing, or a file whose bytes are not what this cache built: build it anew over it
-    with tempfile.TemporaryDirectory(prefix=f"twin-{name}-", dir=target.parent) as tmp:
+    clean_scratch(target.parent)
+    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH}{os.getpid()}-{name}-", dir=target.parent) as tmp:
         built = make(Path(tmp))
         sha256 = file_sha256(built)
         os.replace(built, target)  # atomic: the scratch folder is on the same disk

@@ -29,6 +29,7 @@ import logging
 import os
 import resource
 import sys
+import threading
 import time
 import uuid
 import warnings
@@ -114,6 +115,7 @@ def open_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise ConfigError(f"cannot reach the scheduler: {one_line(exc)}", source="--scheduler") from None
     else:
+        _resource_tracker()
         with warnings.catch_warnings():
             # port 8787 taken (another cluster): Dask serves the dashboard elsewhere, and the
             # address printed is the one it took
@@ -267,6 +269,22 @@ def _knock(address: str, source: str) -> None:
         ) from None
 
 
+def _resource_tracker() -> None:
+    """Start multiprocessing's resource tracker from a thread of its own, before the workers.
+
+    The command may have SIGINT and SIGTERM blocked (:mod:`twin.cli.interrupt`: it ends its
+    workers itself, and a worker that a terminal's Ctrl-C reaches prints tracebacks while its
+    nanny restarts it); the workers inherit the block from the thread that starts them. Starting
+    the tracker unblocks both in the thread that starts it (bpo-33613): done on the first
+    worker's start, that thread then started every worker open to the signals.
+    """
+    from multiprocessing import resource_tracker
+
+    starter = threading.Thread(target=resource_tracker.ensure_running, name="resource tracker")
+    starter.start()
+    starter.join()
+
+
 def dashboard(client: Any) -> str | None:
     """The dashboard's address when the scheduler serves one (its pages need bokeh)."""
     try:
@@ -413,13 +431,31 @@ class _Tasks:
         return records
 
 
+def _completed(queue: Any, stop: Callable[[], str | None] | None) -> Iterator[Any]:
+    """The futures of ``queue`` (distributed's ``as_completed``) as they finish, until none is
+    left or ``stop`` answers: a signal is not held until the next point finishes (a point of
+    the paper's experiment takes seconds). As distributed's own iterator, it looks again at
+    least every tenth of a second."""
+    while True:
+        while not queue.has_ready():
+            if (stop is not None and stop() is not None) or queue.is_empty():
+                return
+            with queue.thread_condition:
+                queue.thread_condition.wait(timeout=0.1)
+        if stop is not None and stop() is not None:
+            return
+        yield next(queue)
+
+
 def execute(
     client: Any,
     indices: Iterable[int],
     payload: Callable[[int], Payload | Record],
     task: Callable[[Payload], Record],
+    stop: Callable[[], str | None] | None = None,
 ) -> Iterator[Record]:
-    """Run the points, yielding each record as it finishes (in any order).
+    """Run the points, yielding each record as it finishes (in any order), until the last or
+    until ``stop`` names a signal (then the points in flight are left to the cluster's close).
 
     ``payload(i)`` builds point ``i``'s task input, or returns a failed record for a point
     that cannot run (then nothing is submitted). Points go out in batches (:class:`_Batcher`);
@@ -427,8 +463,12 @@ def execute(
     alone (:class:`_Tasks`), so the points beside a crashing one still finish and only the
     crashing one is recorded as failed.
     """
+    if stop is not None and stop() is not None:
+        return  # the cluster took its time to start: nothing is submitted any more
     tasks = _Tasks(client, indices, payload, task)
     yield from tasks.fill()
-    for future in tasks.queue:
+    for future in _completed(tasks.queue, stop):
         yield from tasks.finished(future)
+        if stop is not None and stop() is not None:
+            return
         yield from tasks.fill()

@@ -7,6 +7,7 @@ The output folder holds ``sweep.json`` (what it is), ``results.parquet`` and ``r
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import time
 from collections.abc import Callable, Iterable
@@ -216,13 +217,7 @@ def run_sweep(
         f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}"
     )
 
-    def payload(i: int) -> Payload | Record:
-        try:
-            point = prepare_scenario(design.point(spec.scenario, i), base.evaluation)
-        except ConfigError as exc:
-            return failed(i, one_line(exc))
-        return {"index": i, "run": point, "folders": spec.run_folders}
-
+    payload = functools.partial(_payload, spec, design, base.evaluation)
     threads = 0
     if todo and (spec.outputs or spec.main) and not store.resumed:
         collector.checked = _probe(spec, todo, payload, controls)
@@ -238,18 +233,46 @@ def run_sweep(
                 client.register_plugin(BinariesPlugin(collect()))
                 store.start()
                 collector.started()
-                records = execute(client, todo, payload, task)
+                records = execute(client, todo, payload, task, controls.stop)
                 _take(records, collector, on_record, options.progress, controls)
+                if caught := controls.stopped():
+                    # before the cluster closes: its close takes seconds the command may not get
+                    store.flush(force=True)
+                    write_summary(out / "summary.json", interrupted(spec, collector, caught))
     finally:
         store.flush(force=True)
-    if controls.stopped():
-        raise SweepInterrupted(str(controls.stopped()))
+    if caught := controls.stopped():
+        if not todo:
+            write_summary(out / "summary.json", interrupted(spec, collector, caught))
+        raise SweepInterrupted(caught)
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
     names = labels(design.names, list(summary["outputs"]), spec.scenario)
     draw_all(out, spec.design, table, design.names, summary, names)
     return summary
+
+
+def _payload(spec: Spec, design: Design, evaluation: Any, i: int) -> Payload | Record:
+    """Point ``i`` prepared for a worker, or its failure record (a value its FMU refuses)."""
+    try:
+        point = prepare_scenario(design.point(spec.scenario, i), evaluation)
+    except ConfigError as exc:
+        return failed(i, one_line(exc))
+    return {"index": i, "run": point, "folders": spec.run_folders}
+
+
+def interrupted(spec: Spec, collector: _Collector, name: str) -> dict[str, Any]:
+    """The summary of a sweep a signal stopped: how far it came (its table holds those points;
+    ``twin sweep --resume`` runs the rest)."""
+    return {
+        "sweep": spec.name,
+        "status": "interrupted",
+        "error": f"interrupted by {name}",
+        "points": collector.total,
+        "done": collector.done,
+        "failed": collector.failed,
+    }
 
 
 def _take(

@@ -400,7 +400,7 @@ def run_heldout(
         client.register_plugin(BinariesPlugin(collect()))
         store.start()
         begin = time.perf_counter()
-        for record in execute(client, todo, payload, tester_task):
+        for record in execute(client, todo, payload, tester_task, controls.stop):
             for row in rows_of(cfg, testers.draw(record["index"]), record):
                 store.add(row)
             timings.append(record.get("timing", {}))
@@ -409,12 +409,29 @@ def run_heldout(
             if controls.stopped():
                 break
         elapsed = time.perf_counter() - begin
+        if caught := controls.stopped():
+            # before the cluster closes: its close takes seconds the command may not get
+            store.flush(force=True)
+            stopped = interrupted(cfg, caught)
+            write_summary(out / "summary.json", stopped)
+            return stopped
     store.flush(force=True)
     table = store.table()
-    summary = summarise(cfg, table)
+    summary = {"status": "completed", **summarise(cfg, table)}
     summary["timing"] = _timing(timings, elapsed, time.perf_counter() - start, threads)
     write_summary(out / "summary.json", summary)
     return summary
+
+
+def interrupted(cfg: HeldOut, name: str) -> dict[str, Any]:
+    """The summary of a held-out validation a signal stopped (its table holds the testers that
+    finished; ``--resume`` runs the rest)."""
+    return {
+        "heldout": str(cfg.path),
+        "status": "interrupted",
+        "error": f"interrupted by {name}",
+        "testers": cfg.testers,
+    }
 
 
 def fingerprint(cfg: HeldOut) -> str:
