@@ -143,6 +143,10 @@ BAD = {
         LHS + '[spread]\n"fmu.sensors.parameters.probe_zero_drift" = { dist = "lognormal", sigma = 0.3 }\n',
         "lognormal needs 'sigma' and a positive median",
     ),
+    "spread of a parameter nobody has": (
+        LHS + '[spread]\n"fmu.sensors.parameters.nope" = { dist = "normal", sigma = 0.3e-6 }\n',
+        "spread.\"fmu.sensors.parameters.nope\": SensorsDAQ has no parameter 'nope'",
+    ),
     "unknown distribution": (
         LHS + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\ndists = ["gauss"]\n',
         "unknown distribution 'gauss'",
