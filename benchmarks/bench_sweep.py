@@ -18,12 +18,18 @@ Prints side by side, in one run:
     a sweep's worker runs its points): medians side by side and their ratio (issue 15's goal
     for reused instances: <= 5 ms).
 
+(e) flat memory (``--flat-memory``): a sweep of 10 000 points of a tiny scenario (the
+    paper's replay cut to 2 min) on 2 workers; the resident memory (VmRSS, not the peak) of
+    each worker and of the client (whose process also holds the local cluster's scheduler)
+    after 1 000 points and after 10 000 (goal: within 10 %).
+
 Timings start once the cluster is up (its start-up is printed apart). The cluster's start,
 the design and the table are the real ``twin sweep`` code paths (:func:`run_sweep`).
 
     python benchmarks/bench_sweep.py            # the figures above (a few minutes)
     python benchmarks/bench_sweep.py --quick    # a fast check that everything runs
     python benchmarks/bench_sweep.py --write-docs   # ... the table into docs/performance/
+    python benchmarks/bench_sweep.py --flat-memory  # (e) alone (a few minutes)
 
 Since issue 28 a sweep's point is a :class:`~twin.pipeline.prepare.PreparedRun` made on the
 client (:func:`~twin.pipeline.prepare.prepare_scenario`: the plan, the error model's
@@ -141,6 +147,93 @@ def memory(folder: Path, points: int) -> dict[int, tuple[float, float]]:
 
     _sweep(folder, points, 2, seed=7, on_record=watch)
     return {pid: (rss[max(0, len(rss) // 10 - 1)], rss[-1]) for pid, rss in seen.items() if len(rss) >= 10}
+
+
+def _vmrss_mb() -> float:
+    """This process's resident memory now (MB), Linux's ``VmRSS``."""
+    with open("/proc/self/status", encoding="ascii") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def rss_task(payload: dict[str, Any]) -> dict[str, Any]:
+    """A sweep's point that also says its worker's resident memory after it."""
+    from twin.pipeline.point import point_task
+
+    record = point_task(payload)
+    record["rss_mb"] = _vmrss_mb()
+    return record
+
+
+FLAT_SPEC = """[sweep]
+base = "{base}"
+design = "random"
+samples = {samples}
+seed = 5
+set = ['scenario.duration = "2 min"', 'scenario.output_interval = "10 s"']
+outputs = ["drift_mm.probe", "compensation.residual_rms_um.after"]
+
+[problem]
+names = ["input.thermal.t_room.rise", "fmu.sensors.parameters.probe_zero_drift"]
+bounds = [[0.0, 9.0], [-0.3e-6, 0.3e-6]]
+"""
+
+
+def flat_memory(folder: Path, points: int, early: int) -> dict[str, Any]:
+    """(e): resident memory (MB) of each worker and of the client after ``early`` points and
+    after all ``points``: medians of each worker's last 50 records up to there (a worker's
+    memory moves a little between points as numpy's buffers come and go)."""
+    import statistics
+
+    from twin.cosim import RunControls
+    from twin.pipeline.cluster import StudyOptions
+    from twin.sweep.runner import run_sweep
+    from twin.sweep.spec import load_spec
+
+    if __name__ != "__main__":
+        import cloudpickle
+
+        cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    path = folder / "flat.toml"
+    path.write_text(FLAT_SPEC.format(base=PAPER.as_posix(), samples=points), encoding="utf-8")
+    seen: dict[int, list[float]] = {}
+    client: dict[str, float] = {}
+    count = [0]
+    start = time.perf_counter()
+
+    def watch(record: dict[str, Any]) -> None:
+        count[0] += 1
+        seen.setdefault(record["pid"], []).append(record["rss_mb"])
+        if count[0] in (early, points):
+            client[str(count[0])] = _vmrss_mb()
+            print(f"   {count[0]} points after {time.perf_counter() - start:.0f} s", flush=True)
+
+    run_sweep(load_spec(path), folder / "flat-out", RunControls(), StudyOptions(workers=2),
+              task=rss_task, on_record=watch)  # fmt: skip
+    workers = {}
+    for pid, rss in seen.items():
+        share = len(rss) * early // points  # this worker's records up to the early mark
+        workers[pid] = (statistics.median(rss[max(0, share - 50) : share]), statistics.median(rss[-50:]))
+    return {"workers": workers, "client": (client[str(early)], client[str(points)]), "early": early,
+            "points": points, "elapsed_s": time.perf_counter() - start}  # fmt: skip
+
+
+def _flat_rows(r: dict[str, Any]) -> list[str]:
+    rows = []
+    pairs = [(f"worker {k + 1}", r["workers"][pid]) for k, pid in enumerate(sorted(r["workers"]))]
+    for name, (early, end) in [*pairs, ("client (and scheduler)", r["client"])]:
+        growth = end / early - 1
+        rows.append(
+            _row(
+                f"(e) {name} RSS, {r['early']} vs {r['points']} points",
+                f"{early:.0f} -> {end:.0f} MB ({growth:+.1%})",
+                "within 10 %",
+                abs(growth) <= 0.1,
+            )
+        )
+    return rows
 
 
 def setup_per_point(points: int) -> dict[str, float]:
@@ -282,7 +375,19 @@ def main() -> int:
     parser.add_argument(
         "--write-docs", action="store_true", help="write the table to docs/performance/bench_sweep.md"
     )
+    parser.add_argument(
+        "--flat-memory", action="store_true", help="(e) alone: worker and client memory over 10 000 points"
+    )
     args = parser.parse_args()
+    if args.flat_memory:
+        points, early = (1000, 100) if args.quick else (10_000, 1000)
+        print(f"twin sweep benchmark (e): {points} points" + (" (--quick)" if args.quick else ""))
+        print_machine(machine())
+        with tempfile.TemporaryDirectory(prefix="twin-bench-sweep-") as tmp:
+            found = flat_memory(Path(tmp), points, early)
+        print(f"\n{found['points']} points in {found['elapsed_s']:.0f} s\n")
+        print("\n".join(_flat_rows(found)))
+        return 0
     small = (40, 1, 100, 100, 10) if args.quick else (200, 2, 500, 1000, 60)
     sizes = dict(zip(("points", "reps", "noop_points", "memory_points", "setup_points"), small, strict=True))
     load = os.getloadavg()[0]

@@ -17,11 +17,11 @@ DPI = 64
 
 def main() -> None:
     from twin.cli import main as twin
-    from twin.config.load import load_scenario, scenarios_dir
-    from twin.errormodel.config import evaluation_config
     from twin.outputs.csv import read_signals_csv
     from twin.outputs.plots import budget_figure, wear_figure
+    from twin.pipeline import RunOptions, prepare
     from twin.pipeline.stages import budget_columns
+    from twin.validation import reports
 
     with tempfile.TemporaryDirectory() as tmp:
         for name, picture in (
@@ -30,8 +30,9 @@ def main() -> None:
         ):
             out = Path(tmp) / name
             assert twin(["run", name, "--out", str(out), "--quiet", "--uncertainty", "0"]) == 0
-            scenario = load_scenario(scenarios_dir() / f"{name}.toml")
-            columns = budget_columns(evaluation_config(scenario), scenario)
+            # as the run drew them: the wear limit, the cycles, the paper's measured drift
+            prepared = prepare(name, options=RunOptions(reports=reports))
+            columns = budget_columns(prepared.evaluation, prepared)
             table = read_signals_csv(out / "signals.csv")
             derived = read_signals_csv(out / "errormodel.csv")
             for n in derived.names():

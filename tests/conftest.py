@@ -9,8 +9,14 @@ import pytest
 from twin.fmu.build import ensure_fmu, model_names
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def fmu_paths() -> dict[str, Path]:
+    """Built before the first test (a no-op with a warm cache): a build says so on stderr, one
+    line per model, and a test that reads a command's stderr line by line must not find those
+    lines in it because it happened to be the first to need the FMUs (a fresh CI cache)."""
+    from twin.cosim.native import ensure_stepper
+
+    ensure_stepper()
     return {name: ensure_fmu(name) for name in model_names()}
 
 

@@ -20,7 +20,10 @@ def test_build_writes_every_fmu_into_out(tmp_path: Path, capsys) -> None:
     for model in model_names():
         fmu = tmp_path / f"{model}.fmu"
         assert f"binaries/linux64/{model}.so" in zipfile.ZipFile(fmu).namelist()
-    assert "ThermalNetwork" in capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert "ThermalNetwork" in out
+    # issue 33: one line per model, without a terminal too (a first build was 16 s of silence)
+    assert err.splitlines() == [f"twin: building FMU {m} (first use of its sources)" for m in model_names()]
 
 
 def test_missing_compiler_and_cmake_give_one_line_and_exit_2(tmp_path: Path) -> None:
@@ -84,8 +87,73 @@ def test_a_broken_c_compiler_gets_one_line_saying_what_to_install(tmp_path: Path
         capture_output=True, text=True, env=env, timeout=300,
     )  # fmt: skip
     assert r.returncode == 1
-    lines = r.stderr.strip().splitlines()
+    lines = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("twin: building FMU ")]
     assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
     assert "cannot compile a test program" in lines[0] and "apt-get install -y gcc" in lines[0]
     log = tmp_path / "cache" / "last-build-error.log"
     assert str(log) in lines[0] and "CMAKE" in log.read_text().upper()
+
+
+def _path_with(tmp_path: Path, tools: list[str]) -> str:
+    """A PATH holding only ``tools`` (links to the real ones) and cmake."""
+    import shutil
+
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    for tool in [*tools, "cmake"]:
+        real = shutil.which(tool)
+        assert real, f"{tool} must be installed for this test"
+        (bin_dir / tool).symlink_to(real)
+    return str(bin_dir)
+
+
+def _build_with_path(tmp_path: Path, path: str) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("CC", "CXX", "CMAKE_GENERATOR")}
+    env |= {"PATH": path, "TWIN_CACHE_DIR": str(tmp_path / "cache")}
+    return subprocess.run(
+        [sys.executable, "-m", "twin", "build"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+@pytest.mark.parametrize(
+    "tools, named, package",
+    [
+        (["cc", "gcc", "make"], "a C++ compiler (g++, or set CXX)", "apt-get install -y g++"),
+        (["cc", "gcc", "c++", "g++"], "make or ninja", "apt-get install -y make"),
+        (["cc", "gcc"], "a C++ compiler (g++, or set CXX) and make or ninja", "apt-get install -y g++ make"),
+    ],
+)
+def test_a_missing_build_tool_is_named_with_its_debian_package_in_one_line(
+    tmp_path: Path, tools: list[str], named: str, package: str
+) -> None:
+    # issue 33: without g++ or make, cmake said "Configuring incomplete" and the cause was in a log
+    proc = _build_with_path(tmp_path, _path_with(tmp_path, tools))
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert f"{named} not found" in lines[0] and lines[0].endswith(f"(Debian: {package})"), lines[0]
+    assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").glob("*.fmu"))
+
+
+def test_ninja_builds_where_make_is_missing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from twin.fmu.build import build_fmu
+    from twin.fmu.toolchain import generator_flags
+
+    assert generator_flags() == []  # make is on the real PATH: cmake's default
+    # the compilers, their assembler and linker, ninja and cmake: no make
+    monkeypatch.setenv("PATH", _path_with(tmp_path, ["cc", "gcc", "c++", "g++", "as", "ld", "ninja"]))
+    for name in ("CC", "CXX", "CMAKE_GENERATOR"):
+        monkeypatch.delenv(name, raising=False)
+    assert generator_flags() == ["-G", "Ninja"]
+    fmu = build_fmu("SignalSource", tmp_path / "out")
+    assert "binaries/linux64/SignalSource.so" in zipfile.ZipFile(fmu).namelist()
+
+
+def test_the_readme_names_every_package_the_check_asks_for() -> None:
+    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
+    assert "apt-get install gcc g++ make" in readme and "ninja-build" in readme

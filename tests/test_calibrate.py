@@ -92,9 +92,17 @@ def test_calibrate_writes_elsewhere_unless_asked(tmp_path: Path, monkeypatch: py
 
     before = COMMITTED.read_bytes()
     monkeypatch.chdir(tmp_path)
-    assert main(["calibrate"]) == 0
+    assert main(["calibrate", "li2017-thermal-experiment"]) == 0  # a shipped name, as twin run takes it
     assert (tmp_path / "runs" / "calibrate" / COMMITTED.name).is_file()
     assert COMMITTED.read_bytes() == before
+
+
+def test_calibrate_names_a_scenario_that_is_not_there(capsys: pytest.CaptureFixture) -> None:
+    from twin.cli import main
+
+    assert main(["calibrate", "li2017-thermal-experment"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "did you mean 'li2017-thermal-experiment'" in err[0], err
 
 
 def test_the_scenario_uses_the_calibrated_values() -> None:

@@ -32,6 +32,16 @@ def test_inspect_a_model_by_name(capsys) -> None:
     assert "t_detecting_frame_lower" in out and "liner_creep_ratio" in out
 
 
+@pytest.mark.parametrize("width", ["-5", "x"])
+def test_a_width_that_is_no_width_is_one_line(width: str, capsys) -> None:
+    # -5 cut five characters off every description's end, silently
+    assert main(["inspect", "FixtureMechanics", "--width", width]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"twin: inspect: argument --width: expected a number of characters (0 or more), got '{width}'"
+    ]
+
+
 @pytest.mark.parametrize(
     ("target", "word"),
     [

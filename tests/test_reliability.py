@@ -170,6 +170,7 @@ def test_resume_of_an_edited_scenario_is_refused(tmp_path: Path) -> None:
     code, _, err = finish(twin("resume", str(out), "--quiet"))  # unchanged: resumes
     assert code == 0, err
     scenario.write_text(scenario.read_text().replace("[scenario]\n", "[scenario]\nseed = 2\n"))
+    (out / "summary.json").unlink()  # killed again: a completed run is not resumed at all
     code, _, err = finish(twin("resume", str(out), "--quiet"))
     assert code == 2 and "changed since the checkpoint" in err and "Traceback" not in err, err
 

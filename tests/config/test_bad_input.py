@@ -156,7 +156,7 @@ CASES = [
     Case("name-empty", "scenario.name", "cannot name a folder", setv("scenario.name", "")),
     Case("name-too-long", "scenario.name", "cannot name a folder", setv("scenario.name", "x" * 101)),
     Case("name-newline", "scenario.name", "cannot name a folder", setv("scenario.name", "a\nb")),
-    Case("name-nul", "scenario.name", "cannot name a folder", setv("scenario.name", "a\x00b")),
+    Case("name-nul", "scenario.name", "a NUL character", setv("scenario.name", "a\x00b")),
     Case("name-backslash", "scenario.name", "cannot name a folder", setv("scenario.name", "..\\x")),
     Case("description-list", "scenario.description", "string", setv("scenario.description", ["a"])),
     Case("duration-bool", "scenario.duration", "duration", setv("scenario.duration", True)),

@@ -280,11 +280,16 @@ def test_the_experiments_record_only_the_labs_channels() -> None:
 
 
 @pytest.mark.slow
-def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path) -> None:
+def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from twin.cli import main
+    from twin.errormodel.coefficients import default_path
 
-    assert main(["identify", "--out", str(tmp_path / "c.toml"), "--quiet"]) == 0
-    c = load_coefficients(tmp_path / "c.toml")
+    # issue 33: without --out it wrote over the committed coefficients; now the current folder
+    committed = default_path().read_bytes()
+    monkeypatch.chdir(tmp_path)
+    assert main(["identify", "--quiet"]) == 0
+    assert default_path().read_bytes() == committed
+    c = load_coefficients(tmp_path / "identified.toml")
     assert list(c.coefficients) == list(coefficient_units())
     for name, x in c.coefficients.items():
         assert math.isfinite(x.value) and math.isfinite(x.std_error) and x.std_error > 0, name

@@ -29,7 +29,7 @@ TITLE = "a run: predicted error and its parts"
 
 
 def _table() -> SignalTable:
-    # more rows than twice the plots' 2000 points: the plots thin it, and so must the helper's input
+    # more rows than the plots draw whole: the plots thin it, and so must the helper's input
     table = make_table(rows=5003)
     n = len(table.time)
     table.add(Signal("errormodel.wear_compensated", "m", "errormodel"), np.linspace(0.0, 3e-5, n))
@@ -48,6 +48,10 @@ def _columns() -> BudgetColumns:
         true_wear="mechanics.wear_depth_true",
         cycles="oscillation.cycles",
         wear_limit_m=1.52e-4,
+        # what only a scenario gives (a factor off, a replayed experiment): through JSON too
+        disabled=("fluctuating",),
+        measured_drift_m=-2.1e-5,
+        measured_by="Li et al. 2017",
     )
 
 
@@ -176,12 +180,18 @@ def test_a_sent_plot_whose_helper_dies_is_drawn_in_the_run(here: dict[str, bytes
 
 
 def test_the_thinned_table_draws_exactly_the_samples_the_plot_draws() -> None:
+    from twin.outputs.plots import drawn_rows
+
     table = _table()
-    thin = thinned(table, ["probe.reading"], 2000)
-    every = len(table.time) // 2000
-    np.testing.assert_array_equal(thin.time, table.time[::every])
-    np.testing.assert_array_equal(thin["probe.reading"], table["probe.reading"][::every])
-    assert len(thin.time) // 2000 == 1  # the plot thins it no further
+    names = [n for n in _columns().budget_names() if n in table]
+    thin = thinned(table, names)
+    rows = drawn_rows(table, names)
+    assert len(thin.time) < len(table.time)  # thinned: more rows than the plots draw whole
+    np.testing.assert_array_equal(thin.time, table.time[rows])
+    for name in names:
+        np.testing.assert_array_equal(thin[name], table[name][rows])
+    # the plot of the thinned table picks the same rows again: all of them
+    np.testing.assert_array_equal(thin.time[drawn_rows(thin, names)], thin.time)
 
 
 def test_a_helper_that_cannot_start_leaves_the_plots_to_the_run(
@@ -207,7 +217,7 @@ def test_a_plot_the_helper_cannot_draw_is_one_run_error(tmp_path: Path) -> None:
     process = PlotProcess().use()
     process.start()
     try:
-        table = thinned(_table(), ["probe.reading"], 2000)
+        table = thinned(_table(), ["probe.reading"])
         bad = dataclasses.replace(_columns(), predicted="errormodel.not_there")
         with pytest.raises(
             RunError, match=r"budget\.png: the plot failed: KeyError: .*errormodel\.not_there"
@@ -217,7 +227,7 @@ def test_a_plot_the_helper_cannot_draw_is_one_run_error(tmp_path: Path) -> None:
         assert not (tmp_path / "budget.png").exists()
         assert process.running  # a failed plot does not end the helper: the next one is drawn
         good = thinned(_table(), ["probe.reading", "mechanics.wear_depth_true", "errormodel.wear_compensated",
-                                  "oscillation.cycles"], 2000)  # fmt: skip
+                                  "oscillation.cycles"])  # fmt: skip
         assert process.send("wear", tmp_path / "wear.png", good, columns_json(_columns()), "wear")
         assert process.answer()
         assert (tmp_path / "wear.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -271,7 +281,7 @@ def test_a_plot_is_sent_without_waiting_for_the_helper_to_read_it() -> None:
     sent: list[bool] = []
     sender = threading.Thread(
         target=lambda: sent.append(
-            process.send("budget", Path("b.png"), thinned(_table(), ["probe.reading"], 2000), {}, TITLE)
+            process.send("budget", Path("b.png"), thinned(_table(), ["probe.reading"]), {}, TITLE)
         )
     )
     sender.start()

@@ -153,7 +153,11 @@ def test_the_wear_plot_draws_true_measured_compensated_and_the_mil_limit() -> No
     (ax,) = fig.axes
     assert ax.get_ylabel() == "wear depth (µm)" and "cycles" in ax.get_xlabel()
     lines = {line.get_label(): line for line in ax.get_lines()}
-    assert {"true wear", "measured (probe reading change)", "compensated"} <= set(lines)
+    assert {
+        "true wear",
+        "probe reading change\n(wear + errors)",
+        "compensated wear\n(reading change − e_z)",
+    } <= set(lines)
     (limit,) = [line for label, line in lines.items() if label.startswith("wear limit")]
     assert list(limit.get_ydata()) == [pytest.approx(152.0)] * 2  # a horizontal line at 0.152 mm
     assert lines["true wear"].get_ydata()[-1] == pytest.approx(120.0)

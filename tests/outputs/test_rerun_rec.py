@@ -62,8 +62,15 @@ def test_blueprint_has_error_budget_first_and_one_view_per_subsystem_and_unit(
     path = write_recording(table, tmp_path / "recording.rrd", budget_columns=BUDGET)
     rows = _blueprint_rows(path)
     views = {r["ViewBlueprint:display_name"][0][0]: r for r in rows if "ViewBlueprint:display_name" in r}
-    # no view mixes units: the sample's thermal signals are K, its probe and errormodel ones m (µm)
-    assert set(views) == {BUDGET_VIEW_NAME, "thermal [K]", "errormodel [µm]", "probe [µm]"}
+    # no view mixes units: the sample's thermal signals are K, its probe and errormodel ones m
+    # (µm); the budget's columns (all the errormodel ones) are in the budget's view only; the
+    # probe's reading (1.25 mm) and range (1e300 m) are views apart (issue 33)
+    assert set(views) == {
+        BUDGET_VIEW_NAME,
+        "thermal [K]",
+        "probe [µm] up to 1.26e+03",
+        "probe [µm] up to 9.99e+305",
+    }
     assert all(v["ViewBlueprint:class_identifier"][0] == ["TimeSeries"] for v in views.values())
     queries = [r["ViewContents:query"][0] for r in rows if "ViewContents:query" in r]
     assert ["+ /errormodel/e_total", *(f"+ /errormodel/{n.split('.')[1]}" for n in BUDGET[1:])] in queries

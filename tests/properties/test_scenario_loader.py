@@ -31,6 +31,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from twin.config.durations import MAX_TICKS
 from twin.config.load import (
     MAX_DURATION_NS,
     load_scenario,
@@ -328,7 +329,9 @@ def valid_scenarios(d: st.DrawFn) -> tuple[dict[str, Any], Expect]:
     exp.step = unit * d(st.integers(1, 1000), label="step / unit")
     mults = {inst: d(st.sampled_from(MULTIPLES)) for inst in INSTANCES}
     span = exp.step * math.lcm(*mults.values())
-    exp.duration = span * d(st.integers(1, MAX_DURATION_NS // span), label="duration / lcm")
+    # within a year and within the ticks a run may take (twin.config.durations.MAX_TICKS)
+    longest = min(MAX_DURATION_NS, MAX_TICKS * exp.step)
+    exp.duration = span * d(st.integers(1, max(1, longest // span)), label="duration / lcm")
     if exp.duration < 2 * exp.step:
         exp.duration = 2 * span
     exp.interval = exp.step * d(st.integers(1, exp.duration // exp.step), label="interval / step")

@@ -309,7 +309,8 @@ def test_a_fifo_named_ssp_is_refused_at_once(tmp_path: Path, capsys: pytest.Capt
     capsys.readouterr()
     assert main(["validate", str(fifo)]) == 2
     assert (
-        capsys.readouterr().err.strip() == f"twin: {fifo}: not a regular file (an SSP archive is a zip file)"
+        capsys.readouterr().err.strip()
+        == f"twin: {fifo}: is not a regular file (an SSP archive is a zip file)"
     )
 
 

@@ -99,6 +99,16 @@ def test_scheduler_local_cluster_and_one_worker_give_identical_tables(
         assert shipped == client_files
 
 
+def test_scheduler_file_reaches_the_same_cluster(
+    spec: Path, reference: pd.DataFrame, dask_cluster: dict, tmp_path: Path
+) -> None:
+    """``--scheduler-file`` reads the address ``dask scheduler --scheduler-file`` wrote."""
+    scheduler_file = Path(str(dask_cluster["logs"])) / "scheduler.json"
+    done = run_sweep_cli(spec, tmp_path / "by-file", "--scheduler-file", str(scheduler_file))
+    assert done.returncode == 0, done.stderr
+    pd.testing.assert_frame_equal(_table(tmp_path / "by-file"), reference)
+
+
 def _rows(out: Path) -> int:
     try:
         return len(_table(out))

@@ -18,7 +18,7 @@ from twin.pipeline import RunSummary, Timing, prepare_scenario, run_point, shipp
 from twin.pipeline.cluster import MAX_BATCH, TASK_SECONDS, TASKS_PER_THREAD_LEFT, _Batcher
 from twin.pipeline.point import figures, point_task
 from twin.pipeline.results import CSV, META, TABLE, ResultStore
-from twin.sweep.analysis import indices, statistics
+from twin.sweep.analysis import indices, rank_correlations, statistics
 from twin.sweep.spec import Spec
 
 
@@ -106,11 +106,74 @@ def test_store_writes_complete_tables_and_resumes(tmp_path: Path) -> None:
     assert json.loads((tmp_path / META).read_text()) == meta
     with pytest.raises(ConfigError, match="already holds a sweep"):
         ResultStore(tmp_path, ["x"], meta, resume=False)
-    with pytest.raises(ConfigError, match="holds another design"):
+    with pytest.raises(ConfigError, match="holds another study"):
         ResultStore(tmp_path, ["x"], {"fingerprint": "other"}, resume=True)
     again = ResultStore(tmp_path, ["x"], meta, resume=True)
     assert again.done == {0, 1, 2}
     pd.testing.assert_frame_equal(again.table(), table)
+
+
+def _stored(folder: Path, inputs: dict[str, str]) -> dict[str, object]:
+    meta = {"fingerprint": "f", "inputs": inputs}
+    store = ResultStore(folder, ["x"], meta, resume=False, size=3)
+    store.start()
+    for i in range(2):
+        store.add(_row(i))
+    store.flush(force=True)
+    return meta
+
+
+def test_a_resume_names_every_input_that_changed(tmp_path: Path) -> None:
+    inputs = {"sweep.set": "a", "file base.toml": "b", "FMU sources": "c"}
+    meta = _stored(tmp_path, inputs)
+    assert ResultStore(tmp_path, ["x"], meta, resume=True, size=3).done == {0, 1}
+    for key in inputs:
+        other = {"fingerprint": "f", "inputs": inputs | {key: "changed"}}
+        with pytest.raises(
+            ConfigError, match=f"--resume: holds another study \\({key} changed since it ran\\)"
+        ):
+            ResultStore(tmp_path, ["x"], other, resume=True, size=3)
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda d: (d / META).write_text("{"), "sweep.json: not a sweep's record"),
+        (lambda d: (d / META).write_text("[]"), "sweep.json: not a sweep's record .a JSON list"),
+        (lambda d: (d / TABLE).write_bytes(b"garbage" * 10), "results.parquet: not a results table"),
+        (lambda d: pd.DataFrame({"point": [0], "seed": [1]}).to_parquet(d / TABLE), "no 'status' column"),
+        (lambda d: _table(d, [999, -1]), "point 999 is not a point of this study .0 to 2."),
+        (lambda d: _table(d, ["a", "b"]), "point 'a' is not a point of this study"),
+        (lambda d: _table(d, [1, 1]), "point 1 appears twice"),
+    ],
+)
+def test_a_damaged_folder_is_one_line_on_resume(tmp_path: Path, damage: object, message: str) -> None:
+    meta = _stored(tmp_path, {"design": "d"})
+    damage(tmp_path)  # type: ignore[operator]
+    with pytest.raises(ConfigError, match=message) as info:
+        ResultStore(tmp_path, ["x"], meta, resume=True, size=3)
+    assert "\n" not in str(info.value)
+
+
+def _table(folder: Path, points: list[object]) -> None:
+    rows = {"point": points, "seed": [0] * len(points), "x": [0.0] * len(points)}
+    rows |= {"status": ["ok"] * len(points), "error": [""] * len(points)}
+    pd.DataFrame(rows).to_parquet(folder / TABLE)
+
+
+def test_the_store_keeps_numbers_packed_not_a_dict_per_row(tmp_path: Path) -> None:
+    import tracemalloc
+
+    store = ResultStore(tmp_path, ["x"], {"fingerprint": "f"}, resume=False)
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    for i in range(20_000):
+        store.add(_row(i) | {f"f{k}": float(k) for k in range(20)})
+    grown = tracemalloc.get_traced_memory()[0] - before
+    tracemalloc.stop()
+    # 24 numbers a row at 8 bytes each, plus the point's index: a dict per row would be ~3 KB
+    assert grown / 20_000 < 400, grown / 20_000
+    assert store.table()["f3"].sum() == 3.0 * 20_000
 
 
 def test_store_writes_at_most_about_once_a_second(tmp_path: Path) -> None:
@@ -170,12 +233,42 @@ def test_morris_ranks_a_known_function() -> None:
     assert found["mu_star"]["x3"] == pytest.approx(0.0)
 
 
-def test_indices_need_every_point() -> None:
-    spec, table = _linear_spec("saltelli", 8)
+@pytest.mark.parametrize("design", ["saltelli", "morris"])
+def test_failed_points_take_their_block_out_and_are_named(design: str) -> None:
+    spec, table = _linear_spec(design, 512 if design == "saltelli" else 20)
     table.loc[3, "status"] = "failed"
-    assert "skipped" in indices(spec, table, ["y"], len(table))["y"]
-    spec, table = _linear_spec("saltelli", 8)
-    assert "skipped" in indices(spec, table.iloc[:-1], ["y"], len(table))["y"]
+    table.loc[3, "y"] = np.nan
+    found = indices(spec, table.iloc[:-1], ["y"], len(table))["y"]  # the last point did not run
+    assert found["failed_points"] == [3, len(table) - 1]
+    n = len(table) // (5 if design == "saltelli" else 4)
+    assert found["blocks_used"] == f"{n - 2} of {n}"
+    if design == "saltelli":
+        assert found["S1"]["x1"] == pytest.approx(16 / 17, abs=0.06)
+    else:
+        assert found["mu_star"]["x1"] == pytest.approx(4.0)
+
+
+def test_indices_are_skipped_naming_the_points_only_without_two_whole_blocks() -> None:
+    spec, table = _linear_spec("saltelli", 2)
+    table.loc[[1, 7], "status"] = "failed"
+    found = indices(spec, table, ["y"], len(table))["y"]
+    assert found["skipped"].startswith("points 1, 7 failed or gave no value: 0 of 2 whole blocks left")
+
+
+def test_pawn_ranks_a_two_sided_driver_that_spearman_misses() -> None:
+    """y = (x1 - 0.5)^2 + 0.05 x2: x1 drives y at both ends of its range, its rank correlation
+    is about zero; PAWN ranks it first, far above the dummy's noise floor, x3 (unused) not."""
+    from twin.sweep.analysis import pawn_indices
+
+    spec, table = _linear_spec("lhs", 400)
+    table["point"] = range(len(table))
+    table["y"] = (table["x1"] - 0.5) ** 2 + 0.05 * table["x2"]
+    ranks = rank_correlations(table, spec.names, "y")
+    assert abs(ranks["x1"]) < 0.15 and abs(ranks["x2"]) > abs(ranks["x1"])
+    found = pawn_indices(spec, table, "y")
+    assert max(found["pawn"], key=found["pawn"].get) == "x1"
+    assert found["pawn"]["x1"] > 3 * found["pawn_dummy"]
+    assert found["pawn"]["x3"] < 2 * found["pawn_dummy"]
 
 
 # ------------------------------------------------------------------------------ shipping
@@ -218,3 +311,22 @@ def test_a_workers_peak_memory_is_its_own_not_its_starters() -> None:
     done = subprocess.run([sys.executable, "-c", parent], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert 5.0 < float(done.stdout) < 150.0  # twin.pipeline.cluster and its imports: about 60 MB
+
+
+def test_a_points_run_folder_never_follows_a_planted_symlink(tmp_path: Path) -> None:
+    from twin.sweep.runner import _write_folder
+
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (out / "runs").symlink_to(outside)
+    with pytest.raises(ConfigError, match="runs: is a symbolic link"):
+        _write_folder(out, 3, {"summary.json": b"{}"})
+    assert list(outside.iterdir()) == []
+    (out / "runs").unlink()
+    folder = out / "runs" / "point-000003"
+    folder.mkdir(parents=True)
+    (folder / "summary.json").symlink_to(outside / "victim.json")
+    _write_folder(out, 3, {"summary.json": b"{}", "../escape.txt": b"x"})
+    assert (folder / "summary.json").read_bytes() == b"{}" and not (folder / "summary.json").is_symlink()
+    assert list(outside.iterdir()) == [] and not (out / "runs" / "escape.txt").exists()

@@ -143,6 +143,10 @@ BAD = {
         LHS + '[spread]\n"fmu.sensors.parameters.probe_zero_drift" = { dist = "lognormal", sigma = 0.3 }\n',
         "lognormal needs 'sigma' and a positive median",
     ),
+    "spread of a parameter nobody has": (
+        LHS + '[spread]\n"fmu.sensors.parameters.nope" = { dist = "normal", sigma = 0.3e-6 }\n',
+        "spread.\"fmu.sensors.parameters.nope\": SensorsDAQ has no parameter 'nope'",
+    ),
     "unknown distribution": (
         LHS + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\ndists = ["gauss"]\n',
         "unknown distribution 'gauss'",
@@ -238,3 +242,18 @@ def test_bad_arguments_exit_2(
     assert main([str(path), *args]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and expected in err[0]
+
+
+def test_a_bad_fixed_override_is_named_where_it_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    body = 'design = "lhs"\nsamples = 2\nset = ["scenario.bogus = 3", "fmu.thermal.parameters.zzz = 3"]\n'
+    path = write_spec(
+        tmp_path / "s.toml",
+        body + '[problem]\nnames = ["input.thermal.t_room.rise"]\nbounds = [[0.0, 1.0]]\n',
+    )
+    assert main([str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith(f"twin: {path}: sweep.set: scenario.bogus: unknown key")
+    assert all(line.startswith(f"twin: {path}: sweep.set: ") for line in err)
+    assert not (tmp_path / "out").exists()

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from twin.config.drawing import Derived, Geometry, load_geometry, positions
 from twin.errors import ConfigError
+from twin.files import write_text_atomic
 
 __all__ = ["derive", "derived_file", "derived_file_text", "write_derived_files"]
 
@@ -316,8 +317,12 @@ def derived_file(scenarios_dir: Path, model: str) -> Path:
 def write_derived_files(scenarios_dir: Path) -> list[Path]:
     """Write every derived parameter file; returns their paths."""
     out = []
-    for model, params in derive(load_geometry(scenarios_dir)).items():
+    geometry = load_geometry(scenarios_dir)
+    derived = derive(geometry)
+    positions(geometry)
+    geometry.check_unread()  # a misspelt or unknown key: refused before any file is written
+    for model, params in derived.items():
         path = derived_file(scenarios_dir, model)
-        path.write_text(derived_file_text(model, params), encoding="utf-8")
+        write_text_atomic(path, derived_file_text(model, params))
         out.append(path)
     return out

@@ -30,6 +30,7 @@ from scipy.optimize import least_squares
 
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
+from twin.files import write_text_atomic
 from twin.paper import EXPERIMENT_S, TEMPERATURE_RISE_K
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.stages import simulate
@@ -239,7 +240,7 @@ def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, The
             f'{k} = {{ value = {float(f"{value:.6g}")!r}, std_error = {float(f"{value * se:.3g}")!r}, source = "{note}" }}'
         )
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(path, "\n".join(lines) + "\n")  # never through a planted link
 
 
 def report(cal: ThermalFit, by_shape: Mapping[str, ThermalFit]) -> dict[str, Any]:
@@ -295,7 +296,5 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
         name: calibrate(_with_room_shape(scenario, name)) for name in ROOM_SHAPES[1:]
     }
     write_parameter_file(target, cal, by_shape)
-    target.with_suffix(".json").write_text(
-        json.dumps(report(cal, by_shape), indent=2) + "\n", encoding="utf-8"
-    )
+    write_text_atomic(target.with_suffix(".json"), json.dumps(report(cal, by_shape), indent=2) + "\n")
     return target

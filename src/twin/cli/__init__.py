@@ -7,25 +7,51 @@ traceback), 1 a failure while running, 130/143 interrupted.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import sys
 from collections.abc import Sequence
+
+from twin.cli import interrupt
 
 
 def main(argv: Sequence[str] | None = None, *, own_process: bool = False) -> int:
     """The ``twin`` command on ``argv`` (default: ``sys.argv[1:]``); its exit code.
 
     ``own_process`` says the process is the command's alone (the console script and
-    ``python -m twin``): a run may then tune it (:mod:`twin.cli.process`). A Ctrl-C while the
-    twin imports ends as every other interrupt does: one line, 130.
+    ``python -m twin``): a run may then tune it (:mod:`twin.cli.process`), and the first
+    SIGINT or SIGTERM ends it whatever it does (:mod:`twin.cli.interrupt`, installed before
+    the twin imports). Whatever a command raises after a signal came is part of its stopping:
+    the one line says "interrupted", the exit code is the signal's.
     """
     try:
+        if own_process:
+            interrupt.install()
+        else:
+            interrupt.reset()
         from twin.cli.parser import run_command
-    except KeyboardInterrupt:
-        print("twin: interrupted", file=sys.stderr)
+    except KeyboardInterrupt:  # before the watcher took the signals, or a program's own Ctrl-C
+        interrupt.record(signal.SIGINT)
+        interrupt.say()
         return 130
-    return run_command(argv, own_process=own_process)
+    code = run_command(argv, own_process=own_process)
+    if interrupt.caught() is not None:  # a command that finished after the signal came
+        interrupt.say()
+        code = interrupt.exit_code()
+    return code
 
 
 def console() -> int:
-    """The console script ``twin``: :func:`main` in a process of its own."""
-    return main(own_process=True)
+    """The console script ``twin``: :func:`main` in a process of its own. A command a signal
+    ended leaves at once: the interpreter's teardown would wait for Dask's threads, and every
+    process it started is ended first."""
+    code = main(own_process=True)
+    if interrupt.caught() is not None:
+        interrupt.park()
+        interrupt.end_children()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        os._exit(code)
+    return code

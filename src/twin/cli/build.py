@@ -17,7 +17,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     from twin.fmu.build import build_all
+    from twin.outputs.run_folder import check_output_folder
 
-    for model, path in build_all(Path(args.out) if args.out else None).items():
+    out = Path(args.out) if args.out else None
+    if out is not None:  # a file or /proc named: one line, exit 2, before anything is built
+        check_output_folder(out, "--out")
+    for model, path in build_all(out).items():
         print(f"{model}: {path}")
     return 0

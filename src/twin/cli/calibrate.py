@@ -13,7 +13,11 @@ NAME = "calibrate"
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="fit the thermal network to the paper's measured temperature rises")
-    optional(p, "scenario", "scenario whose thermal network is calibrated (default: the paper's)")
+    optional(
+        p,
+        "scenario",
+        "scenario file or shipped name whose thermal network is calibrated (default: the paper's)",
+    )
     p.add_argument(
         "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
     )
@@ -23,10 +27,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     from twin.calibration.thermal import calibrate_file
+    from twin.config.load import find_scenario
     from twin.outputs.run_folder import check_output_file
 
     # checked before the fits (seconds): a parameter file .toml, its report beside it as .json
     out = check_output_file(Path(args.out), "--out", ".toml") if args.out is not None else None
-    path = calibrate_file(Path(args.scenario) if args.scenario else None, out, write=args.write)
+    # a file, or a shipped scenario's name as every other command takes it
+    path = calibrate_file(find_scenario(args.scenario), out, write=args.write)
     print(f"calibrated thermal network written to {path}")
     return 0

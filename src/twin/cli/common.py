@@ -12,6 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from twin.cli import interrupt
+from twin.cli.interrupt import EXIT_ON_SIGNAL
 from twin.errors import ConfigError
 
 __all__ = [
@@ -20,12 +22,10 @@ __all__ = [
     "add_experiment",
     "experiment",
     "finish",
+    "mark_study",
     "progress_bar",
     "stop_on_signals",
 ]
-
-#: a run stopped by a signal ends the command with the shell's code for it
-EXIT_ON_SIGNAL = {"SIGINT": 130, "SIGTERM": 143}
 
 
 class Parser(argparse.ArgumentParser):
@@ -103,15 +103,29 @@ def experiment(args: argparse.Namespace) -> Any:
 def stop_on_signals() -> Callable[[], str | None]:
     """SIGINT and SIGTERM ask the run to stop at its next batch (it keeps everything recorded
     and says "interrupted"); the function returned names the signal that came, if one did. A
-    flag, not an exception: raised from a handler, it could land in a library's callback."""
-    caught: dict[str, str] = {}
+    flag, not an exception: raised from a handler, it could land in a library's callback.
 
-    def handler(signum: int, frame: object) -> None:
-        caught.setdefault("name", signal.Signals(signum).name)
+    In a process of its own the watcher of :mod:`twin.cli.interrupt` receives them already;
+    called from a program, the command's handlers are put in place here."""
+    if not interrupt.installed():
 
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    return lambda: caught.get("name")
+        def handler(signum: int, frame: object) -> None:
+            interrupt.record(signum)
+
+        signal.signal(signal.SIGINT, handler)
+        signal.signal(signal.SIGTERM, handler)
+    return interrupt.caught
+
+
+def mark_study(out: Path, summary: dict[str, Any]) -> None:
+    """Write the summary of a study (a sweep, a held-out validation) that the signal's watcher
+    ends (:mod:`twin.cli.interrupt`): one that says "interrupted" is never replaced, nor a
+    folder made."""
+    from twin.outputs.summary import write_summary
+
+    path = out / "summary.json"
+    if out.is_dir() and not (path.is_file() and '"interrupted"' in path.read_text(encoding="utf-8")):
+        write_summary(path, summary)
 
 
 @contextmanager
@@ -151,10 +165,10 @@ def finish(summary: Any, out: Path, quiet: bool, caught: str | None = None) -> i
         print(f"outputs: {out}")
     if summary.status == "interrupted":
         why = summary.error or "interrupted"
-        print(f"twin: run {why}; everything recorded so far is in {out}", file=sys.stderr)
+        interrupt.say(f"twin: run {why}; everything recorded so far is in {out}")
         name = re.search(r"\bby (SIG[A-Z]+)", why)
         return EXIT_ON_SIGNAL.get(name.group(1) if name else "", 130)
     if caught is not None:  # after everything was written: the outputs are complete
-        print(f"twin: interrupted by {caught}; the run's outputs are complete in {out}", file=sys.stderr)
+        interrupt.say(f"twin: interrupted by {caught}; the run's outputs are complete in {out}")
         return EXIT_ON_SIGNAL.get(caught, 130)
     return 0

@@ -7,7 +7,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import flag, optional, stop_on_signals
+from twin.cli import interrupt
+from twin.cli.common import flag, mark_study, optional, stop_on_signals
 from twin.errors import ConfigError
 
 NAME = "heldout"
@@ -37,7 +38,7 @@ def command(args: argparse.Namespace) -> int:
     from twin.outputs.run_folder import check_output_folder
     from twin.pipeline import RunControls
     from twin.pipeline.cluster import StudyOptions
-    from twin.validation.heldout import load_heldout, report_lines, run_heldout
+    from twin.validation.heldout import interrupted, load_heldout, report_lines, run_heldout
 
     if args.testers is not None and args.testers < 1:
         raise ConfigError("expected at least one tester", source="--testers")
@@ -48,7 +49,12 @@ def command(args: argparse.Namespace) -> int:
     check_output_folder(out, "--out")
     echo = (lambda _: None) if args.quiet else print
     controls = RunControls(stop=stop_on_signals(), echo=echo)
-    summary = run_heldout(cfg, out, controls, StudyOptions(args.scheduler, args.workers, args.resume))
+    interrupt.on_hard_exit(lambda name: mark_study(out, interrupted(cfg, name)), where=str(out))
+    with interrupt.cooperative():
+        summary = run_heldout(cfg, out, controls, StudyOptions(args.scheduler, args.workers, args.resume))
+        if summary.get("status") == "interrupted":
+            interrupt.say(f"twin: heldout {summary['error']}; the testers that finished are in {out}")
+            return interrupt.exit_code()
     for line in report_lines(summary):
         echo(line)
     print(f"heldout: {summary['testers']} testers, outputs in {out}")

@@ -9,6 +9,8 @@ from typing import Any
 from twin.cli.common import add_set, flag
 
 NAME = "identify"
+#: where the coefficients go without --out: the current folder (a file of the user's)
+DEFAULT_OUT = "identified.toml"
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -18,7 +20,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         metavar="FILE",
-        help="coefficients file to write (default: scenarios/calibration/identified.toml)",
+        help=(
+            "coefficients file to write (default: identified.toml in the current folder; the "
+            "committed scenarios/calibration/identified.toml is only written when named here)"
+        ),
     )
     add_set(p)
     p.add_argument(
@@ -30,11 +35,13 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     from twin.calibration.identify import HEADER, identify, report_lines
-    from twin.errormodel.coefficients import default_path, load_priors
+    from twin.errormodel.coefficients import load_priors
     from twin.outputs.run_folder import check_output_file
 
-    # the file is checked before the experiments run (they take seconds, a sweep's minutes)
-    out = check_output_file(Path(args.out), "--out", ".toml") if args.out is not None else default_path()
+    # the file is checked before the experiments run (they take seconds, a sweep's minutes);
+    # the default is never the committed coefficients, which every scenario reads: a trial
+    # identify must not change them (the maintainer names that file with --out to renew it)
+    out = check_output_file(Path(args.out) if args.out is not None else Path(DEFAULT_OUT), "--out", ".toml")
     priors = load_priors(Path(args.priors)) if args.priors else None
     coefficients = identify(args.set or [], priors=priors)
     out.parent.mkdir(parents=True, exist_ok=True)

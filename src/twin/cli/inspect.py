@@ -14,10 +14,23 @@ from typing import Any
 NAME = "inspect"
 
 
+def _width(text: str) -> int:
+    """Characters of description: 0 leaves the column out, a negative one is no width."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected a number of characters (0 or more), got {text!r}")
+    return n
+
+
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="list an FMU's variables (causality, type, unit, start, min, max)")
     p.add_argument("target", help="an FMI 2.0 .fmu file, or a model of the twin (e.g. FixtureMechanics)")
-    p.add_argument("--width", type=int, default=60, help="characters of each description shown (default 60)")
+    p.add_argument(
+        "--width", type=_width, default=60, help="characters of each description shown (default 60; 0: none)"
+    )
     return p
 
 

@@ -17,6 +17,7 @@ from twin.cli import (
     heldout,
     identify,
     inspect,
+    interrupt,
     resume,
     run,
     scenarios,
@@ -58,7 +59,7 @@ def make_parser() -> Parser:
 
 def run_command(argv: Sequence[str] | None = None, *, own_process: bool = False) -> int:
     """Parse ``argv``, run the command, and map what it raised to one line and an exit code:
-    bad input 2, a failure 1, an interrupt 130."""
+    bad input 2, a failure 1, an interrupt 130 (SIGINT) or 143 (SIGTERM)."""
     parser = make_parser()
     try:
         args = parser.parse_args(argv)
@@ -72,19 +73,26 @@ def run_command(argv: Sequence[str] | None = None, *, own_process: bool = False)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except KeyboardInterrupt:
-        # Ctrl-C before a run's own handler is in place (imports, the FMU build) or after it:
-        # nothing half-written is left behind by either
-        print("twin: interrupted", file=sys.stderr)
-        return 130
-    except TwinError as exc:
-        for line in str(exc).splitlines():  # several problems: one line each
-            print(f"twin: {line}", file=sys.stderr)
-        return exc.exit_code
-    except OSError as exc:
-        # a file the command had to write or read failed it (a full disk while the Monte
-        # Carlo writes uncertainty.csv, a folder removed under a run): one line, exit 1
-        print(f"twin: {_os_error(exc)}", file=sys.stderr)
-        return 1
+        # Ctrl-C in a program that called twin.cli.main (no watcher: twin.cli.interrupt), or
+        # a stretch that gave up on a signal: nothing half-written is left behind by either
+        interrupt.say()
+        return interrupt.exit_code()
+    except Exception as exc:
+        if interrupt.caught() is not None:
+            # what broke after a signal came broke of the stopping (a killed compiler, a
+            # cluster closed under a task): the command was interrupted, not failed
+            interrupt.say()
+            return interrupt.exit_code()
+        if isinstance(exc, TwinError):
+            for line in str(exc).splitlines():  # several problems: one line each
+                print(f"twin: {line}", file=sys.stderr)
+            return exc.exit_code
+        if isinstance(exc, OSError):
+            # a file the command had to write or read failed it (a full disk while the Monte
+            # Carlo writes uncertainty.csv, a folder removed under a run): one line, exit 1
+            print(f"twin: {_os_error(exc)}", file=sys.stderr)
+            return 1
+        raise
 
 
 def _os_error(exc: OSError) -> str:

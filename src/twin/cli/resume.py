@@ -20,6 +20,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 
 def command(args: argparse.Namespace) -> int:
+    from twin.cli import interrupt
+    from twin.cli.run import watch_folder
     from twin.pipeline import RunControls, RunOptions, prepare_resume, run
     from twin.validation import reports
 
@@ -27,6 +29,7 @@ def command(args: argparse.Namespace) -> int:
     stop = stop_on_signals()
     out = Path(args.run_dir)
     with prepare_resume(out, RunOptions(reports=reports, started=started)) as prepared:
-        with progress_bar(args.quiet) as update:
+        watch_folder(out, prepared.uncertainty is not None, prepared.scenario.name)
+        with interrupt.cooperative(), progress_bar(args.quiet) as update:
             summary = run(prepared, RunControls(stop=stop, progress=update))
-        return finish(summary, out, args.quiet, stop())
+            return finish(summary, out, args.quiet, stop())

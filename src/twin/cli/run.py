@@ -76,7 +76,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 
 def command(args: argparse.Namespace) -> int:
-    from twin.cli import process
+    from twin.cli import interrupt, process
     from twin.pipeline import RunControls, RunOptions, prepare, run
     from twin.validation import reports
 
@@ -100,10 +100,26 @@ def command(args: argparse.Namespace) -> int:
     with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
         if args.own_process:
             process.settle()
-        with progress_bar(args.quiet) as update:
-            summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
         assert prepared.folder is not None
-        return finish(summary, prepared.folder.path, args.quiet, stop())
+        folder = prepared.folder.path
+        watch_folder(folder, prepared.uncertainty is not None, prepared.scenario.name)
+        with interrupt.cooperative(), progress_bar(args.quiet) as update:
+            summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
+            return finish(summary, folder, args.quiet, stop())
+
+
+def watch_folder(folder: Path, monte_carlo: bool, scenario: str) -> None:
+    """If the signal's watcher has to end the run itself (a stretch that did not stop in
+    time, :mod:`twin.cli.interrupt`), the run folder's summary says "interrupted" and the one
+    line says why."""
+    from twin.cli import interrupt
+    from twin.pipeline.run import mark_interrupted
+
+    def hard_exit(name: str) -> str | None:
+        why = mark_interrupted(folder, name, monte_carlo, scenario)
+        return f"twin: run {why}; everything recorded so far is in {folder}" if why else None
+
+    interrupt.on_hard_exit(hard_exit, where=str(folder))
 
 
 def _echo(quiet: bool) -> Any:
@@ -114,4 +130,4 @@ def _echo(quiet: bool) -> Any:
     return echo
 
 
-__all__ = ["add_parser", "command"]
+__all__ = ["add_parser", "command", "watch_folder"]

@@ -13,6 +13,7 @@ comparison.
 
 from __future__ import annotations
 
+import fnmatch
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,6 +25,11 @@ __all__ = ["GEOMETRY_FILE", "Derived", "Geometry", "load_geometry", "positions"]
 
 #: the geometry source, relative to the scenarios folder
 GEOMETRY_FILE = Path("base") / "tester-geometry.toml"
+#: the geometry file's keys a derivation need not read: a body's shape (box, rod, lumped: read
+#: for the bodies whose volume is derived from it, and by the 3D view), the frame's FEM nodes
+#: and each material's conductivity, which document the drawing; every other key must be read
+#: by a derivation, so that a misspelt one is refused, not silently ignored
+NOT_DERIVED = ("bodies.*.shape", "bodies.detecting_frame.nodes", "materials.*.k")
 
 
 @dataclass(frozen=True)
@@ -40,8 +46,37 @@ class Geometry:
     def __init__(self, data: dict[str, Any], source: str) -> None:
         self.data = data
         self.source = source
+        #: every key read so far (:meth:`unread`: the file's keys nothing reads)
+        self.read: set[str] = set()
+
+    def unread(self) -> list[str]:
+        """The keys of the file nothing has read (after :func:`positions` and every
+        derivation: a misspelt or unknown key, which would otherwise be ignored silently).
+        A ``{ value, source }`` entry is one key; a table's own scalars (material, finish,
+        a note) are keys of their own."""
+        out: list[str] = []
+        stack: list[tuple[str, Any]] = [(k, v) for k, v in self.data.items()]
+        while stack:
+            key, node = stack.pop()
+            if isinstance(node, dict) and "value" not in node:
+                stack.extend((f"{key}.{k}", v) for k, v in node.items())
+            elif key not in self.read and not any(fnmatch.fnmatchcase(key, k) for k in NOT_DERIVED):
+                out.append(key)
+        return sorted(out)
+
+    def check_unread(self) -> None:
+        """Refuse the keys nothing read (:meth:`unread`), each with a close match: one line each."""
+        from twin.errors import ConfigErrors, did_you_mean
+
+        problems = [
+            ConfigError(f"unknown key{did_you_mean(key, sorted(self.read))}", source=self.source, key=key)
+            for key in self.unread()
+        ]
+        if problems:
+            raise problems[0] if len(problems) == 1 else ConfigErrors(problems)
 
     def entry(self, dotted: str) -> dict[str, Any]:
+        self.read.add(dotted)
         node: Any = self.data
         for part in dotted.split("."):
             if not isinstance(node, dict) or part not in node:
@@ -59,6 +94,7 @@ class Geometry:
         return float(self.entry(dotted)["value"])
 
     def material(self, body: str) -> str:
+        self.read.add(f"bodies.{body}.material")
         name = self.data.get("bodies", {}).get(body, {}).get("material")
         if name not in self.data.get("materials", {}):
             raise ConfigError(f"unknown material {name!r}", source=self.source, key=f"bodies.{body}.material")
@@ -70,6 +106,7 @@ class Geometry:
 
     def h_room(self, body: str) -> float:
         """Convection + radiation coefficient of a body's exposed surface, W/(m2 K)."""
+        self.read.add(f"bodies.{body}.finish")
         finish = self.data["bodies"][body].get("finish")
         if finish not in ("painted", "bare"):
             raise ConfigError(

@@ -12,6 +12,11 @@ NS_PER_S = 1_000_000_000
 
 #: longest run accepted: a year of simulated time
 MAX_DURATION_NS = 366 * 24 * 3600 * NS_PER_S
+#: most master steps a run may take (scenario.duration / scenario.step): a year at 0.1 s is
+#: 3.2e8, the shipped scenarios take at most 1.5e6. The bound is on the count, not the step,
+#: so a short run may step finely (an FMU of fast dynamics); but a typo's 1 ns step over
+#: 8 hours would be 2.9e13 ticks, days of stepping and terabytes of signals.csv, not a run
+MAX_TICKS = 10**9
 
 UNITS_NS = {
     "ns": 1,

@@ -247,14 +247,26 @@ def load_scenario(
     SSP archive: :mod:`twin.config.ssp`, or one FMU: :mod:`twin.config.single_fmu`); the
     experiment's input file then drives the inputs it names."""
     path = Path(path)
+    if path.suffix == ".ssp":
+        from twin.config.ssp import discard_unpacked
+
+        try:
+            return _load_scenario(path, overrides, experiment)
+        except ConfigError:
+            discard_unpacked(path)  # a refused archive leaves no unpacked copy in the cache
+            raise
+    return _load_scenario(path, overrides, experiment)
+
+
+def _load_scenario(path: Path, overrides: Sequence[str], experiment: Experiment | None) -> Scenario:
     data = read_scenario_data(path)
     apply_overrides(data, overrides, f"{path}: --set")
+    if experiment is not None:
+        experiment.set_times(data)
     if path.suffix == ".ssp":  # what an archive may leave to the command line (its step)
         from twin.config.ssp import finish_ssp_data
 
         finish_ssp_data(data, str(path))
-    if experiment is not None:
-        experiment.set_times(data)
     scenario = load_scenario_data(data, str(path), path.resolve().parent)
     return experiment.drive(scenario) if experiment is not None else scenario
 

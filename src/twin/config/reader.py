@@ -235,6 +235,12 @@ def check_values(data: Any, source: str, key: str = "") -> None:
             raise ConfigError(
                 "integer out of range (TOML integers are 64-bit)", source=source, key=key or None
             )
+        elif isinstance(node, str) and "\0" in node:
+            # TOML allows "\u0000": a NUL would cut a name at the C side (FMI strings) and
+            # is in no file name, unit or column of the twin's
+            raise ConfigError("a NUL character (\\u0000) in a string", source=source, key=key or None)
+        if isinstance(node, dict) and any("\0" in k for k in node):
+            raise ConfigError("a NUL character (\\u0000) in a key", source=source, key=key or None)
 
 
 #: what :func:`read_toml` parsed and checked, by the SHA-256 of the file's bytes: a sweep's

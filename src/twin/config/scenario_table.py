@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from twin.config.durations import MAX_DURATION_NS, format_duration
+from twin.config.durations import MAX_DURATION_NS, MAX_TICKS, format_duration
 from twin.config.reader import Problems, finite_number, table, unsafe_name
 from twin.config.spec import NS_PER_S
 
@@ -54,6 +54,12 @@ def _check_duration(p: Problems, duration: int, step: int | None) -> None:
         p.add("scenario.duration", f"{format_duration(duration)} is not a multiple of scenario.step")
     elif step and duration < 2 * step:
         p.add("scenario.duration", "too short: needs at least two steps")
+    elif step and duration // step > MAX_TICKS:
+        p.add(
+            "scenario.step",
+            f"{format_duration(step)} over {format_duration(duration)} is {duration // step:.3g} steps, "
+            f"more than the {MAX_TICKS:.0e} a run may take: a longer step (or a shorter run)",
+        )
 
 
 def _check_interval(p: Problems, interval: int, step: int | None) -> None:

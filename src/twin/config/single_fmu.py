@@ -79,14 +79,13 @@ def _times(md: Any, source: str) -> tuple[int, int, int]:
 def read_fmu_data(path: Path) -> dict[str, Any]:
     """The scenario data of the FMU file ``path`` run alone (see the module); one
     :class:`~twin.errors.ConfigError` line naming the file when it is not an FMU the twin runs."""
-    from fmpy import read_model_description
-
     from twin.fmu.catalog import variables
+    from twin.fmu.description import fmpy_description
     from twin.fmu.external import check
 
     source = str(path)
     checked = check(path)  # fmpy validate, FMI 2.0 co-simulation, a binary for this platform
-    md = read_model_description(str(checked.path))
+    md = fmpy_description(checked.xml)  # the bytes checked, not the file read again
     start, stop, step = _times(md, source)
     model = checked.model_name or path.stem
     name = instance_name(model)

@@ -50,6 +50,7 @@ import numpy as np
 
 from twin.config.reader import Problems, number_problem
 from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
+from twin.files import write_text_atomic
 
 __all__ = [
     "DEFAULT_FILE",
@@ -195,8 +196,7 @@ class Coefficients:
     def write(self, path: str | Path, header: str = "") -> Path:
         """Write the file (the folder must exist); returns its path."""
         path = Path(path)
-        path.write_text(self.to_toml(header), encoding="utf-8")
-        return path
+        return write_text_atomic(path, self.to_toml(header))  # never through a planted link
 
 
 def _coefficient_table(c: Coefficient, meaning: str) -> dict[str, Any]:

@@ -83,15 +83,29 @@ def evaluation_config(scenario: Scenario) -> EvaluationConfig:
 
 
 def errormodel_config(
-    values: Mapping[str, float] | None, em: Mapping[str, Any], source: str, window_s: float
+    values: Mapping[str, float] | None,
+    em: Mapping[str, Any],
+    source: str,
+    window_s: float,
+    also: tuple[str, ...] = (),
 ) -> EvaluationConfig:
     """An :class:`EvaluationConfig` from an ``[errormodel]`` table, every problem of it at once
     (one line each). Its coefficients are those the table names (``coefficients``), else
-    ``values``, else (``None``) the committed ones."""
+    ``values``, else (``None``) the committed ones. ``also``: the table's keys the caller reads
+    itself (LAB.toml's ``drift_window``), named among the keys a misspelt one could mean."""
     p = Problems(source)
     p.unknown_keys(
         em,
-        {"coefficients", "temperatures", "reading", "true_wear", "factors", "evaluate", *_sensor_fields()},
+        {
+            "coefficients",
+            "temperatures",
+            "reading",
+            "true_wear",
+            "factors",
+            "evaluate",
+            *_sensor_fields(),
+            *also,
+        },
         "errormodel.",
     )
     named = coefficients_for(em, source)

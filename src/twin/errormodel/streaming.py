@@ -15,8 +15,9 @@ memory. :class:`StreamingEvaluation` holds only what its numbers need:
 * the rows within the drift window of the start and of the (current) end: the drifts are
   least-squares lines through exactly those rows (:func:`~twin.errormodel.factors.endpoints`),
   fitted when the record is over;
-* running sums (each part's mean square, the spike count), and for the error-budget plot at
-  most :data:`PLOT_ROWS` rows at an even stride that doubles as the record grows;
+* running sums (each part's mean square, the spike count), and for the error-budget plot the
+  extremes of each of at most :data:`PLOT_ROWS` buckets of rows (a stride that doubles as the
+  record grows), so no spike is lost to the thinning;
 * with a true-wear column, the four series the compensation's indexes read whole (time,
   reading change, compensated wear, true wear: 32 bytes a row), as the Frechet distance and the
   Ra fluctuation need every sample.
@@ -45,12 +46,13 @@ from twin.errormodel.factors import FACTORS, Contribution, Measured
 from twin.errormodel.sources import LoadHistory, hampel
 from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError
+from twin.signals.decimate import extreme_rows
 from twin.signals.table import Block, Signal, SignalTable
 
 __all__ = ["PLOT_ROWS", "Block", "StreamingEvaluation"]
 
-#: the plot's rows are kept at a stride that doubles when more than this many are held
-PLOT_ROWS = 4000
+#: the plot's rows are kept in at most this many buckets, of a stride that doubles
+PLOT_ROWS = 2000
 #: rows evaluated at a time (the input is collected to this many first): ~5 MB of arrays
 CHUNK_ROWS = 1 << 14
 
@@ -93,29 +95,31 @@ class _Ends:
 
 @dataclass
 class _Thinned:
-    """Every ``stride``-th row of the record (by its index), at most :data:`PLOT_ROWS`: what
-    the plot draws, whatever the record's length."""
+    """What the plot draws of the record, whatever its length: per bucket of ``stride`` rows
+    (by index) its first and last row and every column's extremes
+    (:func:`twin.signals.decimate.extreme_rows`; a spike between two rows of an even stride
+    was lost). More than :data:`PLOT_ROWS` buckets double the stride: the extremes of two
+    buckets joined are among the rows kept of each."""
 
     stride: int = 1
-    kept: list[Block] = field(default_factory=list)
-    index: list[np.ndarray] = field(default_factory=list)
-    held: int = 0
+    kept: Block | None = None
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def add(self, start: int, block: Block) -> None:
-        idx = np.arange(start, start + len(block))
-        take = idx % self.stride == 0
-        self.kept.append(block.rows(take))
-        self.index.append(idx[take])
-        self.held += int(take.sum())
-        while self.held > PLOT_ROWS:
+        idx = np.arange(start, start + len(block), dtype=np.int64)
+        take = extreme_rows(idx // self.stride, block.columns.values())
+        new = block.rows(take)
+        new = Block(new.time.copy(), {n: v.copy() for n, v in new.columns.items()})
+        self.kept = new if self.kept is None else Block.join([self.kept, new])
+        self.index = np.concatenate([self.index, idx[take]])
+        while self.index.size and int(self.index[-1]) // self.stride >= PLOT_ROWS:
             self.stride *= 2
-            for k, (b, i) in enumerate(zip(self.kept, self.index, strict=True)):
-                take = i % self.stride == 0
-                self.kept[k], self.index[k] = b.rows(take), i[take]
-            self.held = sum(len(i) for i in self.index)
+            take = extreme_rows(self.index // self.stride, self.kept.columns.values())
+            self.kept, self.index = self.kept.rows(take), self.index[take]
 
     def rows(self) -> Block:
-        return Block.join(self.kept)
+        assert self.kept is not None
+        return self.kept
 
 
 class StreamingEvaluation:
@@ -259,7 +263,8 @@ class StreamingEvaluation:
         }
 
     def plot_table(self) -> SignalTable:
-        """At most :data:`PLOT_ROWS` rows of what the error-budget plot draws, evenly spread."""
+        """What the error-budget plot draws: the extremes of each bucket of rows (see
+        :class:`_Thinned`)."""
         rows = self._thinned.rows()
         meta = {s.name: s for s in [*self.signals.values(), *self.outputs]}
         table = SignalTable(time=rows.time)

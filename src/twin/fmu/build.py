@@ -39,8 +39,10 @@ from twin.fmu.toolchain import (
     digest_file,
     find_tools,
     private_cache_dir,
+    progress,
     run_cmake,
 )
+from twin.fmu.workdir import process_dir
 
 __all__ = [
     "BUILD_FORMAT",
@@ -187,8 +189,12 @@ def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug:
     m = model(model_name, src)
     files = m.files()
     find_tools()  # before any work: a missing tool is the one thing to report
+    # one line per model, terminal or not: a first build is seconds of silence per FMU
+    progress(f"building FMU {model_name} (first use of its sources)")
     out_dir.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f"twin-build-{model_name}-") as tmp:
+    # in this process's own folder, which the next twin process removes when an interruption
+    # (or a SIGKILL) left it (twin.fmu.workdir)
+    with tempfile.TemporaryDirectory(prefix=f"build-{model_name}-", dir=process_dir()) as tmp:
         tree, build_dir = Path(tmp) / "fmu", Path(tmp) / "build"
         _lay_out(tree, m, files)
         build_dir.mkdir()

@@ -22,7 +22,17 @@ from typing import Any
 
 from twin.errors import ConfigError, UnitError
 
-__all__ = ["BASE_UNITS", "BaseUnit", "Description", "Variable", "describe"]
+__all__ = [
+    "BASE_UNITS",
+    "MAX_DESCRIPTION_BYTES",
+    "BaseUnit",
+    "Description",
+    "Variable",
+    "describe",
+    "describe_xml",
+    "fmpy_description",
+    "validate_xml",
+]
 
 #: the base units of FMI's and SSP's unit definitions, in their order
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -167,13 +177,30 @@ def _variable(sv: Any) -> Variable:
 _BY_CONTENT: dict[bytes, Description] = {}
 
 
+#: the largest modelDescription.xml read: a model of 100 000 variables writes about 30 MB
+MAX_DESCRIPTION_BYTES = 64 << 20
+
+
 def _description_bytes(path: Path) -> bytes:
+    """The bytes of the description at ``path``: a folder's ``modelDescription.xml``, an XML
+    file, or an FMU's member (its zip read within :mod:`twin.fmu.safezip`'s bounds)."""
+    from twin.fmu.safezip import MAX_ARCHIVE_BYTES, open_regular, open_zip, read_member
+
     if path.is_dir():
-        return (path / "modelDescription.xml").read_bytes()
+        path = path / "modelDescription.xml"
+    source = str(path)
     if path.suffix.lower() == ".xml":
-        return path.read_bytes()
-    with zipfile.ZipFile(path) as fmu:
-        return fmu.read("modelDescription.xml")
+        with open_regular(path, source, "a modelDescription.xml", MAX_DESCRIPTION_BYTES) as f:
+            return f.read()
+    with (
+        open_regular(path, source, "expected an FMU", MAX_ARCHIVE_BYTES) as f,
+        open_zip(f, source, "not an FMU") as fmu,
+    ):
+        try:
+            info = fmu.getinfo("modelDescription.xml")
+        except KeyError:
+            raise ConfigError("no modelDescription.xml in the archive", source=source) from None
+        return read_member(fmu, info, source, MAX_DESCRIPTION_BYTES)
 
 
 def describe(path: str | Path) -> Description:
@@ -181,16 +208,18 @@ def describe(path: str | Path) -> Description:
     by fmpy; once per content and process). A file that is none of these, or whose description
     fmpy refuses, is one :class:`~twin.errors.ConfigError` line naming it."""
     path = Path(path)
-    if path.exists() and not path.is_file() and not path.is_dir():  # /dev/zero, a FIFO: it could block
-        raise ConfigError(
-            "is not a regular file (a device, FIFO or socket), expected an FMU", source=str(path)
-        )
-    try:
-        xml = _description_bytes(path)
-    except FileNotFoundError:
-        raise ConfigError("file not found", source=str(path)) from None
-    except (OSError, KeyError, zipfile.BadZipFile) as exc:
-        raise ConfigError(f"not a readable FMI model description: {exc}", source=str(path)) from None
+    if not path.exists() and not path.is_symlink():
+        raise ConfigError("file not found", source=str(path))
+    return describe_xml(_description_bytes(path), str(path))
+
+
+def describe_xml(raw: bytes, source: str) -> Description:
+    """The description in the bytes ``raw`` of a modelDescription.xml, read as
+    :func:`twin.fmu.safezip.safe_xml` allows (UTF-8 or UTF-16, no document type) and validated
+    by fmpy; ``source`` names where it came from in a problem's line."""
+    from twin.fmu.safezip import safe_xml
+
+    xml, _ = safe_xml(raw, "modelDescription.xml", source)
     key = hashlib.sha256(xml).digest()
     found = _BY_CONTENT.get(key)
     if found is None:
@@ -202,14 +231,37 @@ def describe(path: str | Path) -> Description:
             raise ConfigError(
                 "not a readable FMI model description: modelDescription.xml lacks an element or "
                 'attribute FMI requires (its root must be <fmiModelDescription fmiVersion="2.0" ...>)',
-                source=str(path),
+                source=source,
             ) from None
         except Exception as exc:  # fmpy raises several kinds for a document that is not FMI's
             raise ConfigError(
-                f"not a readable FMI model description: {_first_problem(exc)}", source=str(path)
+                f"not a readable FMI model description: {_first_problem(exc)}", source=source
             ) from None
         _BY_CONTENT[key] = found
     return found
+
+
+def fmpy_description(xml: bytes) -> Any:
+    """fmpy's ModelDescription of these checked bytes (:func:`describe_xml` has read them)."""
+    from fmpy import read_model_description
+
+    return read_model_description(_in_memory(xml))
+
+
+def validate_xml(xml: bytes) -> list[str]:
+    """fmpy's validation (``fmpy validate``) of these checked bytes: the problems it finds."""
+    from fmpy.validation import validate_fmu
+
+    return validate_fmu(_in_memory(xml))  # type: ignore[arg-type]  # fmpy takes a file object too
+
+
+def _in_memory(xml: bytes) -> io.BytesIO:
+    """``xml`` as the one member of a zip in memory: fmpy reads a file object as an FMU."""
+    archive = io.BytesIO()
+    with zipfile.ZipFile(archive, "w", zipfile.ZIP_STORED) as fmu:
+        fmu.writestr("modelDescription.xml", xml)
+    archive.seek(0)
+    return archive
 
 
 def _first_problem(exc: Exception) -> str:
@@ -223,13 +275,7 @@ def _first_problem(exc: Exception) -> str:
 def _parse(xml: bytes) -> Description:
     """The description in ``xml``, parsed by fmpy from exactly these bytes (fmpy reads a file
     object as an FMU: they go to it as the one member of a zip in memory)."""
-    from fmpy import read_model_description
-
-    archive = io.BytesIO()
-    with zipfile.ZipFile(archive, "w", zipfile.ZIP_STORED) as fmu:
-        fmu.writestr("modelDescription.xml", xml)
-    archive.seek(0)
-    md = read_model_description(archive)
+    md = fmpy_description(xml)
     identifier = md.coSimulation.modelIdentifier if md.coSimulation is not None else ""
     variables = {sv.name: _variable(sv) for sv in md.modelVariables}
     kinds = tuple(

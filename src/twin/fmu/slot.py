@@ -17,16 +17,16 @@ import contextlib
 import ctypes
 import functools
 import os
+import shutil
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from fmpy import extract, sharedLibraryExtension
-from fmpy import platform as fmpy_platform
 from fmpy.fmi2 import FMU2Slave
 
-from twin.errors import FMUError
+from twin.errors import ConfigError, FMUError, RunError
+from twin.fmu import external
 from twin.fmu.description import Description, Variable, describe
 from twin.fmu.workdir import extraction_dir
 
@@ -119,28 +119,6 @@ class NativeHandles(NamedTuple):
     do_step: int
 
 
-#: what an instance loads from the unpacked FMU: the library for this platform (fmpy loads
-#: ``binaries/<platform>/<model identifier>``) and the resources its instantiation is pointed
-#: to; the description is read from the zip itself, sources and documentation are not needed
-_LOADED_PARTS = (f"binaries/{fmpy_platform}/", "resources/")
-
-
-def _loaded_part(name: str) -> bool:
-    return name.startswith(_LOADED_PARTS)
-
-
-def _extract(fmu_path: Path, instance_name: str) -> str:
-    """Unpack what an instance loads of the FMU (:data:`_LOADED_PARTS`: 1 file of the twin's
-    12, not the sources and documentation it ships) into a new private folder; a write that fails there (a full disk) names
-    that folder, since zipfile's error names no file."""
-    folder = extraction_dir(f"{instance_name}-")
-    try:
-        return extract(str(fmu_path), unzipdir=folder, include=_loaded_part)
-    except OSError as exc:
-        exc.filename = exc.filename or f"{folder} (the extracted {fmu_path.name})"
-        raise
-
-
 def file_key(path: Path) -> tuple[str, int, int]:
     """An FMU file's identity for this process's caches: resolved path, size, modification time."""
     st = os.stat(path)
@@ -149,11 +127,13 @@ def file_key(path: Path) -> tuple[str, int, int]:
 
 class Loaded(NamedTuple):
     """What an instance of an FMU file loads: its description, the folder fmpy is given as the
-    unpacked FMU (its ``resources/`` are there, had it any) and its library."""
+    unpacked FMU (its ``resources/`` are there, had it any), its library, and whether the FMU
+    is from elsewhere (a library that does not load is then bad input)."""
 
     description: Description
     unzipdir: str
     library: str
+    foreign: bool = False
 
 
 @functools.cache
@@ -163,14 +143,25 @@ def _description(key: tuple[str, int, int]) -> Description:
 
 
 @functools.cache
-def _unpacked(key: tuple[str, int, int]) -> str:
-    """The folder an FMU from elsewhere is unpacked into, once per process: every instance of
-    it (a sweep's points on a worker) loads the same folder instead of reading and unpacking
-    the zip again. The folder is private to this process
-    (:func:`twin.fmu.workdir.process_dir`) and removed with it. A failure (a full disk) is
-    not remembered: the next instance tries again."""
+def _unpacked(key: tuple[str, int, int]) -> external.Unpacked:
+    """What an instance of an FMU from elsewhere loads, unpacked once per process
+    (:func:`twin.fmu.external.unpack`: the library for this platform and the resources, from a
+    copy whose SHA-256 is the checked one): every instance of it (a sweep's points on a
+    worker) loads the same folder instead of reading and unpacking the zip again. The folder
+    is private to this process (:func:`twin.fmu.workdir.process_dir`) and removed with it. A
+    failure (a full disk) is not remembered, and leaves no folder: the next instance tries
+    again."""
     path = Path(key[0])
-    return _extract(path, path.stem)
+    folder = Path(extraction_dir(f"{path.stem[:40]}-"))
+    try:
+        return external.unpack(path, folder)
+    except OSError as exc:  # zipfile's error names no file
+        shutil.rmtree(folder, ignore_errors=True)
+        exc.filename = exc.filename or f"{folder} (the extracted {path.name})"
+        raise
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
 
 
 def _loaded(path: Path) -> Loaded:
@@ -178,17 +169,16 @@ def _loaded(path: Path) -> Loaded:
     (:func:`twin.fmu.catalog.fmu` has just verified it) loads its library from the cache, where
     it was taken out once and is checked against its recorded SHA-256 for every instance
     (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last
-    instance is freed, so each instance opens the file anew. Any other FMU is unpacked."""
+    instance is freed, so each instance opens the file anew. Any other FMU is unpacked
+    (:func:`twin.fmu.external.unpack`)."""
     from twin.fmu.build import built_library
 
     key = file_key(path)
-    description = _description(key)
     library = built_library(path)
     if library is not None:
-        return Loaded(description, str(library.parent), str(library))
-    unzipdir = _unpacked(key)
-    name = f"{description.model_identifier}{sharedLibraryExtension}"
-    return Loaded(description, unzipdir, os.path.join(unzipdir, "binaries", fmpy_platform, name))
+        return Loaded(_description(key), str(library.parent), str(library))
+    unpacked = _unpacked(key)  # the description, as the library, is that of the bytes checked
+    return Loaded(external.check(path).description, str(unpacked.folder), str(unpacked.library), foreign=True)
 
 
 class FMU2SlaveTyped(FMU2Slave):
@@ -221,6 +211,34 @@ class FMU2SlaveTyped(FMU2Slave):
             self._functions[name] = c_fun
 
 
+def _load(fmu_path: Path, loaded: Loaded, name: str) -> FMU2SlaveTyped:
+    """fmpy's binding of ``library``, loaded. A library the loader or fmpy refuses (a missing
+    dependency, a missing function: :mod:`twin.fmu.library` checked its headers before) is one
+    line naming the FMU file, a :class:`ConfigError` for an FMU from elsewhere (bad input) and a
+    :class:`RunError` for one the twin built. fmpy changes the working folder to the library's
+    while it loads and leaves it there when the load fails: it is put back."""
+    cwd = os.getcwd()
+    try:
+        return FMU2SlaveTyped(
+            guid=loaded.description.guid,
+            unzipDirectory=loaded.unzipdir,
+            modelIdentifier=loaded.description.model_identifier,
+            instanceName=name,
+            libraryPath=loaded.library,
+        )
+    except Exception as exc:  # fmpy raises Exception and AttributeError for a library it cannot bind
+        why = " ".join(str(exc).split()).replace(f"Failed to load shared library {loaded.library}. ", "")
+        if isinstance(exc, AttributeError):
+            why = f"a function is missing ({why})"
+        why = why[:300]
+        if loaded.foreign:
+            raise ConfigError(f"cannot load its library: {why}", source=str(fmu_path)) from None
+        raise RunError(f"{fmu_path}: cannot load its library: {why}") from None
+    finally:
+        if os.getcwd() != cwd:
+            os.chdir(cwd)
+
+
 class FMUSlot:
     """An FMU instance with name-based setup and buffer-based stepping.
 
@@ -234,18 +252,13 @@ class FMUSlot:
         self, fmu_path: Path, instance_name: str, log: Callable[[str, str, str, str], None] | None = None
     ) -> None:
         self.name = instance_name
-        self.description, self.unzipdir, self.library = _loaded(Path(fmu_path))
+        loaded = _loaded(Path(fmu_path))
+        self.description, self.unzipdir, self.library = loaded.description, loaded.unzipdir, loaded.library
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self._log = log
         self.time = 0.0
-        self._slave = FMU2SlaveTyped(
-            guid=self.description.guid,
-            unzipDirectory=self.unzipdir,
-            modelIdentifier=self.description.model_identifier,
-            instanceName=instance_name,
-            libraryPath=self.library,
-        )
+        self._slave = _load(Path(fmu_path), loaded, instance_name)
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
         dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
         self._set_real = dll.fmi2SetReal

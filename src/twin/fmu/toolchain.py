@@ -103,12 +103,61 @@ def verified(path: Path) -> bool:
         return False
 
 
+#: what the build needs besides cmake: (what it is, the commands that provide it (the first
+#: found is used), its environment variable, the Debian package that installs it). fmpy's
+#: CMakeLists enables C and C++ (cmake stops with "Configuring incomplete" without a C++
+#: compiler, the cause only in its log), and cmake's default generator runs make
+_TOOLS = (
+    ("a C compiler", ("cc", "gcc", "clang"), "CC", "gcc"),
+    ("a C++ compiler", ("c++", "g++", "clang++"), "CXX", "g++"),
+)
+
+
+def _which_tool(commands: tuple[str, ...], env: str | None) -> str | None:
+    if env and os.environ.get(env):
+        return os.environ[env]
+    return next((path for c in commands if (path := shutil.which(c))), None)
+
+
+def _generator() -> tuple[str | None, str | None]:
+    """The build tool cmake's generator runs and the ``-G`` to ask for it: make for cmake's
+    default, ninja where make is missing (or ``CMAKE_GENERATOR=Ninja`` asks for it); (None,
+    the package to install) when neither is there."""
+    wanted = os.environ.get("CMAKE_GENERATOR", "")
+    if wanted and "ninja" not in wanted.lower() and "makefiles" not in wanted.lower():
+        return wanted, None  # a generator the user chose and knows: cmake checks its tool
+    ninja, make = shutil.which("ninja"), shutil.which("make") or shutil.which("gmake")
+    if "ninja" in wanted.lower():
+        return (ninja, None) if ninja else (None, "ninja-build")
+    if make:
+        return make, None
+    if ninja and not wanted:
+        return ninja, "Ninja"
+    return None, "make"
+
+
 def find_tools() -> tuple[str, str]:
-    """The C compiler and cmake, or :class:`ToolMissingError` saying what to install."""
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if not cc:
+    """The C compiler and cmake, once every tool the build needs is there (a C and a C++
+    compiler, make or ninja, cmake); else :class:`ToolMissingError`, one line naming each
+    missing tool and the Debian package that installs it."""
+    found: dict[str, str] = {}
+    missing: list[tuple[str, str]] = []  # (what, package)
+    for what, commands, env, package in _TOOLS:
+        path = _which_tool(commands, env)
+        if path:
+            found[env] = path
+        else:
+            missing.append((f"{what} ({commands[1]}, or set {env})", package))
+    build_tool, package = _generator()
+    if build_tool is None:
+        named = "ninja (CMAKE_GENERATOR=Ninja)" if package == "ninja-build" else "make or ninja"
+        missing.append((named, package or "make"))
+    if missing:
+        whats = " and ".join(w for w, _ in missing)
+        packages = " ".join(p for _, p in missing)
         raise ToolMissingError(
-            "no C compiler found: install one (Debian: apt-get install -y gcc) to build the FMUs",
+            f"cannot build the FMUs: {whats} not found: install "
+            f"{'it' if len(missing) == 1 else 'them'} (Debian: apt-get install -y {packages})",
             source="build",
         )
     cmake = shutil.which("cmake")
@@ -117,7 +166,19 @@ def find_tools() -> tuple[str, str]:
             "cmake not found: pip install cmake (it is a dependency of twin) or apt-get install -y cmake",
             source="build",
         )
-    return cc, cmake
+    return found["CC"], cmake
+
+
+def generator_flags() -> list[str]:
+    """``-G Ninja`` where make is missing and ninja is there (cmake's default needs make)."""
+    tool, generator = _generator()
+    return ["-G", generator] if tool and generator else []
+
+
+def progress(line: str) -> None:
+    """One line of progress on standard error, flushed, terminal or not: a first build of the
+    FMUs takes seconds each, and a log of a batch job shows what the time went to."""
+    print(f"twin: {line}", file=sys.stderr, flush=True)
 
 
 def content_hash(files: Mapping[str, bytes], salt: str = "") -> str:
@@ -143,7 +204,7 @@ def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] |
     cc, cmake = find_tools()
     flags = [f"-D{k}={v}" for k, v in (defines or {}).items()]
     steps = {
-        "configure": [cmake, "-S", str(source), "-B", str(build), *flags],
+        "configure": [cmake, "-S", str(source), "-B", str(build), *generator_flags(), *flags],
         "build": [cmake, "--build", str(build), "--target", "install"],
     }
     for step, cmd in steps.items():
@@ -173,6 +234,25 @@ def _build_failure(what: str, step: str, cc: str, output: str) -> BuildError:
     return BuildError(f"building {what} failed ({step}): {first}{where}")
 
 
+#: the scratch folders of builds in the cache: ``.scratch-<pid>-<name>-<random>``
+SCRATCH = ".scratch-"
+
+
+def clean_scratch(folder: Path) -> list[Path]:
+    """Remove the scratch folders in ``folder`` of builds whose process no longer runs (a
+    build that an interruption ended: its command leaves without the interpreter's teardown,
+    and a SIGKILL leaves one too); returns them. A running build's folder is left alone."""
+    from twin.fmu.workdir import alive
+
+    gone = []
+    for scratch in folder.glob(f"{SCRATCH}*"):
+        pid = scratch.name.removeprefix(SCRATCH).split("-", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not alive(int(pid)):
+            shutil.rmtree(scratch, ignore_errors=True)
+            gone.append(scratch)
+    return gone
+
+
 def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *, prune: bool = True) -> Path:
     """The cache entry ``<name>-<digest><suffix>``, made by ``make(scratch_dir)`` when missing.
 
@@ -183,7 +263,8 @@ def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *,
     if verified(target):
         return target
     # missing, or a file whose bytes are not what this cache built: build it anew over it
-    with tempfile.TemporaryDirectory(prefix=f"twin-{name}-", dir=target.parent) as tmp:
+    clean_scratch(target.parent)
+    with tempfile.TemporaryDirectory(prefix=f"{SCRATCH}{os.getpid()}-{name}-", dir=target.parent) as tmp:
         built = make(Path(tmp))
         sha256 = file_sha256(built)
         os.replace(built, target)  # atomic: the scratch folder is on the same disk
@@ -207,6 +288,8 @@ def build_cached_library(name: str, files: Mapping[str, bytes], *, salt: str = "
     """
 
     def make(scratch: Path) -> Path:
+        find_tools()  # a missing tool is the one thing said, before the progress line
+        progress(f"building the {name} library (first use of its sources)")
         source, out = scratch / "source", scratch / "out"
         for rel, data in files.items():
             (source / rel).parent.mkdir(parents=True, exist_ok=True)

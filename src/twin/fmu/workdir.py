@@ -23,7 +23,8 @@ from twin.errors import UnsafeCacheError
 _MINE: dict[int, Path] = {}  # by pid: a forked child makes its own
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether the process ``pid`` runs (another user's counts as running)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -52,7 +53,7 @@ def clean_stale(parent: Path) -> list[Path]:
     gone = []
     for folder in parent.glob("pid-*"):
         pid = folder.name.removeprefix("pid-")
-        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+        if pid.isdigit() and int(pid) != os.getpid() and not alive(int(pid)):
             shutil.rmtree(folder, ignore_errors=True)
             gone.append(folder)
     return gone

@@ -30,6 +30,7 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from twin.errors import ConfigError
+from twin.outputs.guard import open_output
 from twin.outputs.sink import ClosesOnExit, OutcomeSink, Sink
 from twin.outputs.summary import write_summary
 from twin.signals.csv import TIME, _default_subsystem, read_table
@@ -110,15 +111,15 @@ class SignalsCsvWriter(ClosesOnExit):
         # shortest text that reads back to the same double, without a Python call per number.
         if resume_at is not None:
             offset, self._last_time = resume_at
-            with open(self.path, "r+b") as f:
-                f.truncate(offset)
-            self._file: IO[bytes] | None = open(self.path, "ab")  # noqa: SIM115
+            self._file: IO[bytes] | None = open_output(self.path, "r+")  # never through a link
+            self._file.truncate(offset)
+            self._file.seek(offset)
             self._good = offset
             return
         if sidecar:
             write_units_sidecar(self.path, self.signals)
         # binary, lines ending in "\n": the same bytes on every platform (deterministic files)
-        self._file = open(self.path, "wb")  # noqa: SIM115
+        self._file = open_output(self.path)
         self._file.write((",".join([TIME, *self.names]) + "\n").encode("utf-8"))
         self._flush()
         self._good = self._file.tell()
@@ -183,7 +184,7 @@ class SignalsCsvWriter(ClosesOnExit):
         with contextlib.suppress(OSError):
             self._file.close()
         self._file = None
-        with open(self.path, "r+b") as f:
+        with open_output(self.path, "r+") as f:
             f.truncate(self._good)  # truncation frees space, it needs none
 
     def _flush(self) -> None:

@@ -13,9 +13,11 @@ as it comes, so a run that crashes keeps what the FMUs said before.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import IO
 
+from twin.outputs.guard import open_output
 from twin.outputs.sink import ClosesOnExit
 
 __all__ = ["FmiLogFile"]
@@ -30,7 +32,8 @@ class FmiLogFile(ClosesOnExit):
         self.messages = 0
         #: a write that failed (a full disk): the log stops there, the run goes on
         self.error: OSError | None = None
-        self._file: IO[str] | None = open(path, "a" if append else "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+        raw = open_output(path, "a" if append else "w")  # never through a planted link
+        self._file: IO[str] | None = io.TextIOWrapper(raw, encoding="utf-8", newline="\n")
 
     def __call__(self, instance: str, status: str, category: str, message: str) -> None:
         if self._file is None:

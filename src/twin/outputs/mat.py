@@ -91,7 +91,7 @@ def write_signals_mat(csv_path: Path, mat_path: Path) -> Path:
     data["mat_names"] = np.array(["time", *(f"{i}.{f}" for i, f in mapping.values())], dtype=object)
 
     def save(tmp: Path) -> None:
-        with open(tmp, "xb") as f:  # a file object: savemat would add ".mat" to a name
+        with open(tmp, "wb") as f:  # a file object: savemat would add ".mat" to a name
             savemat(f, data, oned_as="column", long_field_names=True, do_compression=True)
 
     return write_atomic(mat_path, save)

@@ -7,8 +7,8 @@ co-simulation and error model (docs/performance/bench_phases.md measures it). A
 throw-away figure, which loads the fonts) on the machine's other core while the run goes, then
 draws each plot it is sent.
 
-What it is sent is only what a plot draws: the plot's columns thinned as the plot thins them
-(at most about 2 x 2000 samples each), as one JSON line (the job: kind, file, title, columns)
+What it is sent is only what a plot draws: the plot's columns at the rows the plot draws
+(:func:`thinned`: each bucket's extremes, a few thousand rows), as one JSON line (the job: kind, file, title, columns)
 followed by raw little-endian float64. Nothing it reads executes code: no pickle. It answers
 each job with one JSON line. The same drawing code on the same samples gives the same bytes as
 drawing in the run's own process (tests/outputs/test_plot_process.py).
@@ -50,15 +50,15 @@ __all__ = ["PlotProcess", "main", "thinned"]
 _EXIT_WAIT_S = 5.0
 
 
-def thinned(table: SignalTable, names: list[str], max_points: int) -> SignalTable:
-    """The columns ``names`` of ``table`` every k-th sample, k as the plots take it
-    (``len // max_points``, at least 1): the plot of the thinned table thins no further
-    (its length is below 2 x ``max_points``), so it draws exactly the samples it would draw
-    from the whole table."""
-    every = max(1, len(table.time) // max_points)
-    out = SignalTable(np.ascontiguousarray(table.time[::every]))
+def thinned(table: SignalTable, names: list[str]) -> SignalTable:
+    """The columns ``names`` of ``table`` at the rows a plot of them draws
+    (:func:`twin.outputs.plots.drawn_rows`: every bucket's extremes). Picking again from these
+    rows gives these rows, so the plot of the thinned table draws exactly the samples it would
+    draw from the whole table."""
+    rows = plots.drawn_rows(table, names)
+    out = SignalTable(np.ascontiguousarray(table.time[rows]))
     for name in names:
-        out.add(Signal(name, "", ""), np.ascontiguousarray(table[name][::every]))
+        out.add(Signal(name, "", ""), np.ascontiguousarray(table[name][rows]))
     return out
 
 
@@ -295,7 +295,7 @@ def main() -> int:
 def columns_json(columns: Any) -> dict[str, Any]:
     """A :class:`~twin.outputs.plots.BudgetColumns` as JSON-able fields (mappings as dicts)."""
     fields = asdict(columns)
-    for key in ("parts", "temperatures"):
+    for key in ("parts", "temperatures", "disabled"):
         value = fields[key]
         fields[key] = dict(value) if isinstance(value, Mapping) else list(value)
     return fields

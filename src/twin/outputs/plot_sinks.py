@@ -13,7 +13,7 @@ from pathlib import Path
 
 from twin.errors import RunError
 from twin.outputs.plot_process import PlotProcess, columns_json, thinned
-from twin.outputs.plots import MAX_POINTS, BudgetColumns, checked, draw
+from twin.outputs.plots import BudgetColumns, checked, draw
 from twin.outputs.sink import Outcome, OutcomeSink
 from twin.signals.table import Signal, SignalTable
 
@@ -118,7 +118,7 @@ class _PlotSink(OutcomeSink):
         if self.process is None or not self.process.running:
             return False
         return self.process.send(
-            self.kind, self.path, thinned(table, names, MAX_POINTS), columns_json(columns), self.title
+            self.kind, self.path, thinned(table, names), columns_json(columns), self.title
         )
 
 
@@ -140,9 +140,7 @@ class ErrorBudgetSink(_PlotSink):
         if columns.compensated and columns.compensated not in table:
             columns = dataclasses.replace(columns, compensated=None)
         checked(table, columns)
-        names = [columns.reading, columns.predicted, *columns.parts.values(), *present.values()]
-        names += [columns.compensated] if columns.compensated else []
-        return table, columns, list(dict.fromkeys(names))
+        return table, columns, columns.budget_names()
 
 
 class WearPlotSink(_PlotSink):
@@ -156,4 +154,4 @@ class WearPlotSink(_PlotSink):
         wear = self.columns.wear_columns()
         if table is None or wear is None or any(c not in table for c in (*wear, self.columns.reading)):
             return None
-        return table, self.columns, list(dict.fromkeys([*wear, self.columns.reading]))
+        return table, self.columns, self.columns.wear_names()

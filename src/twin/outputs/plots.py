@@ -1,10 +1,19 @@
 """The plots of a run (PNG): the error budget, and wear against cycles for an endurance test.
 
-``error_budget.png`` has three panels sharing the time axis: the probe reading's drift with the
-predicted error (and the compensated wear), the five parts of the prediction as stacked areas
-(positive parts stacked up from zero, negative ones down), and the temperature rises. Every
-axis names its quantity and unit, every curve has a human name, and the legends sit to the right
-of the panels, outside the curves. All lengths are in µm.
+``error_budget.png`` has three panels sharing the time axis: the probe reading's change (wear
+and error together) with the predicted error (and the compensated wear), the parts of the
+prediction the error model evaluates as stacked areas (positive parts stacked up from zero,
+negative ones down; a factor switched off is not listed, the panel's title names it), and the
+temperature rises. A replay of a measured experiment draws its measured drift (the paper's,
+never fitted) beside the curves. Every axis names its quantity and unit, every curve says what
+it includes, and the legends sit to the right of the panels, outside the curves. All lengths
+are in µm.
+
+Honest at any length: a long record is drawn from the rows :func:`twin.signals.decimate.plot_rows`
+keeps, every bucket's extremes among them, so a spike between two drawn rows is never lost;
+and an axis is scaled to where its curves mostly are (a single -12 µm spike no longer squashes
+a +-2 µm signal to a line): samples beyond it are drawn as triangles on its edge, and the
+legend says how many and how far they reach (:func:`_robust_limits`).
 
 ``wear.png`` (a run whose error model reads the true wear and whose tester counts its swing
 cycles) draws the true, the measured and the compensated wear against the cycles, with the
@@ -28,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from twin.files import write_atomic
+from twin.signals.decimate import plot_rows
 from twin.signals.table import SignalTable
 
 if TYPE_CHECKING:
@@ -43,6 +53,7 @@ __all__ = [
     "BudgetColumns",
     "budget_figure",
     "draw",
+    "drawn_rows",
     "error_budget_png",
     "human_name",
     "save_png",
@@ -57,9 +68,13 @@ _UM_PER_M = 1e6
 # The parts' colours leave out black, red and green, which mark the measured drift, the
 # prediction and the compensated wear.
 _PART_COLORS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:cyan", "tab:olive", "tab:pink")
-#: most points drawn per curve: the figure is about 1000 px wide, and drawing every sample of a
-#: long run costs seconds without changing a pixel of the trends
-MAX_POINTS = 2000
+#: the share of a panel's samples its scale may leave out at each end (as outliers marked on
+#: its edge), and how far beyond that share the rest may reach before it does (in units of the
+#: range of the samples kept): a drift's own ends are always inside
+OUTLIER_SHARE = 0.01
+OUTLIER_REACH = 0.5
+#: the colour of a measured experiment's values (the paper's drift)
+_MEASURED_COLOR = "tab:purple"
 
 
 #: measuring points whose name is not just their key with spaces
@@ -100,7 +115,8 @@ class BudgetColumns:
     ``predicted`` the predicted error (m); ``parts`` maps a legend label (thermal, loading,
     fluctuating, positioning, interference) to the column of that part (m); ``temperatures``
     maps a measuring point's name to its column (K or °C; a plain list of columns is named by
-    :func:`human_name`), shown as rises from their first value. ``compensated`` (m) is drawn
+    :func:`human_name`), shown as rises from their first value; ``parts`` lists only the
+    factors evaluated (``disabled`` names the others). ``compensated`` (m) is drawn
     beside the drift when given; with ``true_wear`` (m) and ``cycles`` too, :func:`wear_figure`
     draws wear against cycles, with ``wear_limit_m`` as the limit line when given.
     """
@@ -113,6 +129,12 @@ class BudgetColumns:
     true_wear: str | None = None
     cycles: str | None = None
     wear_limit_m: float | None = None
+    #: the factors switched off (their labels), named in the budget panel's title
+    disabled: Sequence[str] = ()
+    #: the drift a replayed experiment measured at the probe over the run (m), and who measured
+    #: it: drawn on the drift panel (the paper's -21 µm for its replay; never fitted)
+    measured_drift_m: float | None = None
+    measured_by: str = ""
 
     def temperature_columns(self) -> dict[str, str]:
         """Point name -> column of every temperature drawn."""
@@ -125,6 +147,16 @@ class BudgetColumns:
         if self.true_wear and self.compensated and self.cycles:
             return self.true_wear, self.compensated, self.cycles
         return None
+
+    def budget_names(self) -> list[str]:
+        """The columns the error-budget plot draws, each once."""
+        names = [self.reading, self.predicted, *self.parts.values(), *self.temperature_columns().values()]
+        return list(dict.fromkeys([*names, *([self.compensated] if self.compensated else [])]))
+
+    def wear_names(self) -> list[str]:
+        """The columns the wear plot draws (none when it draws nothing)."""
+        wear = self.wear_columns()
+        return list(dict.fromkeys([*wear, self.reading])) if wear else []
 
     def missing(self, table: SignalTable) -> list[str]:
         """The columns ``table`` lacks (of the error-budget plot)."""
@@ -189,6 +221,51 @@ def _stacked(ax: Axes, t: np.ndarray, parts: Mapping[str, np.ndarray]) -> None:
         up, down = up + pos, down + neg
 
 
+def drawn_rows(table: SignalTable, names: Sequence[str]) -> np.ndarray:
+    """The rows of ``table`` a plot of its columns ``names`` draws (every bucket's extremes:
+    :func:`twin.signals.decimate.plot_rows`)."""
+    return plot_rows(table.time, [table[n] for n in names])
+
+
+def _robust_limits(
+    ax: Axes,
+    t: np.ndarray,
+    curves: Sequence[tuple[np.ndarray, str]],
+    also: Sequence[float] = (),
+    unit: str = "µm",
+) -> None:
+    """Scale ``ax`` to where its ``curves`` (values, colour) mostly are, and mark the samples
+    beyond that scale as triangles on its edge, with one legend entry saying how many and how
+    far they reach. A sample is beyond only when it lies more than :data:`OUTLIER_REACH`
+    ranges beyond the :data:`OUTLIER_SHARE` quantiles: every other sample stays inside, and a
+    panel without such samples keeps matplotlib's own limits. ``also`` are values the scale
+    must show (a measured value, zero)."""
+    values = np.concatenate([v[np.isfinite(v)] for v, _ in curves]) if curves else np.zeros(0)
+    if values.size < 20:
+        return
+    lo, hi = (float(q) for q in np.quantile(values, [OUTLIER_SHARE, 1.0 - OUTLIER_SHARE]))
+    reach = OUTLIER_REACH * max(hi - lo, 1e-9 * max(abs(lo), abs(hi), 1e-30))
+    inside = values[(values >= lo - reach) & (values <= hi + reach)]
+    bottom, top = min([float(inside.min()), *also]), max([float(inside.max()), *also])
+    vmin, vmax = float(values.min()), float(values.max())
+    if bottom <= vmin and vmax <= top:
+        return  # nothing far out (or what is, a measured value shows anyway)
+    margin = 0.08 * max(top - bottom, reach)
+    bottom, top = bottom - margin, top + margin
+    ax.set_ylim(bottom, top)
+    outside = 0
+    for v, color in curves:
+        for beyond, edge, marker in ((v < bottom, bottom, "v"), (v > top, top, "^")):
+            if beyond.any():
+                outside += int(beyond.sum())
+                ax.plot(t[beyond], np.full(int(beyond.sum()), edge), linestyle="none", marker=marker,
+                        color=color, markersize=7, clip_on=False, zorder=5)  # fmt: skip
+    reaching = [f"down to {vmin:.3g}"] if vmin < bottom else []
+    reaching += [f"up to {vmax:.3g}"] if vmax > top else []
+    ax.plot([], [], linestyle="none", marker="v" if vmin < bottom else "^", color="0.3",
+            label=f"{outside} sample(s) beyond the scale,\non its edge ({' and '.join(reaching)} {unit})")  # fmt: skip
+
+
 def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
     """The error-budget figure of ``table`` (three panels, see the module). Raises
     ``KeyError`` naming a column the table lacks."""
@@ -198,11 +275,11 @@ def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Fig
 
 
 def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
-    every = max(1, len(table.time) // MAX_POINTS)
-    t, t_label = _time_axis(table.time[::every])
+    rows = drawn_rows(table, columns.budget_names())
+    t, t_label = _time_axis(table.time[rows])
 
     def um(name: str) -> np.ndarray:
-        return table[name][::every] * _UM_PER_M
+        return table[name][rows] * _UM_PER_M
 
     fig = _new_figure(FIGSIZE_IN)
     drift, budget, temps = fig.subplots(
@@ -212,30 +289,33 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
         gridspec_kw={
             "height_ratios": [3, 3, 2],
             "left": 0.07,
-            "right": 0.79,
+            "right": 0.77,
             "top": 0.92,
             "bottom": 0.07,
             "hspace": 0.3,
         },
     )
     fig.suptitle(title)
+    _draw_drift(drift, t, um, columns)
 
-    drift.plot(t, _rise(um(columns.reading)), color="black", linewidth=1.6, label="measured drift (probe)")
-    drift.plot(t, um(columns.predicted), color="tab:red", linewidth=1.6, label="predicted error e_z")
-    if columns.compensated:
-        drift.plot(t, um(columns.compensated), color="tab:green", linewidth=1.2, label="compensated wear")
-    drift.axhline(0.0, color="0.6", linewidth=0.6)
-    drift.set_ylabel("displacement (µm)")
-    drift.set_title("probe reading and the error model's prediction", fontsize="medium", y=1.0)
-
-    _stacked(budget, t, {label: um(column) for label, column in columns.parts.items()})
-    budget.plot(t, um(columns.predicted), color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
+    parts = {label: um(column) for label, column in columns.parts.items()}
+    _stacked(budget, t, parts)
+    e_z = um(columns.predicted)
+    budget.plot(t, e_z, color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
     budget.axhline(0.0, color="0.3", linewidth=0.6)
     budget.set_ylabel("error part (µm)")
-    budget.set_title("error budget: the parts of e_z, stacked", fontsize="medium", y=1.0)
+    off = f" ({', '.join(columns.disabled)} switched off)" if columns.disabled else ""
+    budget.set_title(f"error budget: the parts of e_z, stacked{off}", fontsize="medium", y=1.0)
+    stack = [np.nan_to_num(v) for v in parts.values()]
+    ups = np.cumsum([np.clip(v, 0.0, None) for v in stack], axis=0) if stack else []
+    downs = np.cumsum([np.clip(v, None, 0.0) for v in stack], axis=0) if stack else []
+    _robust_limits(budget, t, [(e_z, "tab:red"), *((v, "0.3") for v in (*ups, *downs))], also=(0.0,))
 
+    rises = []
     for name, column in columns.temperature_columns().items():
-        temps.plot(t, _rise(table[column][::every]), linewidth=1.0, label=name)
+        (line,) = temps.plot(t, _rise(table[column][rows]), linewidth=1.0, label=name)
+        rises.append((line.get_ydata(), line.get_color()))
+    _robust_limits(temps, t, rises, unit="K")
     temps.set_ylabel("temperature rise (K)")
     temps.set_title("temperature rises at the measuring points", fontsize="medium", y=1.0)
     temps.set_xlabel(t_label)
@@ -247,6 +327,31 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
     return fig
 
 
+def _draw_drift(ax: Axes, t: np.ndarray, um: Any, columns: BudgetColumns) -> None:
+    """The probe reading's change (all it includes: the wear and every error), the predicted
+    error, the compensated wear, and a replayed experiment's measured drift."""
+    curves = [
+        (_rise(um(columns.reading)), "black", 1.6, "probe reading change\n(wear + errors)"),
+        (um(columns.predicted), "tab:red", 1.6, "predicted error e_z"),
+    ]
+    if columns.compensated:
+        curves.append((um(columns.compensated), "tab:green", 1.2, "compensated wear\n(reading change − e_z)"))
+    for values, color, width, label in curves:
+        ax.plot(t, values, color=color, linewidth=width, label=label)
+    also = [0.0]
+    if columns.measured_drift_m is not None and t.size:
+        measured = columns.measured_drift_m * _UM_PER_M
+        by = f" ({columns.measured_by})" if columns.measured_by else ""
+        ax.axhline(measured, color=_MEASURED_COLOR, linestyle=":", linewidth=1.2)
+        ax.plot([t[-1]], [measured], color=_MEASURED_COLOR, marker="*", markersize=12, linestyle="none",
+                label=f"measured drift{by}:\n{measured:+.1f} µm at the end", zorder=6)  # fmt: skip
+        also.append(measured)
+    ax.axhline(0.0, color="0.6", linewidth=0.6)
+    ax.set_ylabel("displacement (µm)")
+    ax.set_title("probe reading and the error model's prediction", fontsize="medium", y=1.0)
+    _robust_limits(ax, t, [(v, c) for v, c, _, _ in curves], also=also)
+
+
 def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figure | None:
     """Wear against cycles: true, measured (the probe reading's change) and compensated, in
     µm, with the wear limit as a line; None when ``columns`` name no true wear, compensated
@@ -255,29 +360,33 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
     if wear is None or any(c not in table for c in (*wear, columns.reading)):
         return None
     true_wear, compensated, cycles = wear
-    every = max(1, len(table.time) // MAX_POINTS)
+    rows = drawn_rows(table, columns.wear_names())
     with _style():
         fig = _new_figure(WEAR_FIGSIZE_IN)
         ax = fig.subplots(gridspec_kw={"left": 0.08, "right": 0.71, "top": 0.9, "bottom": 0.12})
-        n = table[cycles][::every]
+        n = table[cycles][rows]
+        ax.plot(n, _rise(table[true_wear][rows]) * _UM_PER_M, color="black", linewidth=1.8, label="true wear")
         ax.plot(
-            n, _rise(table[true_wear][::every]) * _UM_PER_M, color="black", linewidth=1.8, label="true wear"
+            n,
+            _rise(table[columns.reading][rows]) * _UM_PER_M,
+            color="0.55",
+            linewidth=1.0,
+            label="probe reading change\n(wear + errors)",
         )
         ax.plot(
             n,
-            _rise(table[columns.reading][::every]) * _UM_PER_M,
-            color="0.55",
-            linewidth=1.0,
-            label="measured (probe reading change)",
-        )
-        ax.plot(
-            n, table[compensated][::every] * _UM_PER_M, color="tab:green", linewidth=1.4, label="compensated"
+            table[compensated][rows] * _UM_PER_M,
+            color="tab:green",
+            linewidth=1.4,
+            label="compensated wear\n(reading change − e_z)",
         )
         if columns.wear_limit_m is not None:
             limit = columns.wear_limit_m * _UM_PER_M
             ax.axhline(
                 limit, color="tab:red", linestyle="--", linewidth=1.2, label=f"wear limit ({limit:g} µm)"
             )
+        curves = [(np.asarray(ln.get_ydata(), dtype=float), ln.get_color()) for ln in ax.get_lines()[:3]]
+        _robust_limits(ax, np.asarray(n, dtype=float), curves)
         ax.set_xlabel("swing cycles completed")
         ax.set_ylabel("wear depth (µm)")
         ax.set_title(title, y=1.0)

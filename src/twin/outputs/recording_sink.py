@@ -15,6 +15,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
+from twin.outputs.guard import refuse_links
 from twin.outputs.sink import Outcome, Sink
 from twin.signals.table import Block, Signal
 
@@ -83,6 +84,10 @@ class RecordingSink(Sink):
         if self._signals is None or self._closed:
             raise ValueError(f"{self.path}: written before open or after close")
         signals = self._signals
+        # rerun opens the file by name, following a link: one planted there is refused, and an
+        # earlier file removed, so that rerun makes a new one (twin.files)
+        refuse_links(self.path.parent, [self.path.name])
+        self.path.unlink(missing_ok=True)
         self._writer = _rerun_rec().RecordingWriter(
             self.path,
             [*signals, *self.late_signals],

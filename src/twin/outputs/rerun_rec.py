@@ -14,11 +14,14 @@ Layout of the recording:
 * static per entity: ``SeriesLines`` with the legend name ``"<variable> [<unit>]"`` (rerun
   has no unit field for scalars) and ``AnyValues`` with ``signal``, ``unit`` (as recorded),
   ``si_unit`` and ``to_si`` (the factor back to SI), ``description``;
-* a default blueprint saved in the file: on top an "Error budget" time-series view (µm) with
-  the ``budget_columns`` and, for a run of the tester, a 3D view of it
-  (:mod:`twin.outputs.scene3d`, entities under ``/tester``); below, a grid with one
-  time-series view per subsystem and unit (``thermal [K]``, ``thermal [J]``, ...), so no view
-  mixes units.
+* a default blueprint saved in the file when it is closed (when every series' magnitude is
+  known): on top an "Error budget" time-series view (µm) with the ``budget_columns`` and, for
+  a run of the tester, a 3D view of it (:mod:`twin.outputs.scene3d`, entities under
+  ``/tester``); below, a grid with one time-series view per subsystem and unit (``thermal
+  [K]``, ``thermal [J]``, ...), so no view mixes units, split further where a series' peak is
+  more than :data:`MAGNITUDE_RATIO` times another's (``mechanics [N] up to 2e+05`` beside
+  ``mechanics [N] up to 20.3``: on one axis the smaller would be a flat line); the budget's
+  parts that small get views of their own, and the budget's columns are in no other view.
 
 Written against rerun-sdk 0.41 (``rr.Scalars``, ``rr.SeriesLines``, ``rr.TimeColumn``,
 ``rerun.chunk.RrdReader``). No viewer is spawned and nothing goes over the network: the
@@ -98,27 +101,79 @@ def _series_label(signal: Signal) -> str:
     return f"{_variable(signal)} [{unit}]" if unit else _variable(signal)
 
 
+#: series whose magnitudes differ by more than this share no view: on one Y axis the smaller
+#: is a flat line (a 200 kN load beside a 20 N force, a 4850 µm reading beside sub-µm vibration)
+MAGNITUDE_RATIO = 100.0
+
+
+def by_magnitude(names: Sequence[str], peaks: Mapping[str, float]) -> list[list[str]]:
+    """``names`` in groups whose peaks (largest finite |value|) are within
+    :data:`MAGNITUDE_RATIO` of the group's largest, largest group first, each in the order
+    given. A series that never left zero (or was never sent) joins the smallest group: a flat
+    zero line squashes nothing."""
+    ranked = sorted((n for n in names if peaks.get(n, 0.0) > 0.0), key=lambda n: -peaks[n])
+    groups: list[list[str]] = []
+    for name in ranked:
+        if groups and peaks[name] * MAGNITUDE_RATIO >= peaks[groups[-1][0]]:
+            groups[-1].append(name)
+        else:
+            groups.append([name])
+    zero = [n for n in names if peaks.get(n, 0.0) <= 0.0]
+    if zero:
+        if groups:
+            groups[-1].extend(zero)
+        else:
+            groups.append(zero)
+    order = {n: i for i, n in enumerate(names)}
+    return [sorted(g, key=order.__getitem__) for g in groups]
+
+
+def _peak(group: Sequence[str], peaks: Mapping[str, float]) -> float:
+    return max(peaks.get(n, 0.0) for n in group)
+
+
+def _view_name(base: str, unit: str, peak: float, split: bool) -> str:
+    name = f"{base} [{unit}]" if unit else base
+    return f"{name} up to {peak:.3g}" if split else name
+
+
 def _blueprint(
-    signals: Sequence[Signal], paths: Mapping[str, str], budget: Sequence[str], scene: bool
+    signals: Sequence[Signal],
+    paths: Mapping[str, str],
+    budget: Sequence[str],
+    scene: bool,
+    peaks: Mapping[str, float],
 ) -> rrb.Blueprint:
+    units = {s.name: recorded_unit(s)[0] for s in signals}
+
+    def view(name: str, group: list[str]) -> rrb.TimeSeriesView:
+        return rrb.TimeSeriesView(origin="/", contents=[f"+ {paths[n]}" for n in group], name=name)
+
+    def views(base: str, unit: str, members: list[str]) -> list[rrb.TimeSeriesView]:
+        groups = by_magnitude(members, peaks)
+        split = len(groups) > 1
+        return [view(_view_name(base, unit, _peak(g, peaks), split), g) for g in groups]
+
+    top: list[rrb.View] = []
+    smaller: list[rrb.View] = []
+    if budget:
+        # the budget's largest parts are the top view; parts a hundred times smaller get views
+        # of their own, first in the grid
+        first, *rest = by_magnitude(list(budget), peaks)
+        top.append(view(BUDGET_VIEW_NAME, first))
+        smaller = [
+            view(_view_name(f"{BUDGET_VIEW_NAME}, smaller parts", "µm", _peak(g, peaks), True), g)
+            for g in rest
+        ]
+    # the budget's columns are in its views only, never again in the grid below
     groups: dict[tuple[str, str], list[str]] = {}
     for s in signals:
-        groups.setdefault((s.subsystem, recorded_unit(s)[0]), []).append(paths[s.name])
-    # one view per subsystem and unit: a view's one Y axis never mixes K with J or µm with N
-    per_unit = [
-        rrb.TimeSeriesView(
-            origin="/", contents=[f"+ {p}" for p in members], name=f"{sub} [{unit}]" if unit else sub
-        )
-        for (sub, unit), members in groups.items()
-    ]
-    grid = rrb.Grid(*per_unit)
-    top: list[rrb.View] = []
-    if budget:
-        top.append(
-            rrb.TimeSeriesView(
-                origin="/", contents=[f"+ {paths[name]}" for name in budget], name=BUDGET_VIEW_NAME
-            )
-        )
+        if s.name not in budget:
+            groups.setdefault((s.subsystem, units[s.name]), []).append(s.name)
+    # one view per subsystem, unit and magnitude: a view's one Y axis never mixes K with J or
+    # µm with N, nor a series with one a hundred times smaller
+    per_unit = [v for (sub, unit), members in groups.items() for v in views(sub, unit, members)]
+    grid = rrb.Grid(*smaller, *per_unit)
     if scene:
         from twin.outputs.scene3d import ROOT
 
@@ -178,9 +233,11 @@ class RecordingWriter(ClosesOnExit):
         # An explicit stream (not rr.init's global one) with a fresh id: several recordings
         # can be written from one process without mixing.
         self._rec: rr.RecordingStream | None = rr.RecordingStream(app_id, recording_id=uuid.uuid4())
-        self._rec.save(
-            self.path, default_blueprint=_blueprint(self.signals, self.paths, budget, scene is not None)
-        )
+        self.budget = budget
+        #: each signal's largest finite |value| sent (as recorded): the blueprint, sent when
+        #: the recording closes, keeps series of different magnitudes apart
+        self.peaks = {name: 0.0 for name in self.paths}
+        self._rec.save(self.path)
         name = recording_name or self.path.resolve().parent.name or self.path.stem
         self._rec.send_recording_name(name)
         for s in self.signals:
@@ -219,6 +276,10 @@ class RecordingWriter(ClosesOnExit):
         arrays = self._checked(t, columns_chunk, partial)
         if t.size == 0:
             return
+        for name, values in arrays.items():
+            finite = np.abs(values[np.isfinite(values)])
+            if finite.size:
+                self.peaks[name] = max(self.peaks[name], float(finite.max()))
         for start in range(0, t.size, CHUNK_ROWS):
             part = slice(start, start + CHUNK_ROWS)
             if self._unwritten:
@@ -263,6 +324,9 @@ class RecordingWriter(ClosesOnExit):
             rec, self._rec = self._rec, None
             if self.scene is not None:
                 self.scene.send(rec, TIMELINE)
+            # the default blueprint, now that every series' magnitude is known
+            blueprint = _blueprint(self.signals, self.paths, self.budget, self.scene is not None, self.peaks)
+            rec.send_blueprint(blueprint, make_active=True, make_default=True)
             self._settle(rec)
             # disconnect() closes the file sink, which writes the footer `rerun rrd verify` checks.
             rec.disconnect()

@@ -26,15 +26,20 @@ from __future__ import annotations
 import errno
 import hashlib
 import json
+import math
 import os
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from twin.errors import CheckpointError, ConfigError
 from twin.files import write_text_atomic
 from twin.outputs import checkpoint_file
+from twin.outputs.guard import open_output, output_dir, read_text_capped, refuse_links
 
 if TYPE_CHECKING:
     from twin.outputs.plot_process import PlotProcess
@@ -93,6 +98,8 @@ RUN_OUTPUTS = (
     "checkpoint.pkl",
     "checkpoint.npz.tmp",  # a checkpoint a kill interrupted (checkpoint_file.save)
 )
+#: where signals.csv's header line must end (a header of 10 000 long column names fits)
+MAX_HEADER_BYTES = 16 * 2**20
 #: file systems no run folder may be on
 _SPECIAL_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
 #: the errors of a full disk or a file-size limit
@@ -230,7 +237,12 @@ class RunFolder:
 
     def make(self) -> None:
         """Make the folder (and its parents) if it is not there."""
-        self.path.mkdir(parents=True, exist_ok=True)
+        output_dir(self.path)
+
+    def refuse_links(self) -> None:
+        """A symbolic link planted where the run writes a file is refused (one line, exit 2)
+        before anything runs: the twin never writes through one (:mod:`twin.files`)."""
+        refuse_links(self.path, (LOCK_FILE, RUN_FILE, *RUN_OUTPUTS))
 
     def lock(self) -> None:
         """Hold the folder's lock until :meth:`unlock` (or the process ends): a second twin
@@ -242,7 +254,10 @@ class RunFolder:
         if self._lock_fd is not None:
             return
         self.make()
-        fd = os.open(self.file(LOCK_FILE), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        self.refuse_links()
+        lock = open_output(self.file(LOCK_FILE), "r+")  # never through a planted link
+        fd = os.dup(lock.fileno())
+        lock.close()
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -315,9 +330,11 @@ class RunFolder:
         }
         checkpoint_file.save(self.file(CHECKPOINT_FILE), data)
 
-    def load_checkpoint(self, scenario: str, fingerprint: str) -> Checkpoint:
+    def load_checkpoint(self, scenario: str, fingerprint: str, kept_columns: int) -> Checkpoint:
         """The folder's checkpoint, which must have been taken from the scenario named
-        ``scenario`` as it is now (``fingerprint``), with signals.csv still holding its rows."""
+        ``scenario`` as it is now (``fingerprint``), with signals.csv still holding its rows
+        and its recorder part what a run keeping ``kept_columns`` columns writes. Nothing of
+        the folder is changed here (see :meth:`run_sinks`)."""
         path = self.file(CHECKPOINT_FILE)
         data = checkpoint_file.load(path)
         master, recorder = data.get("master"), data.get("recorder")
@@ -335,21 +352,83 @@ class RunFolder:
                 "resuming would mix two scenarios",
                 source=str(path),
             )
+        self._check_kept(recorder, kept_columns, str(path))
         self._check_csv(recorder, str(path))
         return Checkpoint(master, recorder, data["scenario"], fingerprint)
 
-    def _check_csv(self, recorder: dict[str, Any], source: str) -> None:
-        position = recorder.get("csv_position")
-        if not isinstance(position, list) or not position or type(position[0]) is not int:
-            raise CheckpointError("malformed checkpoint (csv_position)", source=source)
-        csv = self.file(SIGNALS_CSV)
-        size = csv.stat().st_size if csv.is_file() else -1
-        if size < position[0]:
-            raise CheckpointError(
-                f"{SIGNALS_CSV} holds {max(size, 0)} bytes, fewer than the {position[0]} the checkpoint "
-                "continues from: it was cut or replaced",
-                source=source,
+    def refuse_completed(self) -> None:
+        """A run whose summary.json says it completed has nothing to resume: refused (exit 2)
+        rather than run again from its last checkpoint, rewriting a finished run's files."""
+        path = self.file(SUMMARY_JSON)
+        try:
+            status = json.loads(read_text_capped(path, 2**20)).get("status")
+        except (OSError, ValueError, AttributeError):
+            return  # no summary (killed) or an unreadable one: the resume writes it anew
+        if status == "completed":
+            raise ConfigError(
+                "the run completed (summary.json): nothing to resume; `twin run --force` runs it again",
+                source=str(self.path),
             )
+
+    @staticmethod
+    def _check_kept(recorder: dict[str, Any], kept_columns: int, source: str) -> None:
+        """The rows the run keeps in memory: float64, one time per row, ``kept_columns`` wide."""
+        t, rows = recorder.get("kept_time"), recorder.get("kept_rows")
+        if not isinstance(t, np.ndarray) or t.dtype != np.float64 or t.ndim != 1:
+            raise CheckpointError("expected a float64 vector", source=source, key="recorder.kept_time")
+        if (
+            not isinstance(rows, np.ndarray)
+            or rows.dtype != np.float64
+            or rows.shape != (len(t), kept_columns)
+        ):
+            got = f"{rows.dtype} {rows.shape}" if isinstance(rows, np.ndarray) else type(rows).__name__
+            raise CheckpointError(
+                f"expected float64 of shape ({len(t)}, {kept_columns}), got {got}",
+                source=source,
+                key="recorder.kept_rows",
+            )
+
+    def _check_csv(self, recorder: dict[str, Any], source: str) -> None:
+        """csv_position is ``[bytes, last time]``: a line end of signals.csv past its header
+        (0 would empty the file, -1 or beyond its end cannot be continued)."""
+        position = recorder.get("csv_position")
+        key = "recorder.csv_position"
+        if (
+            not isinstance(position, list)
+            or len(position) != 2
+            or type(position[0]) is not int
+            or type(position[1]) not in (int, float)
+            or not math.isfinite(position[1])
+        ):
+            raise CheckpointError(
+                "expected [bytes, last time] (an integer and a finite number)", source=source, key=key
+            )
+        csv = self.file(SIGNALS_CSV)
+        offset = position[0]
+        try:
+            fd = os.open(csv, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError as exc:
+            raise CheckpointError(
+                f"{SIGNALS_CSV} cannot be read ({exc.strerror})", source=source, key=key
+            ) from None
+        with os.fdopen(fd, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise CheckpointError(f"{SIGNALS_CSV} is not a regular file", source=source, key=key)
+            size = st.st_size
+            header = f.read(min(size, MAX_HEADER_BYTES)).find(b"\n") + 1
+            if not header <= offset <= size:
+                raise CheckpointError(
+                    f"{offset} is not within {SIGNALS_CSV}'s rows (bytes {header} to {size}): "
+                    "the file was cut or replaced, or the checkpoint crafted",
+                    source=source,
+                    key=key,
+                )
+            f.seek(offset - 1)
+            if f.read(1) != b"\n":
+                raise CheckpointError(
+                    f"{offset} is not at the end of a row of {SIGNALS_CSV}", source=source, key=key
+                )
 
     # -- the sinks -----------------------------------------------------------------------
 
@@ -367,9 +446,9 @@ class RunFolder:
         csv_path = self.file(SIGNALS_CSV)
         position = None
         if resume is not None:
+            # cut back when the CSV's sink opens, which is after the master has restored every
+            # FMU's state: a resume the FMUs refuse leaves signals.csv as it was
             position = tuple(resume.recorder["csv_position"])
-            with open(csv_path, "r+b") as f:  # before the recording replays the CSV's rows
-                f.truncate(position[0])
         from twin.outputs.mat import SignalsMatSink
 
         mat = [SignalsMatSink(self.file(SIGNALS_MAT), csv_path)] if outputs.mat else []

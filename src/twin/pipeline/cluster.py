@@ -29,6 +29,7 @@ import logging
 import os
 import resource
 import sys
+import threading
 import time
 import uuid
 import warnings
@@ -107,12 +108,14 @@ def open_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
 
     cluster = None
     if scheduler is not None:
+        scheduler = check_scheduler(scheduler)
         timeout = dask.config.get("distributed.comm.timeouts.connect")
         try:
             client = Client(scheduler, timeout=timeout, set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise ConfigError(f"cannot reach the scheduler: {one_line(exc)}", source="--scheduler") from None
     else:
+        _resource_tracker()
         with warnings.catch_warnings():
             # port 8787 taken (another cluster): Dask serves the dashboard elsewhere, and the
             # address printed is the one it took
@@ -136,6 +139,150 @@ def open_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+#: Dask's developer logs, each a deque of the last N messages per connection, process and
+#: kind: the client's and the scheduler's keep every message they sent (a point's task, its
+#: prepared run of some 30 KB, among them) and a worker every task it was given. At Dask's
+#: 1000 a long sweep's client grew by ~90 KB a point until each log filled (some 500 MB) and
+#: its workers by ~13 KB a point; ten keep them small and flat. The system monitor's
+#: history is cut from an hour to a minute. Read when the client, the scheduler and the
+#: workers start (a local cluster's workers inherit it; an existing scheduler keeps its own).
+BOUNDED_LOGS = {
+    "distributed.admin.low-level-log-length": 10,
+    "distributed.admin.system-monitor.log-length": 120,
+}
+
+
+def bounded_logs() -> Any:
+    """Dask's configuration with :data:`BOUNDED_LOGS`, for the life of a study's cluster
+    (``with bounded_logs(), open_client(...)``)."""
+    import dask
+    import distributed  # noqa: F401 (its defaults join dask's config first, not inside the set)
+
+    return dask.config.set(BOUNDED_LOGS)
+
+
+# ------------------------------------------------------------------ an existing scheduler
+
+#: seconds to open a connection to an existing scheduler (and exchange Dask's handshake)
+SCHEDULER_CONNECT_S = 10.0
+#: seconds for its answer to "who are you" once connected: a listener that accepts and never
+#: answers ends the command within connect + answer, never a hang
+SCHEDULER_ANSWER_S = 15.0
+_SCHEMES = ("tcp", "tls", "ws", "wss")
+
+
+def scheduler_address(text: str, source: str = "--scheduler") -> str:
+    """The address of an existing scheduler (``tcp://host:port``; ``host:port`` means tcp),
+    checked for its form alone, before anything connects: a :class:`ConfigError` naming
+    ``source`` otherwise (a file's name says to give it as ``--scheduler-file``)."""
+    import re
+
+    text = text.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if not sep and ("/" in text or text.endswith(".json") or os.path.isfile(text)):
+        raise ConfigError(f"{text!r} is a file, not an address: give it as --scheduler-file", source=source)
+    if scheme not in _SCHEMES:
+        raise ConfigError(
+            f"{text!r}: expected tcp://host:port (schemes: {', '.join(_SCHEMES)}), got scheme {scheme!r}",
+            source=source,
+        )
+    match = re.fullmatch(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):([0-9]{1,5})", rest)
+    if match is None or not 0 < int(match.group(2)) < 65536:
+        raise ConfigError(f"{text!r}: expected host:port with a port number (tcp://host:8786)", source=source)
+    return f"{scheme}://{rest}"
+
+
+def read_scheduler_file(path: str) -> str:
+    """The address in Dask's scheduler file (``dask scheduler --scheduler-file FILE``)."""
+    import json
+
+    source = f"--scheduler-file {path}"
+    try:
+        if os.path.getsize(path) > 2**20:
+            raise ValueError("larger than 1 MB")
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"not a Dask scheduler file ({one_line(exc)[:160]})", source=source) from None
+    address = data.get("address") if isinstance(data, dict) else None
+    if not isinstance(address, str):
+        raise ConfigError('not a Dask scheduler file (no "address")', source=source)
+    return scheduler_address(address, source)
+
+
+def check_scheduler(address: str, source: str = "--scheduler") -> str:
+    """Connect to the scheduler at ``address`` and ask who it is, within
+    :data:`SCHEDULER_CONNECT_S` and :data:`SCHEDULER_ANSWER_S`, before a Client exists (a
+    Client that cannot connect leaves a thread and a traceback at exit); the checked address,
+    or a :class:`ConfigError` naming ``source`` and what went wrong."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    address = scheduler_address(address, source)
+    _knock(address, source)
+
+    async def ask() -> Any:
+        comm = await connect(address, timeout=SCHEDULER_CONNECT_S)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        answer = asyncio.run(asyncio.wait_for(ask(), SCHEDULER_CONNECT_S + SCHEDULER_ANSWER_S))
+    except TimeoutError:
+        total = SCHEDULER_CONNECT_S + SCHEDULER_ANSWER_S
+        raise ConfigError(
+            f"{address} accepted but did not answer within {total:.0f} s", source=source
+        ) from None
+    except Exception as exc:  # the comm layer's errors are many kinds (OSError, CommClosedError, ...)
+        raise ConfigError(
+            f"cannot reach the scheduler at {address}: {one_line(exc)}", source=source
+        ) from None
+    if not isinstance(answer, dict) or answer.get("type") != "Scheduler":
+        raise ConfigError(f"{address} answered, but is not a Dask scheduler", source=source)
+    return address
+
+
+def _knock(address: str, source: str) -> None:
+    """A plain TCP connection first: a refused one (nothing listens there) is said at once,
+    where Dask's connect would retry it for its whole timeout."""
+    import socket
+
+    host, _, port = address.partition("://")[2].rpartition(":")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=SCHEDULER_CONNECT_S).close()
+    except TimeoutError:
+        raise ConfigError(
+            f"cannot reach the scheduler at {address}: no answer to connect within {SCHEDULER_CONNECT_S:.0f} s",
+            source=source,
+        ) from None
+    except OSError as exc:
+        raise ConfigError(
+            f"cannot reach the scheduler at {address}: {one_line(exc)}", source=source
+        ) from None
+
+
+def _resource_tracker() -> None:
+    """Start multiprocessing's resource tracker from a thread of its own, before the workers.
+
+    The command may have SIGINT and SIGTERM blocked (:mod:`twin.cli.interrupt`: it ends its
+    workers itself, and a worker that a terminal's Ctrl-C reaches prints tracebacks while its
+    nanny restarts it); the workers inherit the block from the thread that starts them. Starting
+    the tracker unblocks both in the thread that starts it (bpo-33613): done on the first
+    worker's start, that thread then started every worker open to the signals.
+    """
+    from multiprocessing import resource_tracker
+
+    starter = threading.Thread(target=resource_tracker.ensure_running, name="resource tracker")
+    starter.start()
+    starter.join()
 
 
 def dashboard(client: Any) -> str | None:
@@ -284,13 +431,31 @@ class _Tasks:
         return records
 
 
+def _completed(queue: Any, stop: Callable[[], str | None] | None) -> Iterator[Any]:
+    """The futures of ``queue`` (distributed's ``as_completed``) as they finish, until none is
+    left or ``stop`` answers: a signal is not held until the next point finishes (a point of
+    the paper's experiment takes seconds). As distributed's own iterator, it looks again at
+    least every tenth of a second."""
+    while True:
+        while not queue.has_ready():
+            if (stop is not None and stop() is not None) or queue.is_empty():
+                return
+            with queue.thread_condition:
+                queue.thread_condition.wait(timeout=0.1)
+        if stop is not None and stop() is not None:
+            return
+        yield next(queue)
+
+
 def execute(
     client: Any,
     indices: Iterable[int],
     payload: Callable[[int], Payload | Record],
     task: Callable[[Payload], Record],
+    stop: Callable[[], str | None] | None = None,
 ) -> Iterator[Record]:
-    """Run the points, yielding each record as it finishes (in any order).
+    """Run the points, yielding each record as it finishes (in any order), until the last or
+    until ``stop`` names a signal (then the points in flight are left to the cluster's close).
 
     ``payload(i)`` builds point ``i``'s task input, or returns a failed record for a point
     that cannot run (then nothing is submitted). Points go out in batches (:class:`_Batcher`);
@@ -298,8 +463,12 @@ def execute(
     alone (:class:`_Tasks`), so the points beside a crashing one still finish and only the
     crashing one is recorded as failed.
     """
+    if stop is not None and stop() is not None:
+        return  # the cluster took its time to start: nothing is submitted any more
     tasks = _Tasks(client, indices, payload, task)
     yield from tasks.fill()
-    for future in tasks.queue:
+    for future in _completed(tasks.queue, stop):
         yield from tasks.finished(future)
+        if stop is not None and stop() is not None:
+            return
         yield from tasks.fill()

@@ -7,6 +7,7 @@ run's signals.csv (whose errormodel.csv it then reproduces byte for byte).
 from __future__ import annotations
 
 import csv
+import io
 import os
 import threading
 from collections import deque
@@ -23,11 +24,14 @@ from twin.errormodel.config import errormodel_config, input_columns, model_defau
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.streaming import CHUNK_ROWS, Block, StreamingEvaluation
 from twin.errors import ConfigError
+from twin.files import write_text_atomic
 from twin.outputs.csv import SignalsCsvWriter, units_sidecar_path
+from twin.outputs.guard import open_output, output_dir, refuse_links
 from twin.outputs.run_folder import (
     ERROR_BUDGET_PNG,
     ERRORMODEL_CSV,
     SUMMARY_JSON,
+    WEAR_PNG,
     RunFolder,
     check_output_folder,
 )
@@ -209,7 +213,7 @@ class _FlagFile:
     def add(self, flag: Flag) -> None:
         if self._file is None:
             self.created.add(self.path)
-            self._file = open(self.path, "w", encoding="utf-8", newline="")  # noqa: SIM115
+            self._file = io.TextIOWrapper(open_output(self.path), encoding="utf-8", newline="")
             self._csv = csv.writer(self._file, lineterminator="\n")
             self._csv.writerow(["line", "reason"])
         self._csv.writerow([flag.line, flag.reason])
@@ -249,7 +253,7 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
                 window_s = window_ns / NS_PER_S
             em.pop("drift_window")
         p.check()
-    return errormodel_config(model_defaults(), em, source, window_s), source
+    return errormodel_config(model_defaults(), em, source, window_s, also=("drift_window",)), source
 
 
 @dataclass(frozen=True)
@@ -280,6 +284,8 @@ def job(target: Path, config_path: Path | None, out: Path | None, force: bool) -
     out = out if out is not None else default
     check_output_folder(out, "--out")
     _refuse_writing_over_the_input(csv, out)
+    written = (ERRORMODEL_CSV, FLAGGED_CSV, SUMMARY_JSON, ERROR_BUDGET_PNG, WEAR_PNG)
+    refuse_links(out, (*written, units_sidecar_path(ERRORMODEL_CSV).name))  # never written through
     _refuse_another_commands_outputs(out, force)
     return Job(csv, config_path, config, out)
 
@@ -364,12 +370,12 @@ drift_window = "5 min"            # drift ends: lines through this much of each 
 def write_template(folder: Path) -> list[Path]:
     """A commented ``LAB.toml`` and a small example ``lab.csv`` (1 h at 10 s, a warm-up) that
     ``twin compensate lab.csv --config LAB.toml`` runs as they are."""
-    folder.mkdir(parents=True, exist_ok=True)
+    output_dir(folder, "--template")
     toml, csv = folder / "LAB.toml", folder / "lab.csv"
     for p in (toml, csv):
-        if p.exists():
+        if p.exists() or p.is_symlink():  # a dangling link too: never written through
             raise ConfigError("exists already: the template does not overwrite a file", source=str(p))
-    toml.write_text(TEMPLATE_TOML, encoding="utf-8")
+    write_text_atomic(toml, TEMPLATE_TOML)
     t = np.arange(0.0, 3600.0 + 1.0, 10.0)
     rise = 2.0 * (1.0 - np.exp(-t / 1200.0))  # the room warms by about 2 K in the hour
     gains = {"bearing_block": 0.75, "heel_block": 0.65, "bearing": 0.4, "t_plate": 0.7, "base": 0.65,
@@ -380,5 +386,5 @@ def write_template(folder: Path) -> list[Path]:
         temps = [293.15 + g * rise[k] for g in gains.values()]
         probe = 4.805e-3 - 1.5e-6 * rise[k]
         lines.append(",".join(repr(float(v)) for v in [tk, *temps, probe]))
-    csv.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(csv, "\n".join(lines) + "\n")
     return [toml, csv]

@@ -35,6 +35,7 @@ sample. What a measured experiment makes of them is its report's
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,6 +46,7 @@ import numpy as np
 from twin.config.reader import Problems
 from twin.config.spec import NS_PER_S, Scenario
 from twin.errors import ConfigError
+from twin.files import write_atomic
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
 from twin.uncertainty.spreads import calibrated_rows, merge_rows
@@ -52,6 +54,7 @@ from twin.uncertainty.testers import Testers, apply, load_testers
 
 __all__ = [
     "MAX_SAMPLES",
+    "Progress",
     "Uncertainty",
     "add_to_summary",
     "parse_uncertainty",
@@ -191,8 +194,8 @@ def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
 
     frame = pd.DataFrame.from_records(list(rows))
     parts = sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))
-    frame.reindex(columns=[*SAMPLE_COLUMNS, *parts]).to_csv(path, index=False)
-    return path
+    frame = frame.reindex(columns=[*SAMPLE_COLUMNS, *parts])
+    return write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))  # never through a link
 
 
 def line(summary: Mapping[str, Any]) -> str | None:
@@ -206,3 +209,25 @@ def line(summary: Mapping[str, Any]) -> str | None:
         f"drift (probe) {d['probe']:+.4f} mm, sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm "
         f"({d['samples']} samples, {wall:.1f} s)"
     )
+
+
+class Progress:
+    """A line per tenth of the samples done (per sample when there are fewer than ten): the
+    count and the time since the Monte Carlo began (its cluster's start included), as plain
+    lines (no carriage return) that a log file or a batch system's output keeps as they are."""
+
+    def __init__(self, total: int, echo: Callable[[str], None], start: float | None = None) -> None:
+        self.total, self.echo = max(total, 1), echo
+        self.start = time.perf_counter() if start is None else start
+        self.told = 0  # the last tenth (or sample) told
+
+    def done(self, count: int) -> None:
+        """``count`` samples are done."""
+        mark = count if self.total < 10 else count * 10 // self.total
+        if mark <= self.told:
+            return
+        self.told = mark
+        elapsed = time.perf_counter() - self.start
+        self.echo(
+            f"uncertainty: {count}/{self.total} samples ({100 * count // self.total} %), {elapsed:.1f} s"
+        )

@@ -32,6 +32,7 @@ from twin.config.durations import parse_duration
 from twin.config.experiment import Experiment
 from twin.config.load import find_scenario, load_scenario
 from twin.config.spec import Scenario
+from twin.cosim.checkpoint import check_snapshot
 from twin.cosim.controls import RunControls
 from twin.cosim.instances import check_initialization
 from twin.cosim.loops import LoopError
@@ -43,6 +44,7 @@ from twin.errors import ConfigError, ConfigErrors, FMUError, TwinError, did_you_
 from twin.fmu import catalog
 from twin.outputs.plot_process import PlotProcess
 from twin.outputs.run_folder import (
+    CHECKPOINT_FILE,
     RUN_FILE,
     RUN_OUTPUTS,
     Checkpoint,
@@ -159,9 +161,13 @@ def prepare(
     plots = PlotProcess.started() if options.folder else None  # imports matplotlib meanwhile
     try:
         prepared = _prepare(source, overrides, options, controls, plots)
-    except BaseException:
+    except BaseException as exc:
         if plots is not None:
             plots.close()
+        if isinstance(exc, ConfigError) and isinstance(source, (str, Path)) and str(source).endswith(".ssp"):
+            from twin.config.ssp import discard_unpacked
+
+            discard_unpacked(Path(source))  # refused (its FMUs refuse their parameters): no copy stays
         raise
     prepared.started = started
     return prepared
@@ -226,7 +232,10 @@ def prepare_resume(
 ) -> PreparedRun:
     """A killed or interrupted run, ready to continue from its last checkpoint: its folder
     locked before the checkpoint is read, its scenario loaded as ``run.json`` says it was
-    started, and the checkpoint checked against that scenario as it is now."""
+    started, and every value of the checkpoint checked against that scenario as it is now.
+    A run that completed is refused (nothing to resume), as is a crafted checkpoint (exit 2,
+    one line naming checkpoint.npz and its key); nothing of the folder changes here, and
+    signals.csv is cut back only once every FMU has taken its saved state."""
     check_output_folder(run_dir, "resume")  # a folder it can write in
     if not run_dir.is_dir():
         raise ConfigError("no such folder (no run.json): not a run folder", source=str(run_dir))
@@ -234,8 +243,9 @@ def prepare_resume(
     folder.lock()  # before its checkpoint is read: no other process may write there meanwhile
     try:
         meta = folder.resumable()
+        folder.refuse_completed()
         experiment = Experiment.from_json(meta.experiment, str(folder.file(RUN_FILE)))
-        scenario = load_scenario(Path(meta.scenario), list(meta.overrides), experiment)
+        scenario = _resumed_scenario(meta.scenario, meta.overrides, experiment, folder.file(RUN_FILE))
         plan = make_plan(scenario)
         evaluation = evaluation_config(scenario)
         every = meta.checkpoint_every_ns
@@ -245,7 +255,6 @@ def prepare_resume(
                 source=str(folder.file(RUN_FILE)),
                 key="checkpoint_every_ns",
             )
-        resume = folder.load_checkpoint(scenario.name, scenario_fingerprint(scenario))
         options = RunOptions(
             folder=True,
             out=run_dir,
@@ -260,22 +269,50 @@ def prepare_resume(
         )
         reports = options.reports(scenario) if options.reports is not None else ()
         record = record_columns(meta.record, plan)
+        prepared = PreparedRun(
+            scenario,
+            plan,
+            evaluation,
+            options,
+            meta.overrides,
+            folder,
+            every,
+            None,
+            tuple(reports),
+            record=record,
+        )
+        # every value of the checkpoint checked against this plan before the folder changes
+        keep = prepared.keep()
+        kept = sum(1 for c in plan.columns if c.meta.name in keep)
+        prepared.resume = folder.load_checkpoint(scenario.name, scenario_fingerprint(scenario), kept)
+        check_snapshot(plan, prepared.resume.master, str(folder.file(CHECKPOINT_FILE)))
     except BaseException:
         folder.unlock()
         raise
-    return PreparedRun(
-        scenario,
-        plan,
-        evaluation,
-        options,
-        meta.overrides,
-        folder,
-        every,
-        None,
-        tuple(reports),
-        resume,
-        record=record,
-    )
+    return prepared
+
+
+def _resumed_scenario(
+    path: str, overrides: Sequence[str], experiment: Experiment, run_file: Path
+) -> Scenario:
+    """The scenario a resumed run was started with. Its overrides come from run.json, not the
+    command line: when the file loads without them and not with them, the problems are said
+    of run.json's overrides (a crafted or stale run.json), not of a ``--set`` never typed."""
+    try:
+        return load_scenario(Path(path), list(overrides), experiment)
+    except ConfigError as exc:
+        if not overrides:
+            raise
+        try:
+            load_scenario(Path(path), [], experiment)
+        except ConfigError:
+            raise exc from None  # the scenario itself has problems: said of it
+        problems = getattr(exc, "problems", [exc])
+        said = [
+            ConfigError(e.message or str(e), source=f"{run_file}: overrides of {path}", key=e.key)
+            for e in problems
+        ]
+        raise (said[0] if len(said) == 1 else ConfigErrors(said)) from None
 
 
 #: the signal files a run may write besides signals.csv (``--format``)

@@ -22,7 +22,11 @@ __all__ = ["Report", "Reports"]
 
 
 class Report(Protocol):
-    """One measured experiment set beside a run of the scenario that replays it."""
+    """One measured experiment set beside a run of the scenario that replays it.
+
+    A report may also have ``measured_drift_m`` (the drift the experiment measured at the
+    probe over the run, m) and ``measured_by`` (who, for a legend): the error-budget plot draws
+    it beside the prediction."""
 
     def columns(self, plan: Plan) -> set[str]:
         """The recorded columns it reads (kept in memory through the run)."""

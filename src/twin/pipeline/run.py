@@ -12,7 +12,10 @@ measured experiment it replays makes of both.
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import twin.pipeline.montecarlo as montecarlo
@@ -20,12 +23,15 @@ from twin.cosim.controls import RunControls
 from twin.errors import ConfigError
 from twin.outputs.run_folder import SUMMARY_JSON, UNCERTAINTY_CSV
 from twin.outputs.summary import write_summary
-from twin.pipeline.cluster import execute, failed, one_line, open_client
+from twin.pipeline.cluster import bounded_logs, execute, failed, one_line, open_client
 from twin.pipeline.prepare import PreparedRun, prepare_scenario
 from twin.pipeline.run_summary import RunSummary
 from twin.pipeline.stages import run_into_folder
 
-__all__ = ["run", "run_samples"]
+__all__ = ["mark_interrupted", "run", "run_samples"]
+
+#: why a run whose own outputs are complete is "interrupted" (its Monte Carlo is not)
+_DURING_MC = "interrupted by {} during the uncertainty's Monte Carlo (the run's own outputs are complete)"
 
 
 def run(
@@ -33,22 +39,33 @@ def run(
     controls: RunControls = RunControls(),  # noqa: B008 (frozen: one shared default is safe)
 ) -> RunSummary:
     """Run ``prepared`` into its folder, then its Monte Carlo (when it has one), and return
-    the summary summary.json holds. A signal during the Monte Carlo ends it after the samples
-    that finished; summary.json then says "interrupted" (the run's own outputs are complete)."""
+    the summary summary.json holds. A signal during the Monte Carlo ends it at once (the
+    samples' cluster is closed after summary.json says "interrupted": the run's own outputs
+    are complete); a signal that comes after the run's own outputs, before its Monte Carlo,
+    makes it "interrupted" too: a summary never says "completed" of a command a signal ended."""
     summary = run_into_folder(prepared, controls)
     if prepared.plots is not None:
         prepared.plots.close()  # the plots are drawn: the helper ends before the samples' workers start
         prepared.plots = None
-    if prepared.uncertainty is None or summary.status != "completed" or controls.stopped() is not None:
+    if summary.status != "completed":
         return summary
     assert prepared.folder is not None  # run_into_folder refuses a run without one
     data = summary.to_dict()
-    mc = run_samples(prepared, controls)
-    if mc["interrupted"]:
-        why = f"interrupted by {mc['interrupted']} during the uncertainty's Monte Carlo (the run's own outputs are complete)"
-        data.update(status="interrupted", error=why)
-        write_summary(prepared.folder.file(SUMMARY_JSON), data)
+    path = prepared.folder.file(SUMMARY_JSON)
+
+    def interrupted(name: str) -> RunSummary:
+        why = _DURING_MC.format(name) if prepared.uncertainty is not None else _AFTER.format(name)
+        write_summary(path, data | {"status": "interrupted", "error": why})
         return dataclasses.replace(summary, status="interrupted", error=why)
+
+    if (caught := controls.stopped()) is not None:
+        return interrupted(caught)
+    if prepared.uncertainty is None:
+        return summary
+    stopped: list[RunSummary] = []
+    mc = run_samples(prepared, controls, lambda name: stopped.append(interrupted(name)))
+    if stopped:
+        return stopped[0]
     montecarlo.write_samples(prepared.folder.file(UNCERTAINTY_CSV), mc["rows"])
     montecarlo.add_to_summary(data, mc)
     for report in prepared.reports:
@@ -60,10 +77,13 @@ def run(
     return RunSummary.from_dict(data)
 
 
-def run_samples(prepared: PreparedRun, controls: RunControls) -> dict[str, Any]:
+def run_samples(
+    prepared: PreparedRun, controls: RunControls, on_stop: Callable[[str], Any] | None = None
+) -> dict[str, Any]:
     """The prepared run's Monte Carlo on Dask (a local cluster): per sample its room shape and
     figures, in sample order. ``controls.stop`` answering a signal's name ends it after the
-    samples done so far (``"interrupted"`` then names it)."""
+    samples done so far (``"interrupted"`` then names it); ``on_stop(name)`` is called then,
+    before the cluster closes (closing it takes seconds the command may not be given)."""
     # Dask loads here, with the Monte Carlo: a run without one and ``twin compensate`` (which
     # imports this package) never pay for distributed's import
     from twin.pipeline.point import point_task
@@ -84,13 +104,17 @@ def run_samples(prepared: PreparedRun, controls: RunControls) -> dict[str, Any]:
     controls.echo(f"uncertainty: {unc.samples} samples of {prepared.scenario.name} on Dask")
     start = time.perf_counter()
     records: dict[int, dict[str, Any]] = {}
-    with open_client(None, None) as client:
+    with bounded_logs(), open_client(None, None) as client:
         client.register_plugin(BinariesPlugin(collect()))
         threads = max(1, sum(client.nthreads().values()))
-        for record in execute(client, range(unc.samples), payload, point_task):
+        progress = montecarlo.Progress(unc.samples, controls.echo, start)
+        for record in execute(client, range(unc.samples), payload, point_task, controls.stop):
             records[record["index"]] = record
+            progress.done(len(records))
             if controls.stopped() is not None:
-                break  # the client closes the cluster on the way out
+                break
+        if (caught := controls.stopped()) is not None and on_stop is not None:
+            on_stop(caught)  # the client closes the cluster on the way out
     rows = [
         {"sample": i, "room_shape": shapes.get(i, ""), "status": records[i]["status"],
          "error": records[i]["error"], **records[i]["figures"]}
@@ -103,3 +127,32 @@ def run_samples(prepared: PreparedRun, controls: RunControls) -> dict[str, Any]:
         "workers": threads,
         "interrupted": controls.stopped(),
     }
+
+
+#: why a run without a Monte Carlo whose outputs are complete is "interrupted"
+_AFTER = "interrupted by {} after the run's outputs were written (they are complete)"
+
+
+def mark_interrupted(folder: Path, name: str, monte_carlo: bool, scenario: str) -> str | None:
+    """Make the run folder's summary.json say "interrupted" (by the signal ``name``) where it
+    says "completed" (the run's own outputs, before or during its ``monte_carlo``), or write a
+    short one where the run had not written its own yet (as a failed run's, so the folder is
+    never left without one): what the signal's watcher does when it has to end a ``twin run``
+    itself (a stretch that did not stop in time). Returns why the run is "interrupted" (None
+    when its summary says it failed)."""
+    path = folder / SUMMARY_JSON
+    if not path.exists():
+        why = f"interrupted by {name} while the run was under way (what it had recorded is kept)"
+        write_summary(path, {"scenario": scenario, "status": "interrupted", "error": why})
+        return why
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get("status") != "completed":  # "interrupted" already, or "failed" (its error says more)
+        return str(data.get("error")) if data.get("status") == "interrupted" else None
+    why = (_DURING_MC if monte_carlo else _AFTER).format(name)
+    write_summary(path, data | {"status": "interrupted", "error": why})
+    return why

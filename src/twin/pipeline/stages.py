@@ -266,10 +266,20 @@ def budget_columns(cfg: EvaluationConfig, prepared: PreparedRun | None = None) -
     swing-cycle counter and the wear limit of wear.png)."""
     limit = prepared.scenario.wear_limit_mm if prepared is not None else None
     cycles = prepared.plan.role_columns("swing_cycles") if prepared is not None else []
+    # a replayed experiment's measured drift is drawn beside the prediction (never fitted)
+    measured = [
+        (float(m), getattr(r, "measured_by", ""))
+        for r in (prepared.reports if prepared is not None else ())
+        if (m := getattr(r, "measured_drift_m", None)) is not None
+    ]
     return BudgetColumns(
         reading=cfg.reading,
         predicted="errormodel.e_z",
-        parts={f.label: f.column for f in FACTORS},
+        # a factor switched off contributes zero: listed in the legend it would look evaluated
+        parts={f.label: f.column for f in FACTORS if cfg.factor_on(f.name)},
+        disabled=tuple(f.name for f in FACTORS if not cfg.factor_on(f.name)),
+        measured_drift_m=measured[0][0] if measured else None,
+        measured_by=measured[0][1] if measured else "",
         temperatures=dict(cfg.temperatures),
         compensated="errormodel.wear_compensated",
         true_wear=cfg.true_wear,

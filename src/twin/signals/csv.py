@@ -12,7 +12,8 @@ What is refused (:class:`~twin.errors.ConfigError`: one line naming the file and
 exit code 2) and what is flagged:
 
 * the file: missing, not a regular file, empty, a header that is not ``time,<name>,...``
-  (incomplete, an empty name, a name twice), a column the error model reads missing, fewer than
+  (incomplete, an empty name, a name twice, more than :data:`MAX_COLUMNS` columns), a line
+  longer than :data:`LINE_BYTES`, a column the error model reads missing, fewer than
   two usable rows, bytes that are not UTF-8 text anywhere in the file: refused;
 * the time column: a value that is not a finite number, or a time not at least
   :data:`MIN_TIME_STEP_S` after the one before (rows of the wrong length apart): refused, as
@@ -55,6 +56,13 @@ TIME = "time"
 BLOCK_BYTES = 1 << 22
 #: the header line may be this long (a file of one huge line is not a CSV of measurements)
 HEADER_BYTES = 1 << 20
+#: so may every other line: a row of MAX_COLUMNS numbers of 25 characters is 250 KB, and a
+#: 1 GB line without a line break is refused when its first MB is read, not held in memory
+LINE_BYTES = 1 << 20
+#: the most columns a CSV of signals may have: hundreds of times the twin's own signals.csv
+#: and any tester's logger; a wider header is a file that is no record of this tester (its
+#: per-column work would cost minutes)
+MAX_COLUMNS = 10_000
 #: the least time between two rows (s): the twin's clock counts whole nanoseconds and no
 #: logger samples faster than 1 GHz, so rows closer than this are not seconds of a record (a
 #: time column in another unit, or garbage); the drift lines' least squares would also fail on
@@ -140,9 +148,15 @@ class CsvReader:
         header = [h.strip().strip('"').strip() for h in text.rstrip("\r\n").split(",")]
         if header[0] != TIME:
             raise ConfigError(f"line 1: first column must be '{TIME}', got {header[0]!r}", source=self.source)
+        if len(header) > MAX_COLUMNS:
+            raise ConfigError(
+                f"line 1: {len(header)} columns, more than the {MAX_COLUMNS} a CSV of signals may have",
+                source=self.source,
+            )
         if not all(header[1:]):
             raise ConfigError("line 1: empty column name", source=self.source)
-        twice = sorted({h for h in header if header.count(h) > 1})
+        seen: set[str] = set()
+        twice = sorted({h for h in header if h in seen or seen.add(h)})  # linear in the columns
         if twice:
             raise ConfigError(f"line 1: column(s) {twice} appear twice", source=self.source)
         return header
@@ -161,6 +175,11 @@ class CsvReader:
             if block:
                 yield from self._block(block, line)
                 line += block.count(b"\n")
+            if len(rest) > LINE_BYTES:
+                raise ConfigError(
+                    f"line {line}: longer than {LINE_BYTES // 2**20} MB without a line break",
+                    source=self.source,
+                )
         if rest.strip() and self.partial_last_line:
             warnings.warn(
                 f"{self.source}: ignored incomplete last line {line} (no line break: interrupted write?)",

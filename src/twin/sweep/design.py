@@ -6,7 +6,8 @@ the same whatever the number of workers or the order results come back in:
 - the design's random numbers come from ``SeedSequence(seed, spawn_key=(0,))``;
 - point ``i`` runs with ``scenario.seed`` from ``SeedSequence(seed, spawn_key=(1, i))``
   (unless the design varies ``scenario.seed`` itself, or ``vary_seed = false`` keeps the
-  base scenario's seed for every point: common random numbers).
+  base scenario's seed for every point: common random numbers, the default of Saltelli and
+  Morris designs, whose indices compare points and would otherwise measure seed noise).
 
 Random, Latin hypercube and Sobol'-sequence designs draw points in the unit cube
 (:mod:`scipy.stats.qmc`) and map them through SALib's own :func:`SALib.util.scale_samples`,

@@ -7,6 +7,7 @@ The output folder holds ``sweep.json`` (what it is), ``results.parquet`` and ``r
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import time
 from collections.abc import Callable, Iterable
@@ -14,25 +15,41 @@ from pathlib import Path
 from typing import Any
 
 from twin.cosim.controls import RunControls
-from twin.errors import ConfigError
-from twin.pipeline.cluster import Payload, Record, StudyOptions, execute, failed, one_line, open_client
+from twin.errors import ConfigError, did_you_mean
+from twin.files import write_bytes_atomic
+from twin.outputs.guard import output_dir, refuse_links
+from twin.pipeline.cluster import (
+    Payload,
+    Record,
+    StudyOptions,
+    bounded_logs,
+    execute,
+    failed,
+    one_line,
+    open_client,
+)
 from twin.pipeline.point import point_task
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.results import ResultStore
 from twin.pipeline.shipping import BinariesPlugin, collect
+from twin.sweep.analysis import named_points
 from twin.sweep.design import Design, fingerprint, make_design
 from twin.sweep.spec import Spec
 
 #: called after every point: (points done, of which failed, total)
 Progress = Callable[[int, int, int], None]
+#: the figures a sweep draws (twin.sweep.plots)
+_FIGURES = ("sensitivity.png", "scatter.png", "histogram.png")
 
 
 def _write_folder(out: Path, index: int, files: dict[str, bytes]) -> None:
-    folder = out / "runs" / f"point-{index:06d}"
-    folder.mkdir(parents=True, exist_ok=True)
+    """A point's run folder under ``out/runs``; a symlink planted for ``runs`` or the point's
+    folder is refused, one of its files replaced, never followed out of ``out``."""
+    output_dir(out / "runs")  # a runs/ link planted in the output folder is refused
+    folder = output_dir(out / "runs" / f"point-{index:06d}")
     for name, data in files.items():
         if Path(name).name == name:  # a plain file name: nothing lands outside the folder
-            (folder / name).write_bytes(data)
+            write_bytes_atomic(folder / name, data)
 
 
 class _Collector:
@@ -40,8 +57,8 @@ class _Collector:
 
     def __init__(self, spec: Spec, design: Design, store: ResultStore, out: Path) -> None:
         self.spec, self.design, self.store, self.out = spec, design, store, out
-        self.total, self.done = len(design), len(store.rows)
-        self.failed = sum(1 for r in store.rows.values() if r["status"] != "ok")
+        self.total, self.done = len(design), len(store)
+        self.failed = store.count_failed()
         self.run = 0
         self.point_s = 0.0
         self.peak_rss_mb: dict[int, float] = {}
@@ -54,7 +71,12 @@ class _Collector:
 
     def take(self, record: Record) -> None:
         if record["status"] == "ok" and not self.checked:
-            self._check_outputs(record)
+            try:
+                check_outputs(self.spec, record["figures"])
+            except ConfigError:
+                self.store.discard()  # the corrected sweep file runs into the same --out
+                raise
+            self.checked = True
         if record.get("files"):
             _write_folder(self.out, record["index"], record["files"])
         self.store.add(self._row(record))
@@ -76,18 +98,6 @@ class _Collector:
         row.update(figures)
         return row
 
-    def _check_outputs(self, record: Record) -> None:
-        """The first finished point shows whether the outputs the sweep file names exist."""
-        missing = [k for k in self.spec.outputs if k not in record["figures"]]
-        if missing:
-            known = ", ".join(sorted(record["figures"]))
-            raise ConfigError(
-                f"no figure {missing[0]!r} (the figures are: {known})",
-                source=str(self.spec.path),
-                key="sweep.outputs",
-            )
-        self.checked = True
-
     def timing(self, threads: int) -> dict[str, Any]:
         elapsed = time.perf_counter() - self.start
         run = self.run or None
@@ -103,6 +113,60 @@ class _Collector:
             "write_s": self.store.write_s,
             "peak_rss_mb_per_worker": sorted(self.peak_rss_mb.values()),
         }
+
+
+def inputs(spec: Spec, design: Design) -> dict[str, str]:
+    """What decides a row, by name (:mod:`twin.pipeline.provenance`): the sweep file's fixed
+    overrides and outputs, the design (every point's values and seed), the base scenario's
+    files and the scenario they make, the code that runs a point. A resume with any of them
+    changed is refused, naming it."""
+    from twin.outputs.run_folder import scenario_fingerprint
+    from twin.pipeline.provenance import code_digests, digest, file_digests, scenario_files
+
+    return (
+        {
+            "sweep.set": digest(list(spec.fixed)),
+            "sweep.outputs": digest(list(spec.outputs)),
+            "design": fingerprint(design),
+        }
+        | file_digests(scenario_files(spec.scenario.source_path))
+        | {"base scenario": scenario_fingerprint(spec.scenario)[:16]}
+        | code_digests()
+    )
+
+
+def check_outputs(spec: Spec, figures: Iterable[str]) -> None:
+    """The outputs (and main output) the sweep file names are among a point's ``figures``."""
+    known = set(figures)
+    for key, wanted in [("sweep.outputs", o) for o in spec.outputs] + [("sweep.main", spec.main)]:
+        if wanted is not None and wanted not in known:
+            raise ConfigError(
+                f"no figure {wanted!r}{did_you_mean(wanted, known)} (the figures are: {', '.join(sorted(known))})",
+                source=str(spec.path),
+                key=key,
+            )
+
+
+def _probe(
+    spec: Spec, todo: list[int], payload: Callable[[int], Payload | Record], controls: RunControls
+) -> bool:
+    """Run the first point that can run here, before the cluster starts, and check the
+    outputs the sweep file names against its figures (a misspelt output is bad input, found
+    before anything is written). True when checked; False when that point failed (the first
+    point that finishes on the cluster is checked instead)."""
+    from twin.pipeline.point import figures
+    from twin.pipeline.stages import run_point
+
+    for i in todo[:8]:
+        item = payload(i)
+        if "status" in item:
+            continue
+        summary = run_point(item["run"], controls)
+        if summary.status != "completed":
+            return False
+        check_outputs(spec, figures(summary))
+        return True
+    return False
 
 
 class SweepInterrupted(Exception):
@@ -129,7 +193,7 @@ def run_sweep(
     """
     from twin.outputs.summary import write_summary
     from twin.sweep.analysis import summarise
-    from twin.sweep.plots import draw_all
+    from twin.sweep.plots import draw_all, labels
 
     design = make_design(spec)
     base = prepare_scenario(spec.scenario)  # the error model's configuration, checked once
@@ -140,42 +204,75 @@ def run_sweep(
         "spec_file": str(spec.path),
         "points": len(design),
         "fingerprint": fingerprint(design),
+        "inputs": inputs(spec, design),
     }
-    store = ResultStore(out, design.names, meta, resume=options.resume)
-    todo = [i for i in range(len(design)) if i not in store.done]
+    # a link planted where the sweep writes (a figure, its table, runs/) is refused before
+    # any point runs: the twin writes nothing through one (twin.outputs.guard)
+    refuse_links(out, ("runs", "sweep.json", "results.parquet", "results.csv", "summary.json", *_FIGURES))
+    store = ResultStore(out, design.names, meta, resume=options.resume, size=len(design))
+    done = store.done
+    todo = [i for i in range(len(design)) if i not in done]
     collector = _Collector(spec, design, store, out)
     controls.echo(
         f"sweep {spec.name}: {len(design)} points ({spec.design}), {len(todo)} to run; results in {out}"
     )
 
-    def payload(i: int) -> Payload | Record:
-        try:
-            point = prepare_scenario(design.point(spec.scenario, i), base.evaluation)
-        except ConfigError as exc:
-            return failed(i, one_line(exc))
-        return {"index": i, "run": point, "folders": spec.run_folders}
-
+    payload = functools.partial(_payload, spec, design, base.evaluation)
     threads = 0
+    if todo and (spec.outputs or spec.main) and not store.resumed:
+        collector.checked = _probe(spec, todo, payload, controls)
+    collector.checked |= store.resumed  # its outputs were checked when it began
+    if controls.stopped():  # a signal during the first point: no cluster to start
+        raise SweepInterrupted(str(controls.stopped()))
     if not todo:
         store.start()
     try:
         if todo:
-            with open_client(options.scheduler, options.workers) as client:
+            with bounded_logs(), open_client(options.scheduler, options.workers) as client:
                 threads = _announce(client, controls.echo, local=options.scheduler is None)
                 client.register_plugin(BinariesPlugin(collect()))
                 store.start()
                 collector.started()
-                records = execute(client, todo, payload, task)
+                records = execute(client, todo, payload, task, controls.stop)
                 _take(records, collector, on_record, options.progress, controls)
+                if caught := controls.stopped():
+                    # before the cluster closes: its close takes seconds the command may not get
+                    store.flush(force=True)
+                    write_summary(out / "summary.json", interrupted(spec, collector, caught))
     finally:
         store.flush(force=True)
-    if controls.stopped():
-        raise SweepInterrupted(str(controls.stopped()))
+    if caught := controls.stopped():
+        if not todo:
+            write_summary(out / "summary.json", interrupted(spec, collector, caught))
+        raise SweepInterrupted(caught)
     table = store.table()
     summary = summarise(spec, table, len(design), collector.timing(threads))
     write_summary(out / "summary.json", summary)
-    draw_all(out, spec.design, table, design.names, summary)
+    names = labels(design.names, list(summary["outputs"]), spec.scenario)
+    draw_all(out, spec.design, table, design.names, summary, names)
     return summary
+
+
+def _payload(spec: Spec, design: Design, evaluation: Any, i: int) -> Payload | Record:
+    """Point ``i`` prepared for a worker, or its failure record (a value its FMU refuses)."""
+    try:
+        point = prepare_scenario(design.point(spec.scenario, i), evaluation)
+    except ConfigError as exc:
+        return failed(i, one_line(exc))
+    return {"index": i, "run": point, "folders": spec.run_folders}
+
+
+def interrupted(spec: Spec, collector: _Collector, name: str) -> dict[str, Any]:
+    """The summary of a sweep a signal stopped: how far it came (its table holds those points;
+    ``twin sweep --resume`` runs the rest)."""
+    return {
+        "sweep": spec.name,
+        "status": "interrupted",
+        "error": f"interrupted by {name}",
+        "points": collector.total,
+        "done": collector.done,
+        "failed": collector.failed,
+    }
 
 
 def _take(
@@ -217,8 +314,13 @@ def summary_line(summary: dict[str, Any], out: Path) -> str:
         f"sweep {summary['sweep']}: {summary['points']} points, {summary['ok']} ok, {summary['failed']} failed"
         f" ({t['points_run']} run in {t['elapsed_s']:.1f} s)"
     )
+    if summary["failed"]:
+        line += f"; failed points: {named_points(summary['failed_points'])} (errors in results.csv)"
     main = summary.get("main_output")
     stats = summary["outputs"].get(main, {}) if main else {}
     if stats.get("n"):
         line += f"; {main}: median {stats['q50']:.4g}, 5-95 % [{stats['q05']:.4g}, {stats['q95']:.4g}]"
+    skipped = summary.get("indices", {}).get(main, {}).get("skipped") if main else None
+    if skipped:
+        line += f"; no indices: {skipped}"
     return f"{line}; outputs: {out}"

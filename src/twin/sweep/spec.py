@@ -9,6 +9,7 @@
     seed = 7                            # design and per-point seeds derive from it
     set = ['scenario.duration = "1 h"'] # fixed overrides of the base (--set syntax, applied first)
     outputs = ["compensation.residual_rms_um.before"]   # summary figures kept (default: all)
+    vary_seed = false                   # one seed for every point (default for saltelli, morris)
 
     [problem]                           # SALib's problem dict, one to one
     names = ["input.thermal.t_room.amplitude", "fmu.hydraulic.parameters.load_amplitude"]
@@ -40,7 +41,7 @@ from typing import Any
 from twin.config.load import load_scenario
 from twin.config.reader import Problems, read_toml, unsafe_name
 from twin.config.spec import Scenario
-from twin.errors import ConfigError
+from twin.errors import ConfigError, ConfigErrors
 from twin.uncertainty.spreads import Row, centre, check_dist, ends, problem, spread_rows
 
 __all__ = ["DESIGNS", "MAX_POINTS", "Spec", "load_spec", "point_count"]
@@ -60,6 +61,8 @@ _SWEEP_KEYS = {
     "vary_seed",
     "run_folders",
 }
+#: designs whose indices compare points: their points share the base's seed by default
+_SENSITIVITY = ("saltelli", "morris")
 _TOP_KEYS = {"sweep", "problem", "spread", "grid"}
 _PROBLEM_KEYS = {"names", "bounds", "dists", "groups", "num_vars"}
 #: designs whose sample size must be a power of two (a Sobol' sequence is balanced only then)
@@ -89,8 +92,10 @@ class Spec:
     main: str | None = None
     second_order: bool = False
     morris_levels: int = 4
-    vary_seed: bool = True
+    vary_seed: bool = False
     run_folders: bool = False
+    #: the fixed overrides (``set``) already applied to ``scenario``, as written
+    fixed: tuple[str, ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -130,7 +135,9 @@ def _sweep_table(p: Problems, raw: Mapping[str, Any], path: Path) -> dict[str, A
         "main": main,
         "second_order": p.boolean(sw, "second_order", "sweep.", default=False),
         "morris_levels": p.integer(sw, "levels", "sweep.", default=4, lo=2, hi=100),
-        "vary_seed": p.boolean(sw, "vary_seed", "sweep.", default=True),
+        # a sensitivity design compares points that differ in one key: a seed of their own
+        # would add its noise to every difference (common random numbers, unless asked)
+        "vary_seed": p.boolean(sw, "vary_seed", "sweep.", default=design not in _SENSITIVITY),
         "run_folders": p.boolean(sw, "run_folders", "sweep.", default=False),
     }
 
@@ -245,7 +252,7 @@ def _base(path: Path, raw: Mapping[str, Any], fixed: Sequence[str], base: Scenar
         return base
     base_path = (path.resolve().parent / raw["sweep"]["base"]).resolve()
     try:
-        return load_scenario(base_path, fixed)
+        scenario = load_scenario(base_path)
     except ConfigError as exc:
         if exc.source != str(base_path) or exc.key is not None:
             raise
@@ -253,6 +260,21 @@ def _base(path: Path, raw: Mapping[str, Any], fixed: Sequence[str], base: Scenar
         raise ConfigError(
             f"{raw['sweep']['base']}: {exc.message}", source=str(path), key="sweep.base"
         ) from None
+    if not fixed:
+        return scenario
+    try:
+        return load_scenario(base_path, fixed)
+    except ConfigErrors as exc:  # the base loads alone: each problem is the set's
+        raise ConfigErrors([_in_set(e, path) for e in exc.problems]) from None
+    except ConfigError as exc:
+        raise _in_set(exc, path) from None
+
+
+def _in_set(exc: ConfigError, path: Path) -> ConfigError:
+    """A problem of the base scenario with the sweep's ``set`` applied (the base alone has
+    none): named where the override is written, ``sweep.set``."""
+    what = f"{exc.key}: {exc.message}" if exc.key else exc.message
+    return ConfigError(what, source=str(path), key="sweep.set")
 
 
 def load_spec(path: str | Path, base: Scenario | None = None) -> Spec:
@@ -265,7 +287,8 @@ def load_spec(path: str | Path, base: Scenario | None = None) -> Spec:
     p.unknown_keys(raw, _TOP_KEYS, "")
     sw = _sweep_table(p, raw, path)
     p.check()
-    scenario = _base(path, raw, sw.pop("fixed"), base)
+    sw["fixed"] = tuple(sw["fixed"])
+    scenario = _base(path, raw, sw["fixed"], base)
     if sw["design"] == "grid":
         p.unknown_keys(raw, {"sweep", "grid"}, "")
         names, levels = _grid(p, p.table(raw, "grid"))

@@ -22,6 +22,7 @@ from typing import Any
 
 from twin.config.reader import Problems, finite_number
 from twin.config.spec import Scenario
+from twin.errors import ConfigError
 
 __all__ = [
     "DISTS",
@@ -146,10 +147,24 @@ def spread_rows(p: Problems, spread: Mapping[str, Any], scenario: Scenario) -> l
     """The rows of a ``[spread]`` table around ``scenario``'s values (problems go to ``p``)."""
     rows = []
     for key, entry in spread.items():
-        row = _row(p, str(key), entry, scenario.nominal(str(key)))
+        nominal = scenario.nominal(str(key))
+        if nominal is None and (missing := _names_nothing(scenario, str(key))):
+            p.add(f'spread."{key}"', missing)  # not "give 'mean'": there is nothing to vary
+            continue
+        row = _row(p, str(key), entry, nominal)
         if row is not None:
             rows.append(row)
     return rows
+
+
+def _names_nothing(scenario: Scenario, key: str) -> str | None:
+    """Why ``key`` names nothing the scenario could vary (an unknown instance, parameter or
+    profile parameter), or None when it names something."""
+    try:
+        scenario.with_value(key, 1.0)
+    except ConfigError as exc:
+        return exc.message
+    return None
 
 
 def calibrated_rows(scenario: Scenario) -> list[Row]:

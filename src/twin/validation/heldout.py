@@ -78,22 +78,43 @@ class HeldOut:
     goals: Mapping[str, float] = field(default_factory=dict)
 
 
-def _loads(p: Problems, key: str, path: Path, sets: Sequence[str]) -> None:
+def _loads(p: Problems, key: str, path: Path, sets: Sequence[str]) -> Scenario | None:
     """The problems of a scenario file the held-out file names, loaded with its overrides as
-    every tester's run will be: found before any tester runs, not by every tester's worker."""
+    every tester's run will be: found before any tester runs, not by every tester's worker.
+    The scenario, or None when it has problems."""
     from twin.pipeline.prepare import prepare_scenario
 
     try:
-        prepare_scenario(load_scenario(path, list(sets)))
+        scenario = load_scenario(path, list(sets))
+        prepare_scenario(scenario)
+        return scenario
     except ConfigError as exc:
         problems = getattr(exc, "problems", [exc])
         first = problems[0]
         where = ": ".join(x for x in (path.name, first.key) if x)
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         p.add(key, f"{where}: {first.message or first}{more}")
+        return None
 
 
-def _scenarios(p: Problems, folder: Path, raw: Any) -> list[HeldOutScenario]:
+def _check_room(p: Problems, room: Any, loaded: Sequence[tuple[str, Scenario]]) -> str:
+    """``heldout.room``: ``input.<instance>.<variable>``, a profile of every held-out scenario
+    (its drift is added to that profile): checked before any tester runs."""
+    if not isinstance(room, str) or not room.startswith("input.") or room.count(".") != 2:
+        p.add("heldout.room", f"expected 'input.<instance>.<variable>' (a profile's key), got {room!r}")
+        return str(room)
+    target = room.split(".", 1)[1]
+    for name, scenario in loaded:
+        if not any(pr.target == target for pr in scenario.profiles):
+            known = ", ".join(f"input.{pr.target}" for pr in scenario.profiles) or "none"
+            p.add("heldout.room", f"no profile drives {target} in scenario {name!r} (its profiles: {known})")
+            break
+    return room
+
+
+def _scenarios(
+    p: Problems, folder: Path, raw: Any, loaded: list[tuple[str, Scenario]]
+) -> list[HeldOutScenario]:
     if not isinstance(raw, list) or not raw:
         p.add("scenario", "expected at least one [[scenario]]")
         return []
@@ -106,11 +127,11 @@ def _scenarios(p: Problems, folder: Path, raw: Any) -> list[HeldOutScenario]:
         p.unknown_keys(s, _SCENARIO_KEYS, f"{where}.")
         path = (folder / s["file"]).resolve()
         sets = p.strings(s, "set", f"{where}.")
+        name = s.get("name", path.stem)
         if not path.is_file():
             p.add(f"{where}.file", f"no such file {s['file']!r}")
-        else:
-            _loads(p, f"{where}.file", path, sets)
-        name = s.get("name", path.stem)
+        elif (scenario := _loads(p, f"{where}.file", path, sets)) is not None:
+            loaded.append((str(name), scenario))
         thermal = p.boolean(s, "thermal_only", f"{where}.", default=False)
         out.append(HeldOutScenario(str(name), path, sets, thermal))
     names = [s.name for s in out]
@@ -142,15 +163,21 @@ def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     p.unknown_keys(goals_raw, set(GOAL_KEYS), "goals.")
     goals = {k: p.number(goals_raw, k, "goals.", lo=0.0) for k in GOAL_KEYS if k in goals_raw}
     count = {"testers": testers} if testers is not None else h
+    loaded: list[tuple[str, Scenario]] = []
+    scenarios = tuple(_scenarios(p, folder, raw.get("scenario"), loaded))
+    room_drift = p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0
+    room = h.get("room", "input.thermal.t_room")
+    if room_drift > 0:  # the room's key is used only to drift it
+        room = _check_room(p, room, loaded)
     cfg = HeldOut(
         path=path,
         spreads=spreads,
         testers=p.integer(count, "testers", "heldout.", default=50, lo=1, hi=10**6),
         seed=p.integer(h, "seed", "heldout.", default=0, lo=0, hi=2**63 - 1),
-        room=str(h.get("room", "input.thermal.t_room")),
-        room_drift_K=p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0,
+        room=str(room),
+        room_drift_K=room_drift,
         calibration=calibration,
-        scenarios=tuple(_scenarios(p, folder, raw.get("scenario"))),
+        scenarios=scenarios,
         goals={k: v for k, v in goals.items() if v is not None},
     )
     p.check()
@@ -335,7 +362,7 @@ def run_heldout(
     tester as it finishes."""
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.summary import write_summary
-    from twin.pipeline.cluster import execute, failed, one_line, open_client
+    from twin.pipeline.cluster import bounded_logs, execute, failed, one_line, open_client
     from twin.pipeline.results import ResultStore
     from twin.pipeline.shipping import BinariesPlugin, collect
 
@@ -346,9 +373,14 @@ def run_heldout(
         "testers": cfg.testers,
         "seed": cfg.seed,
         "fingerprint": fingerprint(cfg),
+        "inputs": inputs(cfg),
     }
     store = ResultStore(
-        out, ["tester", "scenario", "thermal_only", *testers.names], meta, resume=options.resume
+        out,
+        ["tester", "scenario", "thermal_only", *testers.names],
+        meta,
+        resume=options.resume,
+        size=cfg.testers * len(cfg.scenarios),
     )
     todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
     timings: list[dict[str, float]] = []
@@ -360,7 +392,7 @@ def run_heldout(
             return failed(i, one_line(exc)) | {"rows": []}
 
     start = time.perf_counter()
-    with open_client(options.scheduler, options.workers) as client:
+    with bounded_logs(), open_client(options.scheduler, options.workers) as client:
         threads = max(1, sum(client.nthreads().values()))
         controls.echo(
             f"heldout: {cfg.testers} testers x {len(cfg.scenarios)} scenarios on {threads} workers; results in {out}"
@@ -368,7 +400,7 @@ def run_heldout(
         client.register_plugin(BinariesPlugin(collect()))
         store.start()
         begin = time.perf_counter()
-        for record in execute(client, todo, payload, tester_task):
+        for record in execute(client, todo, payload, tester_task, controls.stop):
             for row in rows_of(cfg, testers.draw(record["index"]), record):
                 store.add(row)
             timings.append(record.get("timing", {}))
@@ -377,12 +409,29 @@ def run_heldout(
             if controls.stopped():
                 break
         elapsed = time.perf_counter() - begin
+        if caught := controls.stopped():
+            # before the cluster closes: its close takes seconds the command may not get
+            store.flush(force=True)
+            stopped = interrupted(cfg, caught)
+            write_summary(out / "summary.json", stopped)
+            return stopped
     store.flush(force=True)
     table = store.table()
-    summary = summarise(cfg, table)
+    summary = {"status": "completed", **summarise(cfg, table)}
     summary["timing"] = _timing(timings, elapsed, time.perf_counter() - start, threads)
     write_summary(out / "summary.json", summary)
     return summary
+
+
+def interrupted(cfg: HeldOut, name: str) -> dict[str, Any]:
+    """The summary of a held-out validation a signal stopped (its table holds the testers that
+    finished; ``--resume`` runs the rest)."""
+    return {
+        "heldout": str(cfg.path),
+        "status": "interrupted",
+        "error": f"interrupted by {name}",
+        "testers": cfg.testers,
+    }
 
 
 def fingerprint(cfg: HeldOut) -> str:
@@ -396,11 +445,22 @@ def fingerprint(cfg: HeldOut) -> str:
     return h.hexdigest()[:16]
 
 
+def inputs(cfg: HeldOut) -> dict[str, str]:
+    """What decides the rows, by name (:mod:`twin.pipeline.provenance`): the number of
+    testers and the seed, the held-out and spreads files, every scenario and every file it
+    reads, the code that runs a tester; a resume with any of them changed is refused naming it."""
+    from twin.pipeline.provenance import code_digests, digest, file_digests, scenario_files
+
+    files = [cfg.path.resolve(), cfg.spreads.resolve()]
+    for s in cfg.scenarios:
+        files += [f for f in scenario_files(s.path) if f not in files]
+    return {"testers": digest(cfg.testers), "seed": digest(cfg.seed)} | file_digests(files) | code_digests()
+
+
 def _complete(store: Any, cfg: HeldOut, i: int) -> bool:
     """Tester ``i`` has an ok row for every scenario in the table already."""
     n = len(cfg.scenarios)
-    rows = [store.rows.get(i * n + j) for j in range(n)]
-    return all(r is not None and r["status"] == "ok" for r in rows)
+    return all(store.status(i * n + j) == "ok" for j in range(n))
 
 
 def _timing(

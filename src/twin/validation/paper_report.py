@@ -57,6 +57,10 @@ SIGN_CONVENTION = "paper: displacement, Z down positive; twin: the part's contri
 class PaperReport:
     """The paper's thermal experiment (Li et al. 2017, facts 2) beside a run that replays it."""
 
+    #: the drift the paper measured at the probe over the 480 min (drawn on error_budget.png)
+    measured_drift_m = DRIFT_M
+    measured_by = "Li et al. 2017"
+
     def __init__(self) -> None:
         self._truth: dict[str, list[tuple[str, float]]] = {}
 

@@ -44,7 +44,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from twin.config.ssp.archive import Archive
+from twin.config.ssp.archive import Archive, discard_unpacked
 from twin.config.ssp.names import NS, OSP_TYPE, SSD_NAME, TWIN_TYPE, TYPES, q, seconds, value_text
 from twin.config.ssp.system import PROFILE_KINDS, SOURCE_MODEL, read_system
 from twin.errors import ConfigError, ConfigErrors
@@ -57,6 +57,7 @@ __all__ = [
     "SSD_NAME",
     "TWIN_TYPE",
     "TYPES",
+    "discard_unpacked",
     "finish_ssp_data",
     "q",
     "read_ssp_data",
@@ -72,7 +73,12 @@ def read_ssp_data(path: Path) -> dict[str, Any]:
     archive the twin cannot run as it is written. A step or duration it does not give is left
     out: :func:`finish_ssp_data` names it once the command line had its say.
     """
-    return read_system(Archive.open(path))
+    archive = Archive.open(path)
+    try:
+        return read_system(archive)
+    except BaseException:
+        discard_unpacked(path)
+        raise
 
 
 def finish_ssp_data(data: dict[str, Any], source: str) -> None:

@@ -5,22 +5,35 @@ schema that fmpy ships; its files unpacked once under the FMU cache.
 
 from __future__ import annotations
 
+import hashlib
 import os
-import stat
+import shutil
+import uuid
 import zipfile
 from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 from typing import Any
 
 from twin.config.ssp.names import SSD_NAME
 from twin.errors import ConfigError
+from twin.fmu.safezip import (
+    MAX_ARCHIVE_BYTES,
+    MAX_MEMBERS,
+    MAX_UNPACKED_BYTES,
+    check_members,
+    extract,
+    open_regular,
+    open_zip,
+    read_member,
+    safe_xml,
+)
 
-__all__ = ["MAX_MEMBERS", "MAX_UNPACKED", "MAX_XML", "SCHEMAS", "Archive"]
+__all__ = ["MAX_MEMBERS", "MAX_UNPACKED", "MAX_XML", "SCHEMAS", "Archive", "discard_unpacked"]
 
-#: most members and bytes an archive may unpack to (a zip bomb is refused, not unpacked)
-MAX_MEMBERS = 256
-MAX_UNPACKED = 2 << 30
-#: the largest XML file read from an archive
+#: most bytes an archive may unpack to (:mod:`twin.fmu.safezip` states every bound of a member)
+MAX_UNPACKED = MAX_UNPACKED_BYTES
+#: the largest XML file (.ssd, .ssv, .ssm) read from an archive: the twin's own export writes
+#: about 40 KB, a system of a few hundred components a few MB
 MAX_XML = 16 << 20
 #: the SSP 1.0 schema of each kind of file (fmpy ships them)
 SCHEMAS = {
@@ -28,38 +41,10 @@ SCHEMAS = {
     "ssv": "SystemStructureParameterValues.xsd",
     "ssm": "SystemStructureParameterMapping.xsd",
 }
+_WHAT = "an SSP archive is a zip file"
 
-
-def _regular(path: Path, source: str) -> None:
-    """Only a regular file is opened: a FIFO or a device named .ssp would block the reader."""
-    try:
-        st = os.stat(path)
-    except OSError as exc:
-        raise ConfigError(f"cannot read the archive: {exc.strerror or exc}", source=source) from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ConfigError("not a regular file (an SSP archive is a zip file)", source=source)
-
-
-def _safe_members(zf: zipfile.ZipFile, source: str) -> list[zipfile.ZipInfo]:
-    """The archive's members, refused when one would land outside it, two would land on the same
-    path (a file and a folder of one name), or it unpacks too big."""
-    members = zf.infolist()
-    if len(members) > MAX_MEMBERS:
-        raise ConfigError(f"{len(members)} members: more than {MAX_MEMBERS}", source=source)
-    if sum(m.file_size for m in members) > MAX_UNPACKED:
-        raise ConfigError(f"unpacks to more than {MAX_UNPACKED >> 30} GB", source=source)
-    files = {m.filename for m in members if not m.is_dir()}
-    for m in members:
-        parts = PurePosixPath(m.filename).parts
-        if m.filename.startswith(("/", "\\")) or ".." in parts or ":" in m.filename or "\\" in m.filename:
-            raise ConfigError(f"member {m.filename!r} would land outside the archive's folder", source=source)
-        for k in range(1, len(parts)):
-            if "/".join(parts[:k]) in files:
-                raise ConfigError(
-                    f"member {m.filename!r} lies in {'/'.join(parts[:k])!r}, which is a file of the archive",
-                    source=source,
-                )
-    return members
+#: the cache folders this process unpacked, by archive: removed again when the archive is refused
+_CREATED: dict[Path, Path] = {}
 
 
 def _parser() -> Any:
@@ -95,22 +80,26 @@ class Archive:
     @classmethod
     def open(cls, path: Path) -> Archive:
         """The archive at ``path``, checked and unpacked (its ``SystemStructure.ssd`` read and
-        validated)."""
+        validated); refused, it leaves nothing unpacked."""
         source = str(path)
-        _regular(path, source)
-        try:
-            zf = zipfile.ZipFile(path)
-        except (OSError, zipfile.BadZipFile) as exc:
-            raise ConfigError(f"not an SSP archive: {exc}", source=source) from None
-        with zf:
-            members = _safe_members(zf, source)
-            names = {m.filename for m in members}
-            if SSD_NAME not in names:
-                raise ConfigError(f"no {SSD_NAME} in the archive", source=source)
-            xml = {m.filename: _read_xml(zf, m, source) for m in members if _is_xml(m.filename)}
-            folder = _unpack(path, zf, members)
+        with open_regular(path, source, _WHAT, MAX_ARCHIVE_BYTES) as f:
+            h = hashlib.sha256()
+            while block := f.read(1 << 20):
+                h.update(block)
+            f.seek(0)
+            with open_zip(f, source, "not an SSP archive") as zf:
+                members = check_members(zf, source)
+                names = {m.filename for m in members}
+                if SSD_NAME not in names:
+                    raise ConfigError(f"no {SSD_NAME} in the archive", source=source)
+                xml = {m.filename: _read_xml(zf, m, source) for m in members if _is_xml(m.filename)}
+                folder = _unpack(path, h.hexdigest(), zf, members)
         archive = cls(path, source, members, folder, xml)
-        validate(archive.xml(SSD_NAME), "ssd", SSD_NAME, source)
+        try:
+            validate(archive.xml(SSD_NAME), "ssd", SSD_NAME, source)
+        except BaseException:
+            discard_unpacked(path)
+            raise
         return archive
 
     def has(self, name: str) -> bool:
@@ -133,46 +122,48 @@ def _is_xml(name: str) -> bool:
 
 
 def _read_xml(zf: zipfile.ZipFile, info: zipfile.ZipInfo, source: str) -> Any:
-    """One XML member parsed: bounded in size, no document type declaration, well-formed."""
-    from lxml import etree
-
-    name = info.filename
-    if info.file_size > MAX_XML:
-        raise ConfigError(f"{name}: larger than {MAX_XML >> 20} MB", source=source)
-    data = zf.read(info)
-    try:
-        root = etree.fromstring(data, _parser())
-    except etree.XMLSyntaxError as exc:
-        raise ConfigError(
-            f"{name}: not well-formed XML: {' '.join(str(exc).split())[:200]}", source=source
-        ) from None
-    info_ = root.getroottree().docinfo
-    # no document type, in whatever encoding: an entity could expand without bound or read a file
-    # of this machine
-    if info_.doctype or info_.internalDTD is not None or info_.externalDTD is not None:
-        raise ConfigError(f"{name}: XML with a document type declaration is not read", source=source)
-    return root
+    """One XML member parsed: bounded in size (its header and what it unpacks to), in UTF-8 or
+    UTF-16, no document type declaration in whatever encoding (an entity could expand without
+    bound or read a file of this machine), well-formed."""
+    data = read_member(zf, info, source, MAX_XML)
+    return safe_xml(data, info.filename, source)[1]
 
 
-def _unpack(path: Path, zf: zipfile.ZipFile, members: list[zipfile.ZipInfo]) -> Path:
+def _unpack(path: Path, sha256: str, zf: zipfile.ZipFile, members: list[zipfile.ZipInfo]) -> Path:
     """The archive's files under the FMU cache, in a folder named by its SHA-256 (so a run of
-    the same archive, a resume included, names the same FMU files)."""
-    from twin.fmu.toolchain import file_sha256, private_cache_dir
+    the same archive, a resume included, names the same FMU files). Unpacked into a hidden
+    folder of a unique name, then renamed: a failure (a member that unpacks to more than its
+    header said, a full disk) leaves nothing, and two processes never write the same files."""
+    from twin.fmu.toolchain import private_cache_dir
 
-    folder = private_cache_dir() / "ssp" / file_sha256(path)[:32]
-    done = folder / ".complete"
-    if done.is_file():
+    parent = private_cache_dir() / "ssp"
+    folder = parent / sha256[:32]
+    if (folder / ".complete").is_file():
         return folder
-    folder.mkdir(parents=True, exist_ok=True)
-    for m in members:
-        if m.is_dir():
-            continue
-        target = folder / m.filename
-        target.parent.mkdir(parents=True, exist_ok=True)
-        tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-        with zf.open(m) as src, open(tmp, "wb") as dst:
-            while block := src.read(1 << 20):
-                dst.write(block)
-        os.replace(tmp, target)
-    done.write_text("ok\n")
+    parent.mkdir(mode=0o700, exist_ok=True)
+    tmp = parent / f".{sha256[:32]}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp"
+    try:
+        extract(zf, members, tmp, str(path))
+        (tmp / ".complete").write_text("ok\n")
+        if folder.exists() and not (folder / ".complete").is_file():
+            shutil.rmtree(folder, ignore_errors=True)  # an older version's unfinished unpacking
+        try:
+            os.rename(tmp, folder)
+        except OSError:
+            if not (folder / ".complete").is_file():
+                raise
+            shutil.rmtree(tmp, ignore_errors=True)  # another process unpacked it meanwhile
+            return folder
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    _CREATED[path.resolve()] = folder
     return folder
+
+
+def discard_unpacked(path: Path) -> None:
+    """Remove what this process unpacked of the archive ``path`` into the cache: a refused
+    archive leaves no copy behind (one unpacked by an earlier run that ran it stays)."""
+    folder = _CREATED.pop(Path(path).resolve(), None)
+    if folder is not None:
+        shutil.rmtree(folder, ignore_errors=True)
