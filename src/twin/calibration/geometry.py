@@ -253,7 +253,10 @@ def thermal_joints(g: Geometry) -> dict[str, Derived]:
         "g_clamp__sensor": Derived(0.005, "estimate: point contact of the measuring head"),
         "g_sensor__detecting_frame_lower": Derived(0.1, "estimate: probe clamped in the frame's lower end"),
         "g_t_plate__pole_heel": Derived(0.005, "estimate: point contact of the pole top"),
-        "g_oil__base": Derived(0.0, "estimate: the station's heat reaches the tester through the cabinet air (the shares), not through a joint"),
+        "g_oil__base": Derived(
+            0.0,
+            "estimate: the station's heat reaches the tester through the cabinet air (the shares), not through a joint",
+        ),
     }
 
 
@@ -268,7 +271,9 @@ def thermal_heat(g: Geometry) -> dict[str, Derived]:
     why = "drawing estimate: the embedded station's heat reaching a part under the base"
     shares = {f"hyd_share_{node}": Derived(share, why) for node in UNDER_BASE}
     cylinder = g.dim("hydraulic_station.cylinder_share")
-    shares["hyd_share_t_plate"] = Derived(cylinder, "drawing estimate: the loading cylinder's oil warming the T-plate")
+    shares["hyd_share_t_plate"] = Derived(
+        cylinder, "drawing estimate: the loading cylinder's oil warming the T-plate"
+    )
     rest = 1.0 - share * len(UNDER_BASE) - cylinder
     shares["hyd_share_oil"] = Derived(rest, "the rest of the station's heat, into its oil")
     return shares

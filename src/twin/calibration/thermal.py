@@ -78,7 +78,12 @@ PRIORS: dict[str, tuple[float, str]] = {
 TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"}
 #: a share that is the rest of the others: the oil keeps what the parts under the base do not take
 REST: dict[str, tuple[str, ...]] = {
-    "hyd_share_oil": ("hyd_share_base", "hyd_share_pole_lower", "hyd_share_detecting_frame_lower", "hyd_share_t_plate")
+    "hyd_share_oil": (
+        "hyd_share_base",
+        "hyd_share_pole_lower",
+        "hyd_share_detecting_frame_lower",
+        "hyd_share_t_plate",
+    )
 }
 #: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
 #: offset, not its local placement on the body]
@@ -224,7 +229,7 @@ def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, The
         if k in REST:
             lines.append(
                 f'{k} = {{ value = {float(f"{cal.values[k]:.6g}")!r}, source = "calibrated: the rest of the '
-                f'station\'s heat, 1 - {" - ".join(REST[k])} (drawing {cal.estimates[k]:.4g})" }}'
+                f"station's heat, 1 - {' - '.join(REST[k])} (drawing {cal.estimates[k]:.4g})\" }}"
             )
             continue
         src = TIED.get(k, k)
