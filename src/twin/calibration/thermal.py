@@ -227,8 +227,10 @@ def write_parameter_file(path: Path, cal: ThermalFit, by_shape: Mapping[str, The
     lines += ["", "[parameters]"]
     for k in sorted(cal.values):
         if k in REST:
+            # the rest of the six-digit values written above, in full: the shares must sum to 1
+            rest = 1.0 - sum(float(f"{cal.values[o]:.6g}") for o in REST[k])
             lines.append(
-                f'{k} = {{ value = {float(f"{cal.values[k]:.6g}")!r}, source = "calibrated: the rest of the '
+                f'{k} = {{ value = {rest!r}, source = "calibrated: the rest of the '
                 f"station's heat, 1 - {' - '.join(REST[k])} (drawing {cal.estimates[k]:.4g})\" }}"
             )
             continue
