@@ -180,16 +180,20 @@ def test_both_loops_stop_at_a_fault_with_the_same_error_and_rows(
         assert fast.table[name].tobytes() == py.table[name].tobytes(), name
 
 
+#: sensors -> thermal -> sensors, closed through a delay whose first value is 295 K
+DELAYED_LOOP = (
+    '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+    '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
+    "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
+    '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
+    '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
+)
+
+
 def test_delayed_connection_breaks_a_loop_with_its_initial_value(tmp_path: Path) -> None:
     # sensors -> thermal -> sensors: allowed only through a delay; the first exchange of the
     # delayed input sees the declared initial value
-    body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
-        "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
-        '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
-        '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
-    )
+    body = DELAYED_LOOP
     result = run_scenario(load_scenario(scenario(tmp_path, body, duration="1 min")))
     assert result.status == "completed"
     ambient = result.table["thermal.t_ambient"]
@@ -232,13 +236,7 @@ def test_a_transformed_connection_gives_factor_times_output_plus_offset(tmp_path
     the input, directly and through a delay, in both loops alike; the identity copies."""
     import dataclasses
 
-    body = (
-        '[fmu.thermal]\nmodel = "ThermalNetwork"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
-        '[fmu.sensors]\nmodel = "SensorsDAQ"\nperiod = "1 s"\nunconnected = "a test system: the inputs nothing feeds keep their start values"\n'
-        "parameters = { temp_noise = 0.0, temp_resolution = 0.0, temp_tau = 1e-3 }\n"
-        '[connections]\n"thermal.t_ambient" = "sensors.t_room"\n'
-        '[[delay]]\nfrom = "sensors.t_room_meas"\nto = "thermal.t_room"\ninitial = 295.0\n'
-    )
+    body = DELAYED_LOOP
     sc = load_scenario(scenario(tmp_path, body, duration="5 min"))
 
     def with_transform(factor: float, offset: float):

@@ -632,3 +632,22 @@ def test_every_limit_is_stated_in_the_docs() -> None:
         f"{safezip.MAX_MEMBERS}",
     ):
         assert number in docs, number
+
+
+def test_a_full_disk_while_unpacking_is_not_called_a_damaged_member(tmp_path: Path) -> None:
+    """The sink's own error (here a full disk) goes up as itself: the member is sound."""
+    import errno
+
+    path = tmp_path / "sound.zip"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("data.bin", b"x" * 4096)
+
+    def full(_block: bytes) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with zipfile.ZipFile(path) as zf, pytest.raises(OSError, match="No space left") as caught:
+        safezip.copy_member(zf, zf.getinfo("data.bin"), full, str(path))
+    assert "damaged" not in str(caught.value)
+    with zipfile.ZipFile(path) as zf:  # and a sound sink takes every byte
+        blocks: list[bytes] = []
+        assert safezip.copy_member(zf, zf.getinfo("data.bin"), blocks.append, str(path)) == 4096

@@ -12,8 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import subprocess
-import sys
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -24,28 +22,15 @@ import pytest
 
 from twin.outputs import checkpoint_file
 
+from .cli import REPO, one_line, twin
+
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[2]
 CONSTANT = str(REPO / "scenarios" / "constant-load.toml")
 #: a 20-min run with a checkpoint at 10 min: 12 000 ticks of 0.1 s, the checkpoint at tick 6000
 RUN_ARGS = ("--set", 'scenario.duration="20 min"', "--checkpoint-every", "10 min")
 N_TICKS = 12_000
 VICTIM = b"a file outside the run folder\n"
-
-
-def twin(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "twin", *args], cwd=REPO, capture_output=True, text=True, timeout=timeout
-    )
-
-
-def one_line(proc: subprocess.CompletedProcess[str]) -> str:
-    """The single line of a refused command (exit 2, no traceback)."""
-    assert proc.returncode == 2, (proc.returncode, proc.stderr[-2000:])
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,6 @@ line naming the file and what is wrong, within seconds and bounded memory."""
 from __future__ import annotations
 
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -12,21 +11,9 @@ import pytest
 
 from twin.signals.csv import LINE_BYTES, MAX_COLUMNS
 
-REPO = Path(__file__).resolve().parents[2]
+from .cli import REPO, one_line, twin
+
 CONSTANT = REPO / "scenarios" / "constant-load.toml"
-
-
-def twin(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "twin", *args], cwd=cwd, capture_output=True, text=True, timeout=120
-    )
-
-
-def one_line(proc: subprocess.CompletedProcess[str]) -> str:
-    assert proc.returncode == 2, (proc.returncode, proc.stderr[-2000:])
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

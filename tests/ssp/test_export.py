@@ -16,6 +16,8 @@ from twin.config.load import scenarios_dir
 from twin.outputs.csv import read_signals_csv
 from twin.signals.table import SignalTable
 
+from .archives import libcosim_run
+
 TESTER = scenarios_dir() / "base" / "tester-system.toml"
 DURATION = "2 min"
 
@@ -39,31 +41,6 @@ def _export(scenario: Path | str, out: Path, *flags: str) -> Path:
     args = ["export-ssp", str(scenario), "-o", str(out), "--set", f'scenario.duration="{DURATION}"', *flags]
     assert main(args) == 0
     return out
-
-
-def _libcosim(ssp: Path, names: list[str], steps: int, every: int) -> dict[str, np.ndarray]:
-    """The archive in libcosim: every ``every`` base steps, the last value of each named
-    variable ("instance.variable")."""
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-
-    log_output_level(CosimLogLevel.WARNING)
-    execution = CosimExecution.from_ssp_file(str(ssp))
-    index = {i.name.decode(): i.index for i in execution.slave_infos()}
-    refs = {n: {v.name.decode(): v.reference for v in execution.slave_variables(i)} for n, i in index.items()}
-    observer = CosimObserver.create_last_value()
-    execution.add_observer(observer)
-    rows = []
-    for _ in range(steps):
-        assert execution.step(every)
-        row = []
-        for name in names:
-            inst, var = name.split(".", 1)
-            row.append(observer.last_real_values(index[inst], [refs[inst][var]])[0])
-        rows.append(row)
-    values = np.array(rows)
-    return {name: values[:, j] for j, name in enumerate(names)}
 
 
 def _run(scenario: Path | str, out: Path, *sets: str) -> SignalTable:
@@ -108,7 +85,7 @@ def test_libcosim_runs_the_export_and_agrees_bit_for_bit(tmp_path: Path) -> None
     ours = _run(TESTER, tmp_path / "ours")
     ssp = _export(TESTER, tmp_path / "tester.ssp")
     names = ours.names()
-    theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)  # output every 1 s = 10 steps
+    theirs = libcosim_run(ssp, names, steps=len(ours) - 1, every=10)  # output every 1 s = 10 steps
     assert len(names) > 70
     for name in names:
         np.testing.assert_array_equal(theirs[name], ours[name][1:], err_msg=name)
@@ -123,7 +100,7 @@ def test_with_a_delayed_loop_libcosim_differs_only_downstream_of_the_delay(tmp_p
     ours = _run(scenario, tmp_path / "ours")
     ssp = _export(scenario, tmp_path / "tester.ssp", "--lossy")
     names = ["hydraulic.radial_load", "oscillation.angle", "thermal.t_bearing", "thermal.t_base"]
-    theirs = _libcosim(ssp, names, steps=len(ours) - 1, every=10)
+    theirs = libcosim_run(ssp, names, steps=len(ours) - 1, every=10)
     for name in ("hydraulic.radial_load", "oscillation.angle"):
         np.testing.assert_array_equal(theirs[name], ours[name][1:], err_msg=name)
     gap = {n: np.abs(theirs[n] - ours[n][1:]).max() for n in ("thermal.t_bearing", "thermal.t_base")}

@@ -233,21 +233,24 @@ def copy_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, sink: Callable[[byte
     limit = member_limit(info)
     n = 0
     try:
-        with zf.open(info) as f:
-            while block := f.read(1 << 20):
-                n += len(block)
-                if n > limit:
-                    raise ConfigError(
-                        f"member {info.filename!r} unpacks to more than {limit} bytes "
-                        f"(its header said {info.file_size})",
-                        source=source,
-                    )
-                sink(block)
-    except ConfigError:
-        raise
+        f = zf.open(info)
     except _DAMAGE as exc:
         raise _damaged(info, exc, source) from None
-    return n
+    with f:
+        while True:
+            try:  # only the reading: a sink's own error (a full disk) is not the member's damage
+                block = f.read(1 << 20)
+            except _DAMAGE as exc:
+                raise _damaged(info, exc, source) from None
+            if not block:
+                return n
+            n += len(block)
+            if n > limit:
+                raise ConfigError(
+                    f"member {info.filename!r} unpacks to more than {limit} bytes (its header said {info.file_size})",
+                    source=source,
+                )
+            sink(block)
 
 
 def read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, source: str, limit: int | None = None) -> bytes:
