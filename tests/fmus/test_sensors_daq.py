@@ -192,7 +192,9 @@ def test_probe_body_thermometer_lags_like_the_others(fmu_paths: dict[str, Path])
     np.testing.assert_array_equal(got[:, 1:], T0)
 
 
-def test_probe_body_thermometer_adds_noise_without_moving_the_other_streams(fmu_paths: dict[str, Path]) -> None:
+def test_probe_body_thermometer_adds_noise_without_moving_the_other_streams(
+    fmu_paths: dict[str, Path],
+) -> None:
     """Its noise comes from a stream of its own: the same seed gives the eight temperatures and
     the probe the same bits whatever the probe body does, and the thermometer is noisy."""
     noisy = {"temp_noise": 0.02, "temp_resolution": 0.0, "probe_noise": 5e-8, "seed": 7}
