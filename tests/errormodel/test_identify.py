@@ -462,3 +462,16 @@ def test_the_creep_spectrum_follows_a_creep_unlike_its_grid(tau_h: float) -> Non
             # does not cover; at most 30 % off
             se = math.sqrt(shape @ cov @ shape)
             assert abs(shape @ j - true) < 0.3 * total, (hours, shape @ j, true, se)
+
+
+def test_the_report_marks_a_growth_at_its_bound(fitted: Coefficients) -> None:
+    """`twin identify` names a body's growth that ended at its bound 0 (a drift at 0 is no
+    bound: it may have either sign)."""
+    from twin.calibration.identify import report_lines
+
+    coefficients = dict(fitted.coefficients)
+    coefficients["alpha_l_t_plate"] = replace(coefficients["alpha_l_t_plate"], value=0.0)
+    coefficients["probe_zero_drift"] = replace(coefficients["probe_zero_drift"], value=0.0)
+    lines = report_lines(replace(fitted, coefficients=coefficients))
+    marked = [line.split()[0] for line in lines if "at its bound 0" in line]
+    assert marked == ["alpha_l_t_plate"]
