@@ -9,14 +9,19 @@
 /* The second noise stream is seeded with seed ^ SD_STREAM2_KEY: its high bits are set, so it never
  * coincides with the first stream of any seed (0 .. 2^31-1). */
 #define SD_STREAM2_KEY 0xD1B54A32D192ED03ULL
+/* The third stream (the probe body's thermometer, added last) is seeded with seed ^ SD_STREAM3_KEY:
+ * a stream of its own, so adding that channel left every other channel's draws as they were. */
+#define SD_STREAM3_KEY 0x9E3779B97F4A7C15ULL
 
 typedef struct {
     /* deterministic noise generators (fmus/common/rng.h): xoshiro256** seeded by splitmix64,
      * Gaussian by Box-Muller; plain structs, so they are part of the FMU state.
      * rng:  temperatures and probe noise (unchanged since the first version of this FMU);
-     * rng2: load, torque and vibration noise and the interference spikes */
+     * rng2: load, torque and vibration noise and the interference spikes;
+     * rng3: the probe body's thermometer */
     Rng rng;
     Rng rng2;
+    Rng rng3;
     /* discretisation for the step it was made for */
     double step_h;
     double a_temp;      /* 1 - exp(-h/temp_tau) */
@@ -26,7 +31,8 @@ typedef struct {
     /* filter states */
     double temp_lag[SD_TEMPS]; /* K: the sensing elements' temperatures */
     double probe_filt;         /* m: the probe's low-passed head position */
-    double t_probe_body0;      /* K: probe body temperature at initialization (zero-drift reference) */
+    double t_probe_body0;      /* K: probe body temperature at initialization (zero and span drift reference) */
+    double body_lag;           /* K: the probe body thermometer's sensing element */
     /* interference on the probe */
     int spike_left;     /* samples the current spike still covers, this one included (0 = none) */
     double spike_value; /* m: signed size of the current spike */
@@ -39,6 +45,7 @@ typedef struct {
     double angle_sample;
     double vibration_sample;
     double spike_sample;
+    double body_sample;
 } ModelState;
 
 #define INTERNAL_STEP_VR VR_solver_step

@@ -7,7 +7,8 @@
  *   temperature channel i:  x_i += a_T (T_i - x_i),        a_T = 1 - exp(-h / temp_tau)
  *                           y_i  = Q(x_i + sigma_T n_i, temp_resolution)
  *   displacement probe:     x_p += a_p (z - x_p),          a_p = 1 - exp(-2 pi f_c h)
- *                           r0   = x_p + k_d (T_body - T_body(0))
+ *                           x    = x_p + bow(x_p)          (linearity error)
+ *                           r0   = x + k_d dT_b + s_d dT_b x,   dT_b = T_body - T_body(0)
  *                           y_p  = clip(Q(r0 + sigma_p n_p + s, probe_resolution), range)
  *                           in_range = [range_min <= r0 <= range_max]
  *   interference spike s:   while none is on, one starts with probability 1 - exp(-spike_rate h);
@@ -17,13 +18,14 @@
  *   torque sensor:          y_M = Q(M + sigma_M n_M, torque_resolution)
  *   angle encoder:          y_a = Q(angle, encoder_resolution)
  *   vibration pickup:       y_v = v + sigma_v n_v
+ *   probe body thermometer: like a temperature channel, on T_body (its noise from a third stream)
  *
  * The exact discretisation of the first-order lags is stable for any step. The noise n is
  * drawn once per channel per step, always in the same order, from two generators
  * (fmus/common/rng.c) whose states live in ModelState: the first (seed) feeds the temperatures
  * and the probe exactly as before the load/torque/angle/vibration channels and the spikes were
- * added; the second (seed ^ SD_STREAM2_KEY) feeds everything new, with a fixed number of draws
- * per step. So the old outputs stay bit-identical whenever no spike is on, and a parameter of one
+ * added; the second (seed ^ SD_STREAM2_KEY) feeds those, with a fixed number of draws per step;
+ * the third (seed ^ SD_STREAM3_KEY) the probe body's thermometer, added after both. So the old outputs stay bit-identical whenever no spike is on, and a parameter of one
  * channel never changes another channel's noise. FMU get/set/serialize reproduce both streams bit
  * for bit. The outputs are the last sample: they depend on the states only (no direct
  * feedthrough), so setting an input between steps changes nothing until the next doStep.
@@ -92,14 +94,18 @@ static void take_sample(ModelInstance *comp) {
     const double *r = comp->v.r;
     double sigma_t = r[VR_temp_noise], q_t = r[VR_temp_resolution];
     double lo = r[VR_probe_range_min], hi = r[VR_probe_range_max];
-    double r0, x, y, u;
+    double r0, x, y, u, d_body;
     int i;
     /* first stream: the temperatures, then the probe (the order of the first version) */
     for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * rng_gauss(&m->rng), q_t);
-    /* the probe's bow-shaped linearity error, zero at both ends of its range, then its zero drift */
+    /* the probe's bow-shaped linearity error, zero at both ends of its range, then its zero
+     * drift and its span drift (the gain acts on the indicated position; a zero span drift adds
+     * an exact 0.0, so the reading keeps its bits) */
     u = (m->probe_filt - lo) / (hi - lo);
-    r0 = m->probe_filt + r[VR_probe_nonlinearity] * (hi - lo) * 4.0 * u * (1.0 - u) +
-         r[VR_probe_zero_drift] * (r[VR_t_probe_body] - m->t_probe_body0);
+    x = m->probe_filt + r[VR_probe_nonlinearity] * (hi - lo) * 4.0 * u * (1.0 - u);
+    d_body = r[VR_t_probe_body] - m->t_probe_body0;
+    r0 = x + r[VR_probe_zero_drift] * d_body;
+    if (r[VR_probe_span_drift] != 0.0) r0 += r[VR_probe_span_drift] * d_body * x;
     x = r0 + r[VR_probe_noise] * rng_gauss(&m->rng);
     /* the spike after filtering and zero drift, before quantization and clipping; added only
      * while one is on, so without a spike x keeps its bits (even a -0.0) */
@@ -113,6 +119,8 @@ static void take_sample(ModelInstance *comp) {
     m->torque_sample = quantize(r[VR_torque_true] + r[VR_torque_noise] * rng_gauss(&m->rng2), r[VR_torque_resolution]);
     m->vibration_sample = r[VR_vibration_true] + r[VR_vibration_noise] * rng_gauss(&m->rng2);
     m->angle_sample = quantize(r[VR_angle_true], r[VR_encoder_resolution]); /* no noise */
+    /* third stream: the probe body's thermometer */
+    m->body_sample = quantize(m->body_lag + sigma_t * rng_gauss(&m->rng3), q_t);
 }
 
 /* What take_sample draws, without the sample: a sample before the last of a communication
@@ -123,6 +131,7 @@ static void skip_sample(ModelInstance *comp) {
     ModelState *m = &comp->v.m;
     rng_skip_gauss(&m->rng, SD_TEMPS + 1); /* the temperatures, the probe */
     rng_skip_gauss(&m->rng2, 3);           /* load, torque, vibration */
+    rng_skip_gauss(&m->rng3, 1);           /* the probe body's thermometer */
 }
 
 /* ------------------------------------------------------------------ model contract */
@@ -143,11 +152,13 @@ fmi2Status model_initialize(ModelInstance *comp) {
     int i;
     rng_seed(&m->rng, seed);
     rng_seed(&m->rng2, seed ^ SD_STREAM2_KEY);
+    rng_seed(&m->rng3, seed ^ SD_STREAM3_KEY);
     make_gains(comp, comp->v.r[VR_solver_step]);
     /* every sensor starts in equilibrium with what it measures, and no spike is on */
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] = comp->v.r[VR_TRUE[i]];
     m->probe_filt = comp->v.r[VR_probe_true];
     m->t_probe_body0 = comp->v.r[VR_t_probe_body];
+    m->body_lag = comp->v.r[VR_t_probe_body];
     m->spike_left = 0;
     m->spike_value = 0.0;
     take_sample(comp); /* the sample at the start time */
@@ -160,6 +171,7 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     if (h != m->step_h) make_gains(comp, h);
     for (i = 0; i < SD_TEMPS; i++) m->temp_lag[i] += m->a_temp * (comp->v.r[VR_TRUE[i]] - m->temp_lag[i]);
     m->probe_filt += m->a_probe * (comp->v.r[VR_probe_true] - m->probe_filt);
+    m->body_lag += m->a_temp * (comp->v.r[VR_t_probe_body] - m->body_lag);
     update_spike(comp);
     if (comp->last_substep)
         take_sample(comp);
@@ -180,6 +192,7 @@ void model_outputs(ModelInstance *comp) {
     r[VR_angle_meas] = m->angle_sample;
     r[VR_vibration_meas] = m->vibration_sample;
     r[VR_spike] = m->spike_sample;
+    r[VR_t_probe_body_meas] = m->body_sample;
 }
 
 /* The generators and the gains of a state handed back: both streams valid, the gains and the
@@ -190,7 +203,7 @@ static int bad_setup(const ModelInstance *comp, StateCheck *c) {
     const double got[3] = {m->a_temp, m->a_probe, m->spike_p};
     double want[3];
     const char *why = rng_problem(&m->rng);
-    if (why || (why = rng_problem(&m->rng2))) return state_fail(c, "noise generator: %s", why);
+    if (why || (why = rng_problem(&m->rng2)) || (why = rng_problem(&m->rng3))) return state_fail(c, "noise generator: %s", why);
     if (m->step_h != comp->v.r[VR_solver_step])
         return state_fail(c, "gains made for %.17g s, not for solver_step = %.17g s", m->step_h, comp->v.r[VR_solver_step]);
     make_gains(&fresh, m->step_h);
@@ -216,6 +229,8 @@ int model_check_state(const ModelInstance *comp, StateCheck *c) {
         if (state_bad_follower(c, "temperature sensor lag", m->temp_lag[i], VR_TRUE[i])) return -1;
     if (state_bad_follower(c, "probe filter", m->probe_filt, VR_probe_true) ||
         state_bad_follower(c, "probe body reference", m->t_probe_body0, VR_t_probe_body) ||
+        state_bad_follower(c, "probe body thermometer lag", m->body_lag, VR_t_probe_body) ||
+        state_bad_real(c, "body_sample", m->body_sample, -HUGE_VAL, HUGE_VAL) ||
         state_bad_int(c, "spike_left", m->spike_left, 0, m->spike_steps) ||
         state_bad_real(c, "spike_value", m->spike_value, -spike_max, spike_max) ||
         state_bad_real(c, "spike_sample", m->spike_sample, m->spike_left > 0, m->spike_left > 0) ||

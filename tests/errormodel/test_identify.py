@@ -45,7 +45,7 @@ PRIORS = load_priors()
 SHIFT = {
     "alpha_l_heel_block": 0.9, "alpha_l_bearing_block": -1.2, "alpha_l_spindle": 0.5,
     "alpha_l_bearing_rings": -0.7, "alpha_l_t_plate": 1.1, "alpha_l_base_inset": 0.7,
-    "alpha_l_detecting_frame": 0.6, "alpha_l_probe_body": -0.5, "probe_zero_drift": -0.8,
+    "alpha_l_detecting_frame": 0.6, "alpha_l_probe_body": -0.5, "probe_zero_drift": -0.8, "probe_span_drift": 0.6,
     "alpha_l_clamp": 0.3, "alpha_l_pole_heel": -0.4, "alpha_l_pole_base": 1.0, "alpha_l_pole_lower": -1.1,
 }  # fmt: skip
 assert set(SHIFT) == set(THERMAL)
@@ -78,9 +78,13 @@ def smooth(rng: np.random.Generator, n: int, swing: float) -> np.ndarray:
     return swing * y / np.max(np.abs(y))
 
 
-def record(name: str, t: np.ndarray, rng: np.random.Generator, *, known=None, **streams) -> Record:
+def record(
+    name: str, t: np.ndarray, rng: np.random.Generator, *, known=None, truth=None, **streams
+) -> Record:
     """A DAQ record of ``name``'s experiment made from the error model's own form with the
-    coefficients TRUTH, plus the DAQ's noise, quantization and three interference spikes."""
+    coefficients ``truth`` (default TRUTH), plus the DAQ's noise, quantization and three
+    interference spikes."""
+    truth = truth or TRUTH
     n = len(t)
     temps = streams.pop("temps", {p: np.zeros(n) for p in POINTS})
     defaults = {"load": np.zeros(n), "torque": np.zeros(n), "angle": np.zeros(n), "vibration": np.zeros(n)}
@@ -101,11 +105,11 @@ def record(name: str, t: np.ndarray, rng: np.random.Generator, *, known=None, **
     add(COLUMNS.angle, true["angle"])
     add(COLUMNS.vibration, true["vibration"] + 20e-9 * rng.standard_normal(n))
     add(COLUMNS.reading, np.zeros(n))  # replaced below, once the motion it reads is known
-    motion = _motion(table, temps, true)
-    s = TRUTH["probe_scale"]
+    motion = _motion(table, temps, true, truth)
+    s = truth["probe_scale"]
     # the probe reads the motion through its scale; the clamp's rotation as the model writes it,
     # at the characteristic matrices' Abbe lever
-    abbe = ABBE_LEVER * TRUTH["clamp_rotation"]
+    abbe = ABBE_LEVER * truth["clamp_rotation"]
     change = s * (motion + known) + s**2 * abbe * (true["torque"] - true["torque"][0])
     reading = 4.805e-3 + change + PROBE_NOISE * rng.standard_normal(n)
     reading[rng.choice(np.arange(50, n - 50), 3, replace=False)] += 20e-6
@@ -115,18 +119,23 @@ def record(name: str, t: np.ndarray, rng: np.random.Generator, *, known=None, **
 
 
 def _motion(
-    table: SignalTable, temps: Mapping[str, np.ndarray], true: Mapping[str, np.ndarray]
+    table: SignalTable,
+    temps: Mapping[str, np.ndarray],
+    true: Mapping[str, np.ndarray],
+    coefficients: Mapping[str, float],
 ) -> np.ndarray:
     """The clamp's motion relative to the probe from the true streams, in the error model's
     form with TRUTH: thermal (true temperatures), load, runout and vibration."""
     truth = SignalTable(table.time)
     for p in POINTS:
         truth.add(Signal(COLUMNS.temperatures[p], "", ""), 293.15 + temps[p])
-    for field in ("load", "torque", "angle", "vibration", "reading"):
+    for field in ("load", "torque", "angle", "vibration"):
         truth.add(Signal(getattr(COLUMNS, field), "", ""), true.get(field, np.zeros(len(table.time))))
+    # the probe's span drift scales its reading: about the paper's 4.805 mm
+    truth.add(Signal(COLUMNS.reading, "", ""), np.full(len(table.time), 4.805e-3))
     cfg = EvaluationConfig(
-        thermal=ThermalCoefficients.from_values(TRUTH),
-        mechanics=MechanicalCoefficients.from_values(TRUTH),
+        thermal=ThermalCoefficients.from_values(coefficients),
+        mechanics=MechanicalCoefficients.from_values(coefficients),
         true_wear=None,
     )
     m = Measured.read(truth, cfg, tester_model())
@@ -134,8 +143,35 @@ def _motion(
     return np.sum([f.contribution(m).e_z for f in parts], axis=0)
 
 
-def synthetic_records(seed: int) -> dict[str, Record]:
+def probe_bench(t: np.ndarray, rng: np.random.Generator, truth: Mapping[str, float]) -> Record:
+    """The probe heated alone: its reading at 1, 5 and 9 mm in turn (20 min each, each with its
+    own linearity offset) drifts by (k + s x) dT with its body's rise dT (+10 K over 2 h, held,
+    back), which a thermometer on the body logs; the eight read the room."""
+    n = len(t)
+    rise = np.interp(t, [0, 1800, 9000, 16200, 23400, 25200], [0, 0, 10, 10, 0, 0])
+    step = (t // 1200).astype(int) % 3
+    known = np.array([1e-3, 5e-3, 9e-3])[step]
+    bow = np.array([1.8e-6, 5e-6, 1.8e-6])[step]
+    table = SignalTable(t)
+    for p in POINTS:
+        table.add(
+            Signal(COLUMNS.temperatures[p], "", "sensors"), 293.15 + TEMP_NOISE * rng.standard_normal(n)
+        )
+    for field in ("load", "torque", "angle", "vibration"):
+        table.add(Signal(getattr(COLUMNS, field), "", "sensors"), np.zeros(n))
+    body = 293.15 + rise + TEMP_NOISE * rng.standard_normal(n)
+    table.add(Signal("sensors.t_probe_body_meas", "", "sensors"), np.round(body / 0.01) * 0.01)
+    drift = (truth["probe_zero_drift"] + truth["probe_span_drift"] * known) * rise
+    reading = known + bow + drift + PROBE_NOISE * rng.standard_normal(n)
+    table.add(Signal(COLUMNS.reading, "", "sensors"), np.round(reading / PROBE_Q) * PROBE_Q)
+    experiment = next(e for e in EXPERIMENTS if e.name == "probe_heating")
+    used = np.r_[True, step[1:] == step[:-1]]  # the sample where the stage moved is left out
+    return Record(experiment, table, known, used)
+
+
+def synthetic_records(seed: int, truth: Mapping[str, float] | None = None) -> dict[str, Record]:
     rng = np.random.default_rng(seed)
+    truth = truth or TRUTH
     soak_t = np.arange(0.0, 86400.0, 30.0)
     cool_t = np.arange(0.0, 7200.0, 10.0)
     short = np.arange(0.0, 180.0, 0.1)
@@ -154,20 +190,26 @@ def synthetic_records(seed: int) -> dict[str, Record]:
     vibration = 0.2e-6 * rng.standard_normal(len(light))
     return {
         "thermal_soak": record(
-            "thermal_soak", soak_t, rng, temps={p: smooth(rng, len(soak_t), 5.0) for p in POINTS}
+            "thermal_soak", soak_t, rng, truth=truth, temps={p: smooth(rng, len(soak_t), 5.0) for p in POINTS}
         ),
         "hot_cooldown": record(
-            "hot_cooldown", cool_t, rng, temps={p: smooth(rng, len(cool_t), 3.0) for p in POINTS}
+            "hot_cooldown", cool_t, rng, truth=truth, temps={p: smooth(rng, len(cool_t), 3.0) for p in POINTS}
         ),
-        "gauge_blocks": record("gauge_blocks", short, rng, known=gauge),
-        "load_steps": record("load_steps", short, rng, load=load),
+        "gauge_blocks": record("gauge_blocks", short, rng, truth=truth, known=gauge),
+        "load_steps": record("load_steps", short, rng, truth=truth, load=load),
         "runout_check": record(
-            "runout_check", short, rng, angle=swing, vibration=0.2e-6 * rng.standard_normal(len(short))
+            "runout_check",
+            short,
+            rng,
+            truth=truth,
+            angle=swing,
+            vibration=0.2e-6 * rng.standard_normal(len(short)),
         ),
         "light_oscillation": record(
             "light_oscillation",
             light,
             rng,
+            truth=truth,
             angle=angle,
             torque=torque,
             load=20e3 + 0 * light,
@@ -177,11 +219,13 @@ def synthetic_records(seed: int) -> dict[str, Record]:
             "pole_heating",
             pole_t,
             rng,
+            truth=truth,
             temps={p: heated if p == "long_pole" else smooth(rng, len(pole_t), 0.2) for p in POINTS},
         ),
         "load_hold": record(
-            "load_hold", hold_t, rng, load=hold
+            "load_hold", hold_t, rng, truth=truth, load=hold
         ),  # the room held: the thermal coefficients stay at their priors in the quick fits
+        "probe_heating": probe_bench(np.arange(0.0, 25200.0, 30.0), rng, truth),
     }
 
 
@@ -217,8 +261,35 @@ def test_the_fit_recovers_what_each_point_temperature_does(fitted: Coefficients)
         assert se < 0.05 * abs(w[i] @ true), p  # the data determine it, not the priors
         assert abs(w[i] @ (prior - true)) > 4 * se, p  # and the truth is not the prior's
     fit = fitted.fits["thermal"]
-    # 7 independent temperature histories for 13 coefficients: 7 directions, the rest priors
+    # 7 independent temperature histories for 12 coefficients (the probe's drifts held): 7
+    # directions, the rest priors
     assert fit.rank == 7 and fit.informative_directions == 7
+
+
+def test_the_probe_bench_separates_zero_and_span_drift(fitted: Coefficients) -> None:
+    """The probe heated alone at three positions determines both drifts far beyond their priors;
+    the thermal fit holds them (it does not refit what multiplies the frame's thermometer)."""
+    fit = fitted.fits["probe_drift"]
+    assert fit.experiments == ("probe_heating",) and fit.rank == 2 and fit.informative_directions == 2
+    for name in ("probe_zero_drift", "probe_span_drift"):
+        c = fitted.coefficients[name]
+        assert c.experiment == "probe_drift" and name not in fitted.fits["thermal"].parameters
+        assert abs(c.value - TRUTH[name]) <= 4 * c.std_error, (name, c.value, TRUTH[name])
+        assert c.std_error < 0.02 * PRIORS[name].sigma, name
+
+
+def test_the_thermal_fit_keeps_every_growth_at_or_above_zero() -> None:
+    """A soak whose probe reads as if the T-plate shrank (the one coefficient of its
+    thermometer): unbounded, its alpha*L comes out negative; bounded, it sits at its bound 0
+    and every other growth stays at or above it."""
+    records = synthetic_records(11, {**TRUTH, "alpha_l_t_plate": -0.5e-6})
+    thermal = [c for c in CALIBRATIONS if c.name in ("probe_drift", "thermal")]
+    c = fit_records(records, PRIORS, calibrations=thermal + MECHANICAL)
+    assert all(c.coefficients[n].value >= 0.0 for n in ThermalCoefficients.growths())
+    assert c.coefficients["alpha_l_t_plate"].value < 1e-12
+    unbounded = [replace(cal, lower={}) if cal.name == "thermal" else cal for cal in thermal]
+    free = fit_records(records, PRIORS, calibrations=unbounded + MECHANICAL)
+    assert free.coefficients["alpha_l_t_plate"].value < -0.3e-6
 
 
 def test_the_fit_recovers_the_mechanical_coefficients(fitted: Coefficients) -> None:
@@ -321,6 +392,7 @@ def test_identify_sees_the_tester_as_built() -> None:
 
 @pytest.mark.slow
 def test_a_run_of_a_changed_tester_is_compensated_with_the_same_coefficients(tmp_path: Path) -> None:
+    from twin.errormodel.coefficients import default_path
     from twin.outputs import read_signals_csv
 
     from .test_coefficients import PERTURBED_TRUTH
@@ -334,8 +406,15 @@ def test_a_run_of_a_changed_tester_is_compensated_with_the_same_coefficients(tmp
     assert np.max(np.abs(a["errormodel.reading_change"] - b["errormodel.reading_change"])) > 1e-6
     # ... but the model's parts that do not read the probe are the same numbers: same
     # coefficients, same temperatures, loads and angles
-    for part in ("thermal", "loading", "fluctuating"):
+    for part in ("loading", "fluctuating"):
         np.testing.assert_array_equal(a[f"errormodel.e_{part}"], b[f"errormodel.e_{part}"])
+    # the thermal part reads the probe only through its span drift (s x reading x dT): with the
+    # committed s, readings apart by less than the probe's 10 mm range and the frame's rise in
+    # 10 min below 1 K, far below a nanometre
+    s_drift = load_coefficients(default_path()).coefficients["probe_span_drift"].value
+    bound = abs(s_drift) * 10e-3 * 1.0
+    assert bound < 1e-9
+    np.testing.assert_allclose(a["errormodel.e_thermal"], b["errormodel.e_thermal"], rtol=0, atol=bound)
 
 
 @pytest.mark.slow
@@ -391,3 +470,16 @@ def test_the_creep_spectrum_follows_a_creep_unlike_its_grid(tau_h: float) -> Non
             # does not cover; at most 30 % off
             se = math.sqrt(shape @ cov @ shape)
             assert abs(shape @ j - true) < 0.3 * total, (hours, shape @ j, true, se)
+
+
+def test_the_report_marks_a_growth_at_its_bound(fitted: Coefficients) -> None:
+    """`twin identify` names a body's growth that ended at its bound 0 (a drift at 0 is no
+    bound: it may have either sign)."""
+    from twin.calibration.identify import report_lines
+
+    coefficients = dict(fitted.coefficients)
+    coefficients["alpha_l_t_plate"] = replace(coefficients["alpha_l_t_plate"], value=0.0)
+    coefficients["probe_zero_drift"] = replace(coefficients["probe_zero_drift"], value=0.0)
+    lines = report_lines(replace(fitted, coefficients=coefficients))
+    marked = [line.split()[0] for line in lines if "at its bound 0" in line]
+    assert marked == ["alpha_l_t_plate"]

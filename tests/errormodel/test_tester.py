@@ -125,7 +125,11 @@ def test_the_loop_closes_a_uniform_rise_with_one_alpha_predicts_no_error() -> No
         "alpha_l_pole_base": "l_pole_base", "alpha_l_pole_lower": "l_pole_lower",
     }  # fmt: skip
     g = ThermalCoefficients.from_values(
-        {**{k: alpha * m[v].value for k, v in lengths.items()}, "probe_zero_drift": 0.0}
+        {
+            **{k: alpha * m[v].value for k, v in lengths.items()},
+            "probe_zero_drift": 0.0,
+            "probe_span_drift": 0.0,
+        }
     )
     rises = {point: np.array([0.0, rise]) for point in DEFAULT_TEMPERATURES}
     model = tester_model()
@@ -133,6 +137,22 @@ def test_the_loop_closes_a_uniform_rise_with_one_alpha_predicts_no_error() -> No
     assert abs(e_z[1] - e_z[0]) < 1e-9
     without = dataclasses.replace(g, alpha_l_base_inset=0.0, alpha_l_probe_body=0.0)
     assert model.e_z(thermal_errors(rises, without))[1] == pytest.approx(alpha * 0.010 * rise, rel=1e-6)
+
+
+def test_the_probes_drifts_follow_its_body_where_measured_else_the_frame() -> None:
+    """By hand: zero drift 0.4 um/K, span drift 2e-4/K, reading 9 mm, 10 K: the probe reads
+    (0.4 + 2e-4 x 9000) um/K x 10 K = 22 um more, as if its body had moved up 22 um (p_dz < 0);
+    on the bench its body's thermometer drives it, on the tester the frame's stands in."""
+    from twin.errormodel.sources import DEFAULT_TEMPERATURES, ThermalCoefficients, thermal_errors
+
+    zero = dict.fromkeys(ThermalCoefficients.units(), 0.0)
+    g = ThermalCoefficients.from_values({**zero, "probe_zero_drift": 0.4e-6, "probe_span_drift": 2e-4})
+    still = {point: np.zeros(2) for point in DEFAULT_TEMPERATURES}
+    bench = thermal_errors({**still, "probe_body": np.array([0.0, 10.0])}, g, np.array([9e-3, 9e-3]))
+    assert bench["displacement_sensor"]["p_dz"][1] == pytest.approx(-22e-6, rel=1e-12)
+    tester = thermal_errors({**still, "detecting_frame": np.array([0.0, 10.0])}, g, 9e-3)
+    assert tester["displacement_sensor"]["p_dz"][1] == pytest.approx(-22e-6, rel=1e-12)
+    assert tester["detecting_frame"]["p_dz"][1] == 0.0  # no growth: the coefficients are zero
 
 
 def test_positioning_errors_give_abbe_terms() -> None:

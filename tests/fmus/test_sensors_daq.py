@@ -160,6 +160,54 @@ def test_zero_drift_follows_the_probe_body_temperature(drift: float, fmu_paths: 
     assert after - before == pytest.approx(10.0 * drift, rel=1e-9, abs=1e-18)
 
 
+@pytest.mark.parametrize(("position", "expected"), [(1e-3, 1.006e-3), (9e-3, 9.022e-3)])
+def test_zero_and_span_drift_under_a_known_body_rise(
+    position: float, expected: float, fmu_paths: dict[str, Path]
+) -> None:
+    """Zero drift 0.4 um/K and span drift 2e-4/K, the body warmed by 10 K, by hand:
+    1 mm reads 1 mm + 4 um + 2e-3 x 1 mm = 1.006 mm; 9 mm reads 9 mm + 4 um + 18 um = 9.022 mm."""
+    parameters = {**QUIET, "probe_zero_drift": 0.4e-6, "probe_span_drift": 2e-4}
+    d = start(fmu_paths, parameters, {"t_probe_body": 298.0, "probe_true": position})
+    d.step(1.0)
+    assert d.get(["probe_meas"])[0] == position  # the body at its initial temperature: no drift
+    d.set({"t_probe_body": 308.0})
+    d.step(0.01)
+    reading = d.get(["probe_meas"])[0]
+    d.close()
+    assert reading == pytest.approx(expected, rel=0, abs=1e-15)
+
+
+def test_probe_body_thermometer_lags_like_the_others(fmu_paths: dict[str, Path]) -> None:
+    """The thermometer a lab clamps on the probe body: the eight's first-order lag, on the
+    probe body's temperature, and it leaves the eight channels' readings alone."""
+    tau = 20.0
+    d = start(fmu_paths, {**QUIET, "temp_tau": tau}, {**dict.fromkeys(T_IN, T0), "t_probe_body": T0})
+    assert d.get(["t_probe_body_meas"])[0] == T0
+    d.set({"t_probe_body": T0 + 10.0})
+    h, n = 1.0, 60
+    got = record(d, ["t_probe_body_meas", *T_OUT], n, h)
+    d.close()
+    t = h * np.arange(1, n + 1)
+    np.testing.assert_allclose((got[:, 0] - T0) / 10.0, -np.expm1(-t / tau), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got[:, 1:], T0)
+
+
+def test_probe_body_thermometer_adds_noise_without_moving_the_other_streams(
+    fmu_paths: dict[str, Path],
+) -> None:
+    """Its noise comes from a stream of its own: the same seed gives the eight temperatures and
+    the probe the same bits whatever the probe body does, and the thermometer is noisy."""
+    noisy = {"temp_noise": 0.02, "temp_resolution": 0.0, "probe_noise": 5e-8, "seed": 7}
+    runs = []
+    for body in (T0, T0 + 5.0):
+        d = start(fmu_paths, noisy, {**dict.fromkeys(T_IN, T0), "t_probe_body": body, "probe_true": 4.805e-3})
+        runs.append(record(d, ["t_probe_body_meas", "probe_meas", *T_OUT], 200, 0.01))
+        d.close()
+    np.testing.assert_array_equal(runs[0][:, 1:], runs[1][:, 1:])
+    body_noise = runs[0][:, 0] - T0
+    assert 0.015 < float(np.std(body_noise)) < 0.025
+
+
 def test_default_zero_drift_is_the_priors_centre(fmu_paths: dict[str, Path]) -> None:
     """The drift's sign is unknown (facts 5/6): the nominal probe does not drift at all."""
     d = start(fmu_paths, QUIET, {"t_probe_body": T0, "probe_true": 4.805e-3})

@@ -17,10 +17,15 @@ from twin import __version__
 from twin.config.load import load_scenario, scenarios_dir
 from twin.errormodel.coefficients import Coefficients, Prior, load_priors
 from twin.errormodel.identify import CALIBRATIONS, EXPERIMENTS, Calibration, Experiment, Record, fit_records
+from twin.errormodel.sources import ThermalCoefficients
 from twin.fmu.build import source_hash
 from twin.fmu.catalog import model_names
 from twin.outputs.run_folder import scenario_fingerprint
 from twin.pipeline.lab import lab_record
+from twin.uncertainty.testers import instance_of
+
+#: a growth identified below this (m/K) sits at its bound 0 (the bounded solver's zero)
+AT_BOUND = 1e-12
 
 __all__ = ["HEADER", "identify", "report_lines", "run_experiment"]
 
@@ -35,8 +40,14 @@ def run_experiment(
     experiment: Experiment, overrides: Sequence[str] = (), folder: Path | None = None
 ) -> Record:
     """Run one calibration experiment on the twin (its scenario in ``folder``, default the
-    shipped ``calibration/``, with ``overrides``) and keep what a lab's DAQ records."""
-    scenario = load_scenario((folder or scenarios_dir() / "calibration") / experiment.scenario, overrides)
+    shipped ``calibration/``, with ``overrides``) and keep what a lab's DAQ records.
+
+    An override of an FMU instance the experiment does not have is left out: the tester as
+    built is one set of values, and the probe heated on its bench has no frame or pole."""
+    path = (folder or scenarios_dir() / "calibration") / experiment.scenario
+    instances = {f.name for f in load_scenario(path).fmus}
+    kept = [o for o in overrides if instance_of(o.split("=", 1)[0].strip()) in (None, *instances)]
+    scenario = load_scenario(path, kept)
     return lab_record(experiment, scenario, scenario_fingerprint(scenario))
 
 
@@ -92,7 +103,9 @@ def report_lines(c: Coefficients) -> list[str]:
             f"{fit.informative_directions} beyond the priors, condition "
             f"{fit.condition_number_identifiable:.3g} (with priors {fit.condition_number_regularised:.3g})"
         )
+    growths = ThermalCoefficients.growths()
     for name, x in c.coefficients.items():
         prior = f" (prior {x.prior.value:.4g} +- {x.prior.sigma:.2g})" if x.prior and x.prior.sigma else ""
-        lines.append(f"  {name} = {x.value:.6g} +- {x.std_error:.2g} {x.unit} [{x.experiment}]{prior}")
+        bound = ", at its bound 0" if name in growths and x.value < AT_BOUND else ""
+        lines.append(f"  {name} = {x.value:.6g} +- {x.std_error:.2g} {x.unit} [{x.experiment}{bound}]{prior}")
     return lines

@@ -335,9 +335,10 @@ def factor(name: str) -> Factor:
 
 def _thermal(m: Measured) -> Contribution:
     """Thermal dE_T: alpha L dT of every body from the temperature rises, plus the probe's
-    zero drift, through the positioning error matrices dT_ijp (``p_dz``)."""
+    zero drift and its span drift on the cleaned reading (its position in its range), through
+    the positioning error matrices dT_ijp (``p_dz``)."""
     rises = {point: _rel(y) for point, y in m.temperatures.items()}
-    by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.thermal))
+    by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.thermal, m.cleaned))
     return Contribution(np.sum(np.array(list(by_body.values())), axis=0), by_body)
 
 

@@ -75,12 +75,17 @@ class Experiment:
     """One calibration experiment: its scenario (in ``scenarios/calibration/``) and which of
     its samples a fit uses.
 
-    ``nuisance``: ``offset`` (always sensible: the probe is zeroed by hand) and ``drift`` (a
-    line in time: slow thermal drift and wear in a short experiment). ``known_displacement``
+    ``nuisance``: ``offset`` (always sensible: the probe is zeroed by hand), ``drift`` (a
+    line in time: slow thermal drift and wear in a short experiment) and ``position`` (an offset
+    of its own for each value of the known displacement: the probe's linearity error at each
+    position it is set to). ``known_displacement``
     names the input (``instance.variable``) whose profile moves the T-plate by a known amount
     (the gauge blocks). ``use_when`` = (input, value) keeps only the samples while that input's
     profile is at that value (the drive stopped: a warm-up whose wear nobody measures is left
     out). ``settle_s``: samples within that time after a change of either input are left out.
+    ``temperatures``: thermometers this experiment adds to the eight (measuring point: column,
+    the lab's record keeps them too); ``factors``: the error factors that act in it (None: all;
+    the probe alone on a bench has no tester around it to load, turn or tilt).
     """
 
     name: str
@@ -89,6 +94,8 @@ class Experiment:
     known_displacement: str | None = None
     use_when: tuple[str, float] | None = None
     settle_s: float = 0.0
+    temperatures: Mapping[str, str] = field(default_factory=dict)
+    factors: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -118,13 +125,24 @@ EXPERIMENTS: tuple[Experiment, ...] = (
     Experiment("light_oscillation", "light-oscillation.toml", nuisance=("offset", "drift")),
     Experiment("load_hold", "load-hold.toml"),
     Experiment("pole_heating", "pole-heating.toml"),
+    Experiment("probe_heating", "probe-heating.toml", nuisance=("position",),
+               known_displacement="sensors.probe_true", settle_s=60.0,
+               temperatures={"probe_body": "sensors.t_probe_body_meas"}, factors=("thermal",)),
 )
 
-#: the fits, in order: the thermal one first, so the short mechanical experiments take their
-#: small thermal drift from it
+#: the probe's own coefficients: on the tester they multiply the frame's thermometer with the
+#: frame's and the probe body's growth, so they come from the probe heated alone, first
+PROBE_DRIFTS: tuple[str, ...] = ("probe_zero_drift", "probe_span_drift")
+
+#: the fits, in order: the probe's drifts on the bench first, then the thermal one (with them
+#: held), so the short mechanical experiments take their small thermal drift from it
 CALIBRATIONS: tuple[Calibration, ...] = (
-    # the pole heated alone tells its growth apart from the frame's (the soak warms both)
-    Calibration("thermal", ("thermal_soak", "hot_cooldown", "pole_heating"), fit=tuple(ThermalCoefficients.units())),
+    Calibration("probe_drift", ("probe_heating",), fit=PROBE_DRIFTS),
+    # the pole heated alone tells its growth apart from the frame's (the soak warms both); a
+    # body's growth is never negative: the fit is bounded at 0
+    Calibration("thermal", ("thermal_soak", "hot_cooldown", "pole_heating"),
+                fit=tuple(n for n in ThermalCoefficients.units() if n not in PROBE_DRIFTS),
+                lower=dict.fromkeys(ThermalCoefficients.growths(), 0.0)),
     Calibration("probe_scale", ("gauge_blocks",), fit=("probe_scale",)),
     # the loading chain: the steps give the elastic compliance, the hold the liner's creep
     # spectrum (each >= 0); fitted together, as the hold's first minutes see both. No drift term
@@ -142,11 +160,13 @@ CALIBRATIONS: tuple[Calibration, ...] = (
 LAB_FIELDS: tuple[str, ...] = ("temperatures", "reading", "load", "torque", "angle", "vibration")
 
 
-def lab_channels(columns: Columns | None = None) -> frozenset[str]:
+def lab_channels(columns: Columns | None = None, experiment: Experiment | None = None) -> frozenset[str]:
     """The columns a lab records: the eight temperatures, probe, load cell, torque sensor,
-    angle encoder and vibration pickup (the twin's ``sensors.*`` readings by default)."""
+    angle encoder and vibration pickup (the twin's ``sensors.*`` readings by default), and the
+    thermometers ``experiment`` adds."""
     columns = columns or Columns()
-    return frozenset(name for f in LAB_FIELDS for name in columns.names(f))
+    extra = experiment.temperatures.values() if experiment is not None else ()
+    return frozenset([*(name for f in LAB_FIELDS for name in columns.names(f)), *extra])
 
 
 @dataclass(frozen=True)
@@ -199,9 +219,15 @@ def _settled(f: Callable[[np.ndarray], np.ndarray], t: np.ndarray, settle_s: flo
 # ----------------------------------------------------------------------------- one fit
 
 
-def _config(values: Mapping[str, float]) -> EvaluationConfig:
-    """The error model with ``values``, every factor on, the twin's default columns."""
-    return EvaluationConfig(**_coefficient_fields(values), true_wear=None)
+def _config(values: Mapping[str, float], experiment: Experiment | None = None) -> EvaluationConfig:
+    """The error model with ``values``, the twin's default columns, no true wear; the factors
+    and the added thermometers of ``experiment`` (default: every factor, the eight)."""
+    if experiment is None:
+        return EvaluationConfig(**_coefficient_fields(values), true_wear=None)
+    temperatures = {**Columns().temperatures, **experiment.temperatures}
+    return EvaluationConfig(
+        **_coefficient_fields(values), true_wear=None, temperatures=temperatures, factors=experiment.factors
+    )
 
 
 def _coefficient_fields(values: Mapping[str, float]) -> dict[str, Any]:
@@ -315,13 +341,12 @@ class _Problem:
 def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) -> _Block:
     """The rows of one record: its cleaned reading's change minus the known displacement,
     against the error model's factors (interference aside) with trial coefficients."""
-    cfg = _config(values)
+    cfg = _config(values, record.experiment)
     measured = Measured.read(record.table, cfg, tester_model())
     used = record.used
     target = (measured.cleaned - measured.cleaned[0] - (record.known - record.known[0]))[used]
     t = record.table.time[used]
-    columns = {"offset": np.ones(len(t)), "drift": (t - t[0]) / max(t[-1] - t[0], 1.0)}
-    basis, _ = np.linalg.qr(np.column_stack([columns[k] for k in record.experiment.nuisance]))
+    basis, _ = np.linalg.qr(np.column_stack(_nuisance(record.experiment.nuisance, t, record.known[used])))
     parts = [f for f in FACTORS if f.name != "interference"]
 
     def predict(p: np.ndarray) -> np.ndarray:
@@ -333,6 +358,20 @@ def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) ->
     diffs = np.diff(target)
     sigma = 1.4826 * float(np.median(np.abs(diffs - np.median(diffs)))) / math.sqrt(2)
     return _Block(target, basis, predict, max(sigma, 1e-12))
+
+
+def _nuisance(kinds: Sequence[str], t: np.ndarray, known: np.ndarray) -> list[np.ndarray]:
+    """The nuisance columns of a record's used samples: a constant, a line in time, one
+    indicator per known position (see :class:`Experiment`)."""
+    out = []
+    for kind in kinds:
+        if kind == "offset":
+            out.append(np.ones(len(t)))
+        elif kind == "drift":
+            out.append((t - t[0]) / max(t[-1] - t[0], 1.0))
+        else:  # position
+            out += [(known == k).astype(float) for k in np.unique(known)]
+    return out
 
 
 def _scale(prior: Prior) -> float:

@@ -6,7 +6,7 @@ five error factors (declared in :mod:`twin.errormodel.factors`) maps measured qu
 some of them:
 
 - thermal dE_T: ``alpha * L * dT`` of every body from the eight temperature sensors, plus the
-  probe's own zero drift with temperature (body 7): :func:`thermal_errors`;
+  probe's own zero and span drift with temperature (body 7): :func:`thermal_errors`;
 - loading dE_F: the load cell times the loading chain's compliance, and the liner's creep under
   the load held, a discrete retardation spectrum over the load's history
   (:class:`LoadHistory`): :func:`loading_errors`;
@@ -122,13 +122,20 @@ class _Coefficients:
 
 @dataclass(frozen=True)
 class ThermalCoefficients(_Coefficients):
-    """The thermal factor's coefficients (m/K): the effective alpha * L of each body's growth,
-    per measured temperature it is driven by, and the probe's zero drift.
+    """The thermal factor's coefficients: the effective alpha * L (m/K) of each body's growth,
+    per measured temperature it is driven by, and the probe's zero (m/K) and span (1/K) drift.
 
     They are what a thermal soak identifies (``twin identify``), never the FMUs' parameters: an
     effective coefficient lumps the material's expansion, the length that grows and how far the
-    body's mean temperature follows the sensor that stands for it.
+    body's mean temperature follows the sensor that stands for it. The probe's two drifts come
+    from the probe heated alone (``probe-heating.toml``): on the tester they multiply the frame's
+    thermometer with the frame's and the probe body's growth, so no soak tells them apart.
     """
+
+    @classmethod
+    def growths(cls) -> tuple[str, ...]:
+        """The alpha * L coefficients (a body's growth: never negative), in the declared order."""
+        return tuple(n for n in cls.units() if n.startswith("alpha_l_"))
 
     # fmt: off
     alpha_l_heel_block: float = _declare("m/K", "heel block's growth lifting the spindle, per K of the heel block")
@@ -139,7 +146,8 @@ class ThermalCoefficients(_Coefficients):
     alpha_l_base_inset: float = _declare("m/K", "base's growth between its top and the frame's fixing face inset in it, lowering the frame, per K of the base")
     alpha_l_detecting_frame: float = _declare("m/K", "detecting frame's growth lowering the probe, per K of the frame")
     alpha_l_probe_body: float = _declare("m/K", "probe body's growth lifting its tip, per K of the frame it is fixed on")
-    probe_zero_drift: float = _declare("m/K", "probe reading's zero drift, per K of the frame it is fixed on")
+    probe_zero_drift: float = _declare("m/K", "probe reading's zero drift, per K of its body (in operation the frame's thermometer it is fixed on stands in)")
+    probe_span_drift: float = _declare("1/K", "probe reading's span (gain) drift, per K of its body, times its reading (in operation the frame's thermometer stands in)")
     alpha_l_clamp: float = _declare("m/K", "clamp's growth down to the probe head, per K of the long pole")
     alpha_l_pole_heel: float = _declare("m/K", "long pole's growth inside the heel block, per K of the heel block")
     alpha_l_pole_base: float = _declare("m/K", "long pole's growth inside the base, per K of the base")
@@ -148,14 +156,17 @@ class ThermalCoefficients(_Coefficients):
 
 
 def thermal_errors(
-    rises: Mapping[str, np.ndarray], g: ThermalCoefficients
+    rises: Mapping[str, np.ndarray], g: ThermalCoefficients, reading: np.ndarray | float = 0.0
 ) -> dict[str, dict[str, np.ndarray]]:
     """Body error parameters (``p_dz``) of the thermal factor from temperature rises (K).
 
-    ``rises`` holds one array per measuring point (keys of :data:`DEFAULT_TEMPERATURES`).
+    ``rises`` holds one array per measuring point (keys of :data:`DEFAULT_TEMPERATURES`) and,
+    where a thermometer sits on the probe's body (the probe-heating calibration), ``probe_body``.
     Unmeasured parts take the nearest sensor: the spindle the bearing's, the pole inside the
     heel block and the base those bodies', the clamp the lower pole's, the probe body the
-    detecting frame's (it is fixed on it).
+    detecting frame's (it is fixed on it); the probe's drifts take ``probe_body`` where it is
+    measured, else the frame's. ``reading`` (m, the probe's reading: its position in its range)
+    is what the span drift scales.
 
     The loop closes as drawn (``tester_topology.toml``): from the base top, branch 1 and the
     pole reach the clamp's contact face by the same Z as branch 2 through the base's inset, the
@@ -163,6 +174,7 @@ def thermal_errors(
     error for a uniform rise.
     """
     r = rises
+    probe = r.get("probe_body", r["detecting_frame"])
     return {
         # branch 1: heel + bearing block lift the spindle axis (up = -Z)
         "bearing_block": {
@@ -176,9 +188,14 @@ def thermal_errors(
         "detecting_frame": {
             "p_dz": g.alpha_l_base_inset * r["base"] + g.alpha_l_detecting_frame * r["detecting_frame"]
         },
-        # the probe's body grows up from its fixing to its tip; its zero drift raises the
-        # reading by k*dT, as if its body had moved up
-        "displacement_sensor": {"p_dz": -(g.alpha_l_probe_body + g.probe_zero_drift) * r["detecting_frame"]},
+        # the probe's body grows up from its fixing to its tip; its zero and span drift raise
+        # the reading by (k + s x) dT, as if its body had moved up
+        "displacement_sensor": {
+            "p_dz": -(
+                g.alpha_l_probe_body * r["detecting_frame"]
+                + (g.probe_zero_drift + g.probe_span_drift * np.asarray(reading)) * probe
+            )
+        },
         # clamp and pole grow down from the pole's top: the contact face goes down
         "contacting_clamp": {"p_dz": -g.alpha_l_clamp * r["long_pole"]},
         "long_pole": {

@@ -22,7 +22,7 @@ def lab_record(experiment: Experiment, scenario: Scenario, digest: str = "") -> 
     """Run ``experiment``'s ``scenario`` on the twin and keep what a lab's DAQ records, with the
     known displacement at each sample and the samples its fit uses; ``digest`` names what ran."""
     prepared = prepare_scenario(scenario)
-    channels = lab_channels()
+    channels = lab_channels(experiment=experiment)
     missing = sorted(channels - prepared.plan.column_names())
     if missing:
         raise ConfigError(f"the experiment records no {', '.join(missing)}", source="twin identify")

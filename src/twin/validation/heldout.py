@@ -48,7 +48,22 @@ THERMAL_CALIBRATION = "thermal"
 _TOP = {"heldout", "scenario", "goals"}
 _HELDOUT_KEYS = {"spreads", "testers", "seed", "room", "room_drift_K", "calibration"}
 _SCENARIO_KEYS = {"name", "file", "set", "thermal_only"}
-GOAL_KEYS = ("median_removed_pct", "p10_removed_pct", "thermal_only_max_um")
+GOAL_KEYS = (
+    "median_removed_pct",
+    "p10_removed_pct",
+    "thermal_only_max_um",
+    "probe_drift_r",
+    "probe_drift_bias_um_per_K",
+    "negative_alpha_l",
+)
+#: the drawn FMU parameter beside the identified coefficient it stands for (the probe's drifts
+#: are the probe's own: the probe-heating calibration measures them on the bench)
+PROBE_PAIRS = {
+    "probe_zero_drift": "fmu.sensors.parameters.probe_zero_drift",
+    "probe_span_drift": "fmu.sensors.parameters.probe_span_drift",
+}
+#: an identified growth below this (m/K) sits at its bound 0
+AT_BOUND = 1e-12
 MODELS = ("mbs", "mlr_ar")
 
 
@@ -496,6 +511,59 @@ def _stats(frame: Any, model: str) -> dict[str, Any]:
     }
 
 
+def identification(ok: Any) -> dict[str, Any]:
+    """How well the testers' identification found what was drawn, one row per tester: the
+    correlation and mean difference (identified - drawn) of each probe drift, and the
+    identified alpha * L that are negative or at their bound 0 (count per coefficient)."""
+    per_tester = ok.drop_duplicates("tester")
+    out: dict[str, Any] = {"testers": len(per_tester)}
+    for name, drawn_key in PROBE_PAIRS.items():
+        column = f"identified.{name}"
+        if column not in per_tester.columns or drawn_key not in per_tester.columns or len(per_tester) < 2:
+            continue
+        found = per_tester[column].to_numpy(dtype=float)
+        drawn = per_tester[drawn_key].to_numpy(dtype=float)
+        scale = 1e6 if name == "probe_zero_drift" else 1.0  # um/K; the span drift in 1/K
+        spread = np.std(found) > 0 and np.std(drawn) > 0
+        out[name] = {
+            "r": float(np.corrcoef(found, drawn)[0, 1]) if spread else math.nan,
+            "bias": float(np.mean(found - drawn)) * scale,
+            "unit": "um/K" if scale != 1.0 else "1/K",
+        }
+    growths = [c for c in per_tester.columns if c.startswith("identified.alpha_l_")]
+    values = per_tester[growths].to_numpy(dtype=float) if growths else np.zeros((0, 0))
+    out["negative_alpha_l"] = int(np.sum(values < 0))
+    out["alpha_l_at_bound"] = {
+        c.removeprefix("identified."): int(n)
+        for c, n in zip(growths, np.sum(np.abs(values) < AT_BOUND, axis=0).tolist(), strict=True)
+        if n
+    }
+    return out
+
+
+def _identification_goals(cfg: HeldOut, ident: Mapping[str, Any]) -> dict[str, Any]:
+    """The identification's goals: one model-free entry each (``identified``)."""
+    zero = ident.get("probe_zero_drift", {})
+    figures = {
+        "probe_drift_r": (zero.get("r"), True),
+        "probe_drift_bias_um_per_K": (None if "bias" not in zero else abs(zero["bias"]), False),
+        "negative_alpha_l": (ident.get("negative_alpha_l"), False),
+    }
+    out: dict[str, Any] = {}
+    for goal, target in cfg.goals.items():
+        if goal not in figures:
+            continue
+        value, at_least = figures[goal]
+        ok = value is not None and not math.isnan(value)
+        met = None if not ok else (value >= target if at_least else value <= target)
+        out[goal] = {
+            "goal": target,
+            "at_least" if at_least else "at_most": target,
+            "identified": {"value": value if ok else None, "met": met},
+        }
+    return out
+
+
 def _goals(cfg: HeldOut, models: Mapping[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     figures = {
@@ -504,6 +572,8 @@ def _goals(cfg: HeldOut, models: Mapping[str, Any]) -> dict[str, Any]:
         "thermal_only_max_um": ("largest_residual_um", "thermal_only", False),
     }
     for goal, target in cfg.goals.items():
+        if goal not in figures:
+            continue
         stat, group, at_least = figures[goal]
         entry: dict[str, Any] = {"goal": target, "at_least" if at_least else "at_most": target}
         for model in MODELS:
@@ -526,6 +596,7 @@ def summarise(cfg: HeldOut, table: Any) -> dict[str, Any]:
             "by_scenario": {s.name: _stats(ok[ok["scenario"] == s.name], model) for s in cfg.scenarios},
         }
     testers_failed = sorted({int(t) for t in table.loc[table["status"] != "ok", "tester"]})
+    ident = identification(ok)
     return {
         "heldout_file": str(cfg.path),
         "spreads_file": str(cfg.spreads),
@@ -536,13 +607,27 @@ def summarise(cfg: HeldOut, table: Any) -> dict[str, Any]:
             {"name": s.name, "thermal_only": s.thermal_only, "set": list(s.overrides)} for s in cfg.scenarios
         ],
         "models": models,
-        "goals": _goals(cfg, models),
+        "identification": ident,
+        "goals": {**_goals(cfg, models), **_identification_goals(cfg, ident)},
     }
 
 
 def report_lines(summary: dict[str, Any]) -> list[str]:
     """The figures and goals, one line each."""
     lines = []
+    ident = summary.get("identification", {})
+    for name in PROBE_PAIRS:
+        if name in ident:
+            f = ident[name]
+            lines.append(
+                f"{name}: identified vs drawn over {ident['testers']} testers r {f['r']:.3f}, "
+                f"bias {f['bias']:.3g} {f['unit']}"
+            )
+    if "negative_alpha_l" in ident:
+        bound = ", ".join(f"{k} {v}" for k, v in ident["alpha_l_at_bound"].items()) or "none"
+        lines.append(
+            f"identified alpha*L negative: {ident['negative_alpha_l']}; at their bound 0 (testers): {bound}"
+        )
     for model, m in summary["models"].items():
         a, th = m["all"], m["thermal_only"]
         if not a.get("rows"):
