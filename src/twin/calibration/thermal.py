@@ -39,7 +39,7 @@ from twin.uncertainty import rooms
 #: which thermal-network node sits at each of the paper's measuring points (room: the network's
 #: input): the network the calibration fits is a ThermalNetwork
 NODE_OUTPUTS: dict[str, str] = {
-    "bearing_block": "t_bearing_block",
+    "bearing_block": "t_bearing_block_cap",  # on the block's top face, above the spindle's axis
     "heel_block": "t_heel_block",
     "bearing": "t_bearing",
     "t_plate": "t_t_plate",
@@ -62,12 +62,28 @@ PRIORS: dict[str, tuple[float, str]] = {
     "g_heel_block__bearing_block": (0.5, "bolted joint, facts 6: 50 %"),
     "g_bearing_block__spindle": (0.5, "through the roller bearing, facts 6: 50 %"),
     "g_spindle__bearing": (0.5, "ring seat, facts 6: 50 %"),
-    "g_bearing__t_plate": (0.5, "ring seat, facts 6: 50 %"),
+    "g_bearing__t_plate": (0.5, "PTFE liner and ring seat, facts 6: 50 %"),
     "g_base__detecting_frame": (0.5, "bolted joint, facts 6: 50 %"),
     "c_base": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_heel_block": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_bearing_block": (0.05, "capacity from geometry, facts 6: 5 %"),
-    "c_spindle": (0.5, "the drive train's mass is a guess (estimate): 50 %"),
+    "c_spindle": (0.05, "capacity from geometry, facts 6: 5 %"),
+    # the transmission behind the spindle and the floor it stands on (tester-geometry.toml)
+    "c_drive_train": (0.5, "the transmission's mass is a guess (estimate): 50 %"),
+    "g_drive_train_room": (0.3, "convection + radiation, facts 6: 30 %"),
+    "g_spindle__drive_train": (0.5, "keyed coupling hub, a joint: facts 6, 50 %"),
+    "g_drive_train__floor": (0.5, "the bed bolted on the floor, a joint: facts 6, 50 %"),
+    "c_floor": (0.5, "the slab's area and the depth 8 h reach are estimates: 50 %"),
+    "g_floor_room": (0.5, "downward free convection, handbook 0.5-1.5 W/(m2 K): 50 %"),
+    # the two halves of the bearing block: conduction through the iron between them
+    "g_bearing_block__bearing_block_cap": (
+        0.3,
+        "conduction k A / L through the block, section and path estimated: 30 %",
+    ),
+    "g_bearing_block__bearing_block_rear": (
+        0.3,
+        "conduction k A / L through the block, section and path estimated: 30 %",
+    ),
     # the embedded station's heat under the base: nothing measured, a factor e either way
     "hyd_share_base": (1.0, "the embedded station's heat share, an estimate: a factor e"),
     "hyd_share_pole_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
@@ -75,7 +91,16 @@ PRIORS: dict[str, tuple[float, str]] = {
     "hyd_share_t_plate": (1.0, "the loading cylinder's heat share, an estimate: a factor e"),
 }
 #: parameters that move with a fitted one (the frame's two halves share one surface factor)
-TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"}
+TIED: dict[str, str] = {
+    "g_detecting_frame_lower_room": "g_detecting_frame_room",
+    # the bearing block's two halves: one casting, one surface, one foot
+    "c_bearing_block_rear": "c_bearing_block",
+    "g_bearing_block_rear_room": "g_bearing_block_room",
+    "g_heel_block__bearing_block_rear": "g_heel_block__bearing_block",
+    "c_bearing_block_cap": "c_bearing_block",
+    "g_bearing_block_cap_room": "g_bearing_block_room",
+    "g_bearing_block_rear__bearing_block_cap": "g_bearing_block__bearing_block_cap",
+}
 #: a share that is the rest of the others: the oil keeps what the parts under the base do not take
 REST: dict[str, tuple[str, ...]] = {
     "hyd_share_oil": (
@@ -87,7 +112,7 @@ REST: dict[str, tuple[str, ...]] = {
 }
 #: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
 #: offset, not its local placement on the body]
-SIGMA_MEAS_K = 0.3
+SIGMA_MEAS_K = 0.15
 BODIES = ("bearing_block", "heel_block", "bearing", "t_plate", "base", "long_pole", "detecting_frame")
 #: the room shapes the fit is repeated under (the scenario's own first)
 ROOM_SHAPES = rooms.ROOM_SHAPES
