@@ -45,6 +45,12 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
             g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"
         ),
         "r_spindle": Derived(g.dim("bodies.spindle.seat_radius"), "handbook: GE 30 ES bore / 2"),
+        "l_overhang": Derived(
+            g.dim("bodies.spindle.overhang"), "drawing estimate: bearing block centre to the test bearing"
+        ),
+        "d_bearing_block_halves": Derived(
+            g.dim("bodies.bearing_block.y") / 2, "drawing estimate: half the block's length along the spindle"
+        ),
         "t_bearing_rings": Derived(ring, "handbook: GE 30 ES (D - d) / 2"),
         "l_t_plate": Derived(
             plate, "drawing estimate: bearing centre to plate bottom minus the outer radius"
