@@ -25,7 +25,7 @@ def rerun(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_rerun_reproduces_what_the_rises_determine(rerun: Path) -> None:
-    """Seven rises cannot identify the fitted values (27; the Jacobian's rank is 7, and the rises inform
+    """Seven rises cannot identify the fitted values (28; the Jacobian's rank is 7, and the rises inform
     only a few directions more than the priors do): along the other directions the optimum is
     flat but for the priors, and a fresh install's last-digit differences in the FMU's numbers
     move it there. A single fitted value compared tightly to the committed file once failed for

@@ -1,14 +1,14 @@
 """Calibrate the thermal network to the paper's seven measured temperature rises, with priors.
 
 The network's capacities and conductances come from the drawing (:mod:`twin.config.drawing`, :mod:`twin.calibration.geometry`). Seven rises
-cannot identify its 16 uncertain values, so the fit is posed as a regularised (maximum a
+cannot identify its 28 uncertain values, so the fit is posed as a regularised (maximum a
 posteriori) least squares in log-factors on the drawing's values:
 
     minimise  sum_b ((rise_b(theta) - measured_b) / sigma_meas)^2  +  sum_k (theta_k / sigma_k)^2
 
 with ``sigma_meas`` the rises' measurement uncertainty and ``sigma_k`` each value's documented
-spread (docs/reference/facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the drive
-train's mass is a guess, 50 %). No parameter has a bound, so none can end at one. The data move
+spread (docs/reference/facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the
+transmission's mass and the floor slab are guesses, 50 %). No parameter has a bound, so none can end at one. The data move
 only the directions they inform: the report gives the rank of the rises' Jacobian, how many
 directions the data inform more than the priors do, each parameter's posterior standard error
 and 95 % interval (from the Gauss-Newton covariance at the optimum), and the fit under three room
@@ -110,8 +110,10 @@ REST: dict[str, tuple[str, ...]] = {
         "hyd_share_t_plate",
     )
 }
-#: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
-#: offset, not its local placement on the body]
+#: uncertainty of a measured rise, K [estimate: one thermometer per point, the paper reads each
+#: rise to 0.1 K; a rise cancels the thermometer's offset, and where the lumps hid a gradient at
+#: a thermometer (the bearing block's cap, the frame's bottom, the pole's lower part) the network
+#: now has a node for it, so what is left of the placement is about a tenth of a kelvin]
 SIGMA_MEAS_K = 0.15
 BODIES = ("bearing_block", "heel_block", "bearing", "t_plate", "base", "long_pole", "detecting_frame")
 #: the room shapes the fit is repeated under (the scenario's own first)
