@@ -70,11 +70,26 @@ def test_signals_are_readable_by_fmpy(paper_run: tuple[Path, dict]) -> None:
 
 
 @pytest.mark.parametrize("point", sorted(TEMPERATURE_RISE_K))
-def test_temperature_rise_within_five_sigma_of_the_paper(paper_run: tuple[Path, dict], point: str) -> None:
-    # the drawing's network under its priors does not reach every rise (src/twin/calibration/thermal.py):
-    # each stays within five of the rises' 0.3 K measurement sigma (the frame misses by 1.3 K)
+def test_temperature_rise_within_0_3_K_of_the_paper(paper_run: tuple[Path, dict], point: str) -> None:
+    """Issue 30's acceptance: the replay's thermometers (the DAQ's, on the nodes the paper names:
+    the bearing block's cap, the frame's bottom, the pole's lower part) read each of the paper's
+    eight rises within 0.3 K, with no calibrated value pulled beyond 3 prior sigma
+    (tests/test_calibration_pulls.py). The network needed the bodies its lumps hid for it: the
+    transmission on its floor behind the spindle, the block's cap and halves, the bearing's liner."""
     _, summary = paper_run
-    assert summary["temperature_rise_C"][point] == pytest.approx(TEMPERATURE_RISE_K[point], abs=1.5)
+    assert summary["temperature_rise_C"][point] == pytest.approx(TEMPERATURE_RISE_K[point], abs=0.3)
+
+
+def test_the_bearing_blocks_gradient_and_tilt_are_reported(paper_run: tuple[Path, dict]) -> None:
+    # the front half (holding the roller bearing on the spindle, whose transmission lags on its
+    # floor) ends cooler than the rear: a gradient of about -0.1 K; its tilt at the 115 mm overhang
+    # moves the T-plate a few tenths of a micrometre. Reported, its size is not a goal
+    _, summary = paper_run
+    g = summary["gradients"]["bearing_block"]
+    alpha, h, d, overhang = 11e-6, 0.1, 0.06, 0.115  # tester-geometry.toml
+    assert g["tilt_urad"] == pytest.approx(-alpha * h * g["front_minus_rear_K"] / d * 1e6, rel=1e-6)
+    assert g["z_t_plate_mm"] == pytest.approx(overhang * g["tilt_urad"] * 1e-6 * 1e3, rel=1e-3)
+    assert 0.01 <= abs(g["front_minus_rear_K"]) <= 1.0
 
 
 def test_predicted_drift_is_the_honest_nominal(paper_run: tuple[Path, dict]) -> None:

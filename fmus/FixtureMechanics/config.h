@@ -2,7 +2,7 @@
 #ifndef MECHANICS_CONFIG_H
 #define MECHANICS_CONFIG_H
 
-#define FM_TEMPS 13
+#define FM_TEMPS 14
 
 typedef struct {
     double t_ref[FM_TEMPS];   /* temperatures of zero thermal displacement, K */

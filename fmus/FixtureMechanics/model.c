@@ -28,8 +28,25 @@
 static const int VR_TEMPS[FM_TEMPS] = {VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
                                        VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base,
                                        VR_t_pole_lower, VR_t_clamp, VR_t_detecting_frame_lower, VR_t_base,
-                                       VR_t_sensor};
-enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, FRAME_LOWER, BASE, SENSOR };
+                                       VR_t_sensor, VR_t_bearing_block_rear};
+/* BBLOCK is the bearing block's lower front half (toward the T-plate), BBLOCK_REAR its lower rear
+ * half (toward the drive): appended last so the older inputs keep their order */
+enum {
+    HEEL,
+    BBLOCK,
+    SPINDLE,
+    BEARING,
+    TPLATE,
+    FRAME,
+    POLE_HEEL,
+    POLE_BASE,
+    POLE_LOWER,
+    CLAMP,
+    FRAME_LOWER,
+    BASE,
+    SENSOR,
+    BBLOCK_REAR
+};
 
 int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
     double *r = comp->v.r;
@@ -87,13 +104,50 @@ fmi2Status model_step(ModelInstance *comp, double h) {
 /* Each output is written into its slot of r where it is computed, and later equations read
  * it back from there: the outputs are the model's variables, with no second copy of them. */
 
+/* The paper's characteristic matrices are 4x4 homogeneous transforms (row-major here). A body's
+ * small rotation A about X (the paper's A axis) about a pivot p: T = Trans(p) Rot_x(A) Trans(-p). */
+static void rotation_about_x(double a, const double pivot[3], double t[16]) {
+    double c = cos(a), s = sin(a);
+    double rot[16] = {1, 0, 0, 0, 0, c, -s, 0, 0, s, c, 0, 0, 0, 0, 1};
+    int i;
+    memcpy(t, rot, sizeof rot);
+    /* translation column: p - R p */
+    for (i = 0; i < 3; i++) t[i * 4 + 3] = pivot[i] - (rot[i * 4] * pivot[0] + rot[i * 4 + 1] * pivot[1] + rot[i * 4 + 2] * pivot[2]);
+}
+
+static void transform_point(const double t[16], const double p[3], double out[3]) {
+    int i;
+    for (i = 0; i < 3; i++) out[i] = t[i * 4] * p[0] + t[i * 4 + 1] * p[1] + t[i * 4 + 2] * p[2] + t[i * 4 + 3];
+}
+
+/* The bearing block's tilt: its front half (toward the T-plate, +Y) warmer than its rear half
+ * grows taller by alpha h dT over the halves' distance d, so the block and the spindle it holds
+ * turn about X by A = alpha h (dT_front - dT_rear) / d, the front going up (-Z): A = -that in the
+ * right-handed frame (Y toward the T-plate, Z down). The pivot is the block's foot centre; the
+ * test bearing sits at the overhang along +Y, on the spindle's axis h above the foot. Its Z
+ * through the block's homogeneous matrix, less where it was, is the tilt's part of z_t_plate. */
+static void bearing_block_tilt(double *r, const double *dt) {
+    double h = r[VR_h_bearing_block], foot[3] = {0.0, 0.0, 0.0}, bearing[3], moved[3], t[16];
+    r[VR_bearing_block_gradient] = dt[BBLOCK] - dt[BBLOCK_REAR];
+    r[VR_bearing_block_tilt] = -r[VR_alpha_cast_iron] * h * r[VR_bearing_block_gradient] / r[VR_d_bearing_block_halves];
+    bearing[0] = 0.0;
+    bearing[1] = r[VR_l_overhang];
+    bearing[2] = -h;
+    rotation_about_x(r[VR_bearing_block_tilt], foot, t);
+    transform_point(t, bearing, moved);
+    r[VR_dz_bearing_block_tilt] = moved[2] - bearing[2];
+}
+
 /* Branch 1: heel and bearing block grow up (-Z); below the spindle axis the spindle radius,
  * the bearing rings and the T-plate grow down (+Z). The load compresses the liner
  * (thickness * pressure / modulus) and bends the structure. Returns the T-plate bottom's Z. */
 static double bearing_branch(ModelInstance *comp, const double *dt) {
     double *r = comp->v.r;
     double a_st = r[VR_alpha_steel];
-    r[VR_dz_bearing_block] = -r[VR_alpha_cast_iron] * (r[VR_h_heel_block] * dt[HEEL] + r[VR_h_bearing_block] * dt[BBLOCK]);
+    /* the block's two lower halves stand side by side on the heel block: the axis rises with their mean */
+    r[VR_dz_bearing_block] = -r[VR_alpha_cast_iron] * (r[VR_h_heel_block] * dt[HEEL] +
+                                                        r[VR_h_bearing_block] * 0.5 * (dt[BBLOCK] + dt[BBLOCK_REAR]));
+    bearing_block_tilt(r, dt);
     r[VR_dz_spindle] = a_st * r[VR_r_spindle] * dt[SPINDLE];
     r[VR_dz_bearing] = r[VR_alpha_bearing_steel] * r[VR_t_bearing_rings] * dt[BEARING];
     r[VR_dz_t_plate] = a_st * r[VR_l_t_plate] * dt[TPLATE];
@@ -106,7 +160,7 @@ static double bearing_branch(ModelInstance *comp, const double *dt) {
     r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
     r[VR_dz_vibration] = r[VR_vibration_z];
     r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
-    r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
+    r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_bearing_block_tilt] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
                       r[VR_dz_runout] + r[VR_dz_vibration] + r[VR_wear_depth_true];
     return r[VR_z_t_plate];
 }

@@ -2,8 +2,8 @@
 #ifndef THERMAL_CONFIG_H
 #define THERMAL_CONFIG_H
 
-#define TN_NODES 14
-#define TN_EDGES 17
+#define TN_NODES 18
+#define TN_EDGES 23
 #define TN_INPUTS 4 /* t_room, q_hydraulic, q_friction, q_pole_heater */
 #define TN_AUG (2 * TN_NODES + TN_INPUTS)
 

@@ -23,33 +23,72 @@
 /* node order used by every table below */
 static const int VR_T[TN_NODES] = {VR_t_base, VR_t_heel_block, VR_t_bearing_block, VR_t_spindle, VR_t_bearing,
                                    VR_t_t_plate, VR_t_detecting_frame, VR_t_pole_heel, VR_t_pole_base, VR_t_pole_lower,
-                                   VR_t_clamp, VR_t_sensor, VR_t_oil, VR_t_detecting_frame_lower};
+                                   VR_t_clamp, VR_t_sensor, VR_t_oil, VR_t_detecting_frame_lower,
+                                   VR_t_drive_train, VR_t_bearing_block_rear, VR_t_floor,
+                                   VR_t_bearing_block_cap};
 static const int VR_C[TN_NODES] = {VR_c_base, VR_c_heel_block, VR_c_bearing_block, VR_c_spindle, VR_c_bearing,
                                    VR_c_t_plate, VR_c_detecting_frame, VR_c_pole_heel, VR_c_pole_base, VR_c_pole_lower,
-                                   VR_c_clamp, VR_c_sensor, VR_c_oil, VR_c_detecting_frame_lower};
+                                   VR_c_clamp, VR_c_sensor, VR_c_oil, VR_c_detecting_frame_lower,
+                                   VR_c_drive_train, VR_c_bearing_block_rear, VR_c_floor,
+                                   VR_c_bearing_block_cap};
 static const int VR_GROOM[TN_NODES] = {VR_g_base_room, VR_g_heel_block_room, VR_g_bearing_block_room, VR_g_spindle_room,
                                        VR_g_bearing_room, VR_g_t_plate_room, VR_g_detecting_frame_room,
                                        VR_g_pole_heel_room, VR_g_pole_base_room, VR_g_pole_lower_room, VR_g_clamp_room,
-                                       VR_g_sensor_room, VR_g_oil_room, VR_g_detecting_frame_lower_room};
+                                       VR_g_sensor_room, VR_g_oil_room, VR_g_detecting_frame_lower_room,
+                                       VR_g_drive_train_room, VR_g_bearing_block_rear_room,
+                                       VR_g_floor_room, VR_g_bearing_block_cap_room};
 static const int VR_HYD[TN_NODES] = {VR_hyd_share_base, VR_hyd_share_heel_block, VR_hyd_share_bearing_block,
                                      VR_hyd_share_spindle, VR_hyd_share_bearing, VR_hyd_share_t_plate,
                                      VR_hyd_share_detecting_frame, VR_hyd_share_pole_heel, VR_hyd_share_pole_base,
                                      VR_hyd_share_pole_lower, VR_hyd_share_clamp, VR_hyd_share_sensor, VR_hyd_share_oil,
-                                     VR_hyd_share_detecting_frame_lower};
+                                     VR_hyd_share_detecting_frame_lower, VR_hyd_share_drive_train,
+                                     VR_hyd_share_bearing_block_rear, VR_hyd_share_floor,
+                                     VR_hyd_share_bearing_block_cap};
 static const int VR_FRIC[TN_NODES] = {VR_fric_share_base, VR_fric_share_heel_block, VR_fric_share_bearing_block,
                                       VR_fric_share_spindle, VR_fric_share_bearing, VR_fric_share_t_plate,
                                       VR_fric_share_detecting_frame, VR_fric_share_pole_heel, VR_fric_share_pole_base,
                                       VR_fric_share_pole_lower, VR_fric_share_clamp, VR_fric_share_sensor,
-                                      VR_fric_share_oil, VR_fric_share_detecting_frame_lower};
+                                      VR_fric_share_oil, VR_fric_share_detecting_frame_lower,
+                                      VR_fric_share_drive_train, VR_fric_share_bearing_block_rear,
+                                      VR_fric_share_floor, VR_fric_share_bearing_block_cap};
 static const int VR_TSTART[TN_NODES] = {VR_t_start_base, VR_t_start_heel_block, VR_t_start_bearing_block,
                                         VR_t_start_spindle, VR_t_start_bearing, VR_t_start_t_plate,
                                         VR_t_start_detecting_frame, VR_t_start_pole_heel, VR_t_start_pole_base,
                                         VR_t_start_pole_lower, VR_t_start_clamp, VR_t_start_sensor, VR_t_start_oil,
-                                        VR_t_start_detecting_frame_lower};
+                                        VR_t_start_detecting_frame_lower, VR_t_start_drive_train,
+                                        VR_t_start_bearing_block_rear, VR_t_start_floor,
+                                        VR_t_start_bearing_block_cap};
 
 /* the detecting frame is two lumps along its length: FRAME (upper half, fixed in the base) and
- * FRAME_LOWER (lower half, carrying the sensor); appended last so the older nodes keep their order */
-enum { BASE, HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, SENSOR, OIL, FRAME_LOWER };
+ * FRAME_LOWER (lower half, carrying the sensor); appended last so the older nodes keep their order.
+ * DRIVE is the transmission module behind the spindle (motor, reducer, coupling: its own mass
+ * behind the coupling, not an inflated spindle); BBLOCK_REAR is the bearing block's rear half
+ * (toward the drive), BBLOCK then its front half (toward the T-plate, holding the roller bearing):
+ * two nodes across the block, so a gradient along the spindle can exist and tilt the block.
+ * FLOOR is the concrete slab the transmission stands on: the slowest mass of the tester's
+ * surroundings, a day's warming reaches only its top decimetre. BBLOCK_CAP is the block's upper
+ * part above the spindle's axis, joined to the two lower halves only beside the bore: the block's
+ * thermometer sits on it (its top face), nearer the room air than the foot on the heel block. */
+enum {
+    BASE,
+    HEEL,
+    BBLOCK,
+    SPINDLE,
+    BEARING,
+    TPLATE,
+    FRAME,
+    POLE_HEEL,
+    POLE_BASE,
+    POLE_LOWER,
+    CLAMP,
+    SENSOR,
+    OIL,
+    FRAME_LOWER,
+    DRIVE,
+    BBLOCK_REAR,
+    FLOOR,
+    BBLOCK_CAP
+};
 
 /* the network's edges: which bodies touch, and the parameter holding the conductance */
 static const struct { int a, b, vr; } EDGES[TN_EDGES] = {
@@ -70,6 +109,12 @@ static const struct { int a, b, vr; } EDGES[TN_EDGES] = {
     {FRAME, FRAME_LOWER, VR_g_detecting_frame__detecting_frame_lower},
     {TPLATE, POLE_HEEL, VR_g_t_plate__pole_heel},
     {OIL, BASE, VR_g_oil__base},
+    {SPINDLE, DRIVE, VR_g_spindle__drive_train},
+    {HEEL, BBLOCK_REAR, VR_g_heel_block__bearing_block_rear},
+    {BBLOCK, BBLOCK_REAR, VR_g_bearing_block__bearing_block_rear},
+    {DRIVE, FLOOR, VR_g_drive_train__floor},
+    {BBLOCK, BBLOCK_CAP, VR_g_bearing_block__bearing_block_cap},
+    {BBLOCK_REAR, BBLOCK_CAP, VR_g_bearing_block_rear__bearing_block_cap},
 };
 
 static double share_sum(const ModelInstance *comp, const int *vrs) {

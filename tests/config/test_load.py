@@ -270,7 +270,7 @@ def test_paper_connections_are_what_the_file_says(paper, raw) -> None:
         for dst in [dsts] if isinstance(dsts, str) else dsts:
             expected.append(Connection(src, dst))
     assert list(paper.connections) == expected
-    assert len(expected) == 23
+    assert len(expected) == 24  # the bearing block: two halves to the mechanics, its cap to the DAQ
     assert Connection("thermal.t_pole_lower", "sensors.t_long_pole") in paper.connections
     assert Connection("mechanics.probe_true", "sensors.probe_true") in paper.connections
     assert not any(c.delay for c in paper.connections)
@@ -315,7 +315,7 @@ def test_overrides_reach_the_scenario() -> None:
     )
     assert s.seed == 7 and s.duration_ns == 30 * 60 * NS_PER_S
     assert not any(c.src == "thermal.t_clamp" for c in s.connections)
-    assert len(s.connections) == 22
+    assert len(s.connections) == 23
 
 
 def test_a_transformed_connection_feeds_its_input() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -14,12 +15,12 @@ T0 = 293.15
 TEMPS = (
     "t_heel_block", "t_bearing_block", "t_spindle", "t_bearing", "t_t_plate",
     "t_detecting_frame", "t_pole_heel", "t_pole_base", "t_pole_lower", "t_clamp", "t_detecting_frame_lower",
-    "t_base", "t_sensor",
+    "t_base", "t_sensor", "t_bearing_block_rear",
 )  # fmt: skip
 M_POLE = 0.650072  # kg, the default: 730 mm x 10 mm steel rod + 0.2 kg clamp (tester-geometry.toml)
 # the paper's measured rises, applied where its FEM applied them (facts.md 2)
 PAPER_RISES = {
-    "t_heel_block": 5.8, "t_bearing_block": 6.5, "t_spindle": 3.2, "t_bearing": 3.2, "t_t_plate": 6.3,
+    "t_heel_block": 5.8, "t_bearing_block": 6.5, "t_bearing_block_rear": 6.5, "t_spindle": 3.2, "t_bearing": 3.2, "t_t_plate": 6.3,
     "t_detecting_frame": 8.9, "t_detecting_frame_lower": 8.9, "t_pole_heel": 5.8, "t_pole_base": 6.0, "t_pole_lower": 9.6, "t_clamp": 9.6,
 }  # fmt: skip
 
@@ -72,10 +73,13 @@ def test_the_loop_closes_a_uniform_rise_with_one_alpha_leaves_the_reading(fmu_pa
         )
         before = d.get(["probe_true"])[0]
         d.set({k: T0 + rise for k in TEMPS})
-        after, inset, probe_body = d.get(["probe_true", "dz_base_inset", "dz_probe_body"])
+        after, inset, probe_body, tilt = d.get(
+            ["probe_true", "dz_base_inset", "dz_probe_body", "dz_bearing_block_tilt"]
+        )
     finally:
         d.close()
     assert abs(after - before) < 1e-9
+    assert tilt == 0.0  # the block's two halves alike: no gradient, no tilt
     # and the two new segments are what close it: each alone is microns
     assert inset == pytest.approx(alpha * 0.050 * rise, rel=1e-12)
     assert probe_body == pytest.approx(-alpha * 0.040 * rise, rel=1e-12)
@@ -100,11 +104,51 @@ def test_hand_calculation_of_the_frames_thermal_bending(mech: Driver) -> None:
 def test_hand_calculation_of_the_frame_and_block(mech: Driver) -> None:
     # the frame's upper lump +1 K, its lower lump +3 K: each half of the 362 mm grows with its own
     mech.set(
-        {"t_detecting_frame": T0 + 1.0, "t_detecting_frame_lower": T0 + 3.0, "t_bearing_block": T0 + 2.0}
+        {
+            "t_detecting_frame": T0 + 1.0,
+            "t_detecting_frame_lower": T0 + 3.0,
+            "t_bearing_block": T0 + 2.0,
+            "t_bearing_block_rear": T0 + 2.0,
+        }
     )
     fr, bb = mech.get(["dz_detecting_frame", "dz_bearing_block"])
     assert fr == pytest.approx(11.7e-6 * 0.362 * (1.0 + 3.0) / 2, rel=1e-12)
     assert bb == pytest.approx(-11e-6 * 0.1 * 2.0, rel=1e-12)
+
+
+def test_hand_calculation_of_the_bearing_blocks_tilt(mech: Driver) -> None:
+    """The block's front half (toward the T-plate) 1 K above its rear half: the front grows
+    alpha h dT taller over the halves' 60 mm, the block and spindle turn about X by
+    A = -11e-6 x 0.1 x 1 / 0.06 = -18.3 urad, and the test bearing 115 mm out on the spindle
+    (100 mm above the block's foot) goes up by about L A = 2.1 um; the pole follows it to the
+    reading. The halves' mean (+0.5 K) lifts the axis as before."""
+    before = mech.get(["probe_true"])[0]
+    mech.set({"t_bearing_block": T0 + 1.0})
+    grad, a, dz, bb, z_t, probe = mech.get(
+        [
+            "bearing_block_gradient",
+            "bearing_block_tilt",
+            "dz_bearing_block_tilt",
+            "dz_bearing_block",
+            "z_t_plate",
+            "probe_true",
+        ]
+    )
+    alpha, h, d, overhang = 11e-6, 0.1, 0.06, 0.115
+    angle = -alpha * h * 1.0 / d
+    assert grad == pytest.approx(1.0, rel=1e-9)
+    assert a == pytest.approx(angle, rel=1e-9)
+    # the test bearing at (y, z) = (L, -h) from the foot, through Rot_x(A): z' = L sin A - h cos A
+    assert dz == pytest.approx(overhang * math.sin(angle) + h * (1.0 - math.cos(angle)), rel=1e-9)
+    assert dz == pytest.approx(-2.108e-6, rel=1e-3)
+    assert bb == pytest.approx(-alpha * h * 0.5, rel=1e-12)
+    assert z_t == pytest.approx(bb + dz, abs=1e-15)
+    assert probe - before == pytest.approx(bb + dz, abs=1e-12)
+    # the rear warmer instead turns it the other way
+    mech.set({"t_bearing_block": T0, "t_bearing_block_rear": T0 + 1.0})
+    assert mech.get(["dz_bearing_block_tilt"])[0] == pytest.approx(
+        overhang * math.sin(-angle) + h * (1.0 - math.cos(angle)), rel=1e-9
+    )
 
 
 def test_wear_moves_the_probe_one_to_one(mech: Driver) -> None:

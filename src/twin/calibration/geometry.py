@@ -45,6 +45,12 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
             g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"
         ),
         "r_spindle": Derived(g.dim("bodies.spindle.seat_radius"), "handbook: GE 30 ES bore / 2"),
+        "l_overhang": Derived(
+            g.dim("bodies.spindle.overhang"), "drawing estimate: bearing block centre to the test bearing"
+        ),
+        "d_bearing_block_halves": Derived(
+            g.dim("bodies.bearing_block.y") / 2, "drawing estimate: half the block's length along the spindle"
+        ),
         "t_bearing_rings": Derived(ring, "handbook: GE 30 ES (D - d) / 2"),
         "l_t_plate": Derived(
             plate, "drawing estimate: bearing centre to plate bottom minus the outer radius"
@@ -124,13 +130,14 @@ def _room(g: Geometry, body: str) -> float:
     return g.dim(f"bodies.{body}.exposed_area") * g.h_room(body)
 
 
-#: the network's nodes that are whole bodies of the drawing (the spindle's node also carries the
-#: drive train it is coupled to); the frame, the pole and the oil are derived apart
+#: the network's nodes that are whole bodies of the drawing (the transmission behind the spindle
+#: is its own node, behind the coupling); the bearing block's two halves, the frame, the pole, the
+#: oil and the floor are derived apart
 NODE_BODIES: dict[str, tuple[str, ...]] = {
     "base": ("base",),
     "heel_block": ("heel_block",),
-    "bearing_block": ("bearing_block",),
-    "spindle": ("spindle", "drive_train"),
+    "spindle": ("spindle",),
+    "drive_train": ("drive_train",),
     "bearing": ("bearing",),
     "t_plate": ("t_plate",),
     "clamp": ("clamp",),
@@ -150,7 +157,20 @@ def thermal_capacities(g: Geometry) -> dict[str, Derived]:
         f"c_{node}": Derived(sum(capacity(g, b) for b in bodies), f"geometry: {' + '.join(bodies)} mass x c")
         for node, bodies in NODE_BODIES.items()
     }
+    cap = _block_cap_volume(g) * g.prop("bearing_block", "rho") * g.prop("bearing_block", "c")
+    block = (capacity(g, "bearing_block") - cap) / 2
+    floor = g.dim("floor.area") * g.dim("floor.depth") * g.dim("floor.rho") * g.dim("floor.c")
     return out | {
+        "c_bearing_block": Derived(
+            block, "geometry: the bearing block's lower front half (toward the T-plate) x rho x c"
+        ),
+        "c_bearing_block_cap": Derived(
+            cap, "geometry: the bearing block above the spindle's axis (less half the bore) x rho x c"
+        ),
+        "c_bearing_block_rear": Derived(
+            block, "geometry: the bearing block's lower rear half (toward the drive) x rho x c"
+        ),
+        "c_floor": Derived(floor, "geometry: floor slab area x the depth 8 h reach x concrete rho x c"),
         "c_detecting_frame": Derived(frame, "geometry: upper half of the 362 x 50 mm frame x rho x c"),
         "c_detecting_frame_lower": Derived(frame, "geometry: lower half of the 362 x 50 mm frame x rho x c"),
         "c_pole_heel": Derived(_pole_capacity(g, pos["pole_heel"].value), "geometry: pole segment x rho x c"),
@@ -175,7 +195,21 @@ def thermal_room(g: Geometry) -> dict[str, Derived]:
         )
         for node, bodies in NODE_BODIES.items()
     }
+    cap = _block_cap_area(g) * g.h_room("bearing_block")
+    block = (_room(g, "bearing_block") - cap) / 2
     return out | {
+        "g_bearing_block_cap_room": Derived(
+            cap, "geometry: the block's top and the sides above its axis x (h_conv + h_rad)"
+        ),
+        "g_bearing_block_room": Derived(
+            block, "geometry: half the bearing block's exposed area below its axis x (h_conv + h_rad)"
+        ),
+        "g_bearing_block_rear_room": Derived(
+            block, "geometry: half the bearing block's exposed area below its axis x (h_conv + h_rad)"
+        ),
+        "g_floor_room": Derived(
+            g.dim("floor.area") * g.dim("floor.h_air"), "handbook: floor area x downward free convection"
+        ),
         "g_detecting_frame_room": Derived(
             frame, "geometry: half the frame's exposed area x (h_conv + h_rad)"
         ),
@@ -196,6 +230,21 @@ def thermal_room(g: Geometry) -> dict[str, Derived]:
     }
 
 
+def _block_cap_volume(g: Geometry) -> float:
+    """The bearing block above the spindle's axis, less the upper half of the bore, m3."""
+    b = "bodies.bearing_block"
+    above = g.dim(f"{b}.z") - g.dim(f"{b}.axis_height")
+    bore = math.pi / 8 * g.dim(f"{b}.bore_diameter") ** 2 * g.dim(f"{b}.bore_length")
+    return g.dim(f"{b}.x") * g.dim(f"{b}.y") * above - bore
+
+
+def _block_cap_area(g: Geometry) -> float:
+    """The bearing block's top face and its four sides above the spindle's axis, m2."""
+    b = "bodies.bearing_block"
+    above = g.dim(f"{b}.z") - g.dim(f"{b}.axis_height")
+    return g.dim(f"{b}.x") * g.dim(f"{b}.y") + 2 * (g.dim(f"{b}.x") + g.dim(f"{b}.y")) * above
+
+
 def _axial(g: Geometry, body: str, area: float, length: float) -> float:
     return g.prop(body, "k") * area / length
 
@@ -212,20 +261,66 @@ def thermal_joints(g: Geometry) -> dict[str, Derived]:
     lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
     seat_in = math.pi * g.dim("bodies.bearing.bore") * g.dim("bodies.bearing.liner_width")
     seat_out = math.pi * g.dim("bodies.bearing.outer_diameter") * g.dim("bodies.t_plate.bore_length")
+    # the PTFE liner between the inner ring (the bearing's node) and the outer ring in the T-plate:
+    # its spherical face pi d_k B through the liner's thickness, in series with the outer ring's seat
+    liner = (
+        g.dim("bodies.bearing.liner_k")
+        * math.pi
+        * g.dim("bodies.bearing.ball_diameter")
+        * g.dim("bodies.bearing.liner_width")
+        / g.dim("bodies.bearing.liner_thickness")
+    )
+    foot = h * g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.y") / 2
+    front = g.dim("bodies.bearing_block.roller_bearing_front_share")
+    across = (
+        g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.z")
+        - math.pi / 4 * g.dim("bodies.bearing_block.bore_diameter") ** 2
+    )
+    # the cap joins the lower halves only beside the bore: section (x - bore) y, from the cap's
+    # centre to the lower halves' centres (half the block's height)
+    beside = (g.dim("bodies.bearing_block.x") - g.dim("bodies.bearing_block.bore_diameter")) * g.dim(
+        "bodies.bearing_block.y"
+    )
+    cap_path = g.dim("bodies.bearing_block.z") / 2
+    hub = math.pi * g.dim("bodies.spindle.diameter") * g.dim("bodies.drive_train.hub_length")
     return {
         "g_base__heel_block": Derived(
             h * g.dim("bodies.heel_block.x") * g.dim("bodies.heel_block.y"),
             "geometry: heel block foot x h_bolted",
         ),
         "g_heel_block__bearing_block": Derived(
-            h * g.dim("bodies.bearing_block.x") * g.dim("bodies.bearing_block.y"),
-            "geometry: block foot x h_bolted",
+            foot, "geometry: the front half of the block's foot x h_bolted"
+        ),
+        "g_heel_block__bearing_block_rear": Derived(
+            foot, "geometry: the rear half of the block's foot x h_bolted"
+        ),
+        "g_bearing_block__bearing_block_rear": Derived(
+            _axial(g, "bearing_block", across, g.dim("bodies.bearing_block.y") / 2),
+            "handbook: k A / (y/2) through the block's section (less the bore) between the halves' centres",
+        ),
+        "g_bearing_block__bearing_block_cap": Derived(
+            _axial(g, "bearing_block", beside / 2, cap_path),
+            "handbook: k A / L through the front half of the section beside the bore, cap centre to foot centre",
+        ),
+        "g_bearing_block_rear__bearing_block_cap": Derived(
+            _axial(g, "bearing_block", beside / 2, cap_path),
+            "handbook: k A / L through the rear half of the section beside the bore, cap centre to foot centre",
         ),
         "g_bearing_block__spindle": Derived(
-            2.0, "estimate: through the rollers of the spindle's roller bearing"
+            2.0 * front, "estimate: through the rollers of the spindle's roller bearing (in the front half)"
+        ),
+        "g_spindle__drive_train": Derived(
+            h * hub, "geometry: the spindle's end in the coupling hub (pi d L) x h_bolted"
+        ),
+        "g_drive_train__floor": Derived(
+            h * g.dim("bodies.drive_train.bed_area"),
+            "geometry: the transmission's bed on the floor x h_bolted",
         ),
         "g_spindle__bearing": Derived(h * seat_in, "geometry: inner ring seat (pi d B) x h_bolted"),
-        "g_bearing__t_plate": Derived(h * seat_out, "geometry: outer ring seat (pi D t) x h_bolted"),
+        "g_bearing__t_plate": Derived(
+            1.0 / (1.0 / liner + 1.0 / (h * seat_out)),
+            "geometry: the PTFE liner (k pi d_k B / t) in series with the outer ring's seat (pi D t x h_bolted)",
+        ),
         "g_base__detecting_frame": Derived(
             h * (frame_section + 2 * g.dim("bodies.detecting_frame.x") * inset),
             "geometry: frame top and its inset faces x h_bolted",
@@ -266,15 +361,31 @@ UNDER_BASE = ("base", "pole_lower", "detecting_frame_lower")
 
 def thermal_heat(g: Geometry) -> dict[str, Derived]:
     """Where the hydraulic station's lost heat goes: a share to each part under the base (the
-    station is embedded in the tester, the paper says), the rest into its oil."""
+    station is embedded in the tester, the paper says), the rest into its oil.
+
+    The station warms the cabinet air under the base; a part takes heat from that air in
+    proportion to its surface there (h A dT, one h and one dT for all). The base's underside takes
+    the drawing's ``embedded_share``; the pole's lower part and the frame's lower half take that
+    share scaled by their area over the base's underside."""
+    pos = positions(g)
     share = g.dim("hydraulic_station.embedded_share")
-    why = "drawing estimate: the embedded station's heat reaching a part under the base"
-    shares = {f"hyd_share_{node}": Derived(share, why) for node in UNDER_BASE}
+    underside = g.dim("hydraulic_station.base_underside_area")
+    lower = pos["pole_lower"].value + pos["pole_below_clamp"].value
+    areas = {
+        "base": underside,
+        "pole_lower": math.pi * g.dim("bodies.long_pole.diameter") * lower,
+        "detecting_frame_lower": g.dim("bodies.detecting_frame.exposed_area") / 2,
+    }
+    why = "drawing estimate: the embedded station's heat reaching a part under the base, by its area in the cabinet air"
+    shares = {
+        f"hyd_share_{node}": Derived(share * areas[node] / underside, f"{why} ({areas[node]:.3g} m2)")
+        for node in UNDER_BASE
+    }
     cylinder = g.dim("hydraulic_station.cylinder_share")
     shares["hyd_share_t_plate"] = Derived(
         cylinder, "drawing estimate: the loading cylinder's oil warming the T-plate"
     )
-    rest = 1.0 - share * len(UNDER_BASE) - cylinder
+    rest = 1.0 - sum(d.value for d in shares.values())
     shares["hyd_share_oil"] = Derived(rest, "the rest of the station's heat, into its oil")
     return shares
 

@@ -1,14 +1,14 @@
 """Calibrate the thermal network to the paper's seven measured temperature rises, with priors.
 
 The network's capacities and conductances come from the drawing (:mod:`twin.config.drawing`, :mod:`twin.calibration.geometry`). Seven rises
-cannot identify its 16 uncertain values, so the fit is posed as a regularised (maximum a
+cannot identify its 28 uncertain values, so the fit is posed as a regularised (maximum a
 posteriori) least squares in log-factors on the drawing's values:
 
     minimise  sum_b ((rise_b(theta) - measured_b) / sigma_meas)^2  +  sum_k (theta_k / sigma_k)^2
 
 with ``sigma_meas`` the rises' measurement uncertainty and ``sigma_k`` each value's documented
-spread (docs/reference/facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the drive
-train's mass is a guess, 50 %). No parameter has a bound, so none can end at one. The data move
+spread (docs/reference/facts.md 6: convection 30 %, bolted joints 50 %, capacities from geometry 5 %; the
+transmission's mass and the floor slab are guesses, 50 %). No parameter has a bound, so none can end at one. The data move
 only the directions they inform: the report gives the rank of the rises' Jacobian, how many
 directions the data inform more than the priors do, each parameter's posterior standard error
 and 95 % interval (from the Gauss-Newton covariance at the optimum), and the fit under three room
@@ -39,7 +39,7 @@ from twin.uncertainty import rooms
 #: which thermal-network node sits at each of the paper's measuring points (room: the network's
 #: input): the network the calibration fits is a ThermalNetwork
 NODE_OUTPUTS: dict[str, str] = {
-    "bearing_block": "t_bearing_block",
+    "bearing_block": "t_bearing_block_cap",  # on the block's top face, above the spindle's axis
     "heel_block": "t_heel_block",
     "bearing": "t_bearing",
     "t_plate": "t_t_plate",
@@ -62,12 +62,28 @@ PRIORS: dict[str, tuple[float, str]] = {
     "g_heel_block__bearing_block": (0.5, "bolted joint, facts 6: 50 %"),
     "g_bearing_block__spindle": (0.5, "through the roller bearing, facts 6: 50 %"),
     "g_spindle__bearing": (0.5, "ring seat, facts 6: 50 %"),
-    "g_bearing__t_plate": (0.5, "ring seat, facts 6: 50 %"),
+    "g_bearing__t_plate": (0.5, "PTFE liner and ring seat, facts 6: 50 %"),
     "g_base__detecting_frame": (0.5, "bolted joint, facts 6: 50 %"),
     "c_base": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_heel_block": (0.05, "capacity from geometry, facts 6: 5 %"),
     "c_bearing_block": (0.05, "capacity from geometry, facts 6: 5 %"),
-    "c_spindle": (0.5, "the drive train's mass is a guess (estimate): 50 %"),
+    "c_spindle": (0.05, "capacity from geometry, facts 6: 5 %"),
+    # the transmission behind the spindle and the floor it stands on (tester-geometry.toml)
+    "c_drive_train": (0.5, "the transmission's mass is a guess (estimate): 50 %"),
+    "g_drive_train_room": (0.3, "convection + radiation, facts 6: 30 %"),
+    "g_spindle__drive_train": (0.5, "keyed coupling hub, a joint: facts 6, 50 %"),
+    "g_drive_train__floor": (0.5, "the bed bolted on the floor, a joint: facts 6, 50 %"),
+    "c_floor": (0.5, "the slab's area and the depth 8 h reach are estimates: 50 %"),
+    "g_floor_room": (0.5, "downward free convection, handbook 0.5-1.5 W/(m2 K): 50 %"),
+    # the two halves of the bearing block: conduction through the iron between them
+    "g_bearing_block__bearing_block_cap": (
+        0.3,
+        "conduction k A / L through the block, section and path estimated: 30 %",
+    ),
+    "g_bearing_block__bearing_block_rear": (
+        0.3,
+        "conduction k A / L through the block, section and path estimated: 30 %",
+    ),
     # the embedded station's heat under the base: nothing measured, a factor e either way
     "hyd_share_base": (1.0, "the embedded station's heat share, an estimate: a factor e"),
     "hyd_share_pole_lower": (1.0, "the embedded station's heat share, an estimate: a factor e"),
@@ -75,7 +91,16 @@ PRIORS: dict[str, tuple[float, str]] = {
     "hyd_share_t_plate": (1.0, "the loading cylinder's heat share, an estimate: a factor e"),
 }
 #: parameters that move with a fitted one (the frame's two halves share one surface factor)
-TIED: dict[str, str] = {"g_detecting_frame_lower_room": "g_detecting_frame_room"}
+TIED: dict[str, str] = {
+    "g_detecting_frame_lower_room": "g_detecting_frame_room",
+    # the bearing block's two halves: one casting, one surface, one foot
+    "c_bearing_block_rear": "c_bearing_block",
+    "g_bearing_block_rear_room": "g_bearing_block_room",
+    "g_heel_block__bearing_block_rear": "g_heel_block__bearing_block",
+    "c_bearing_block_cap": "c_bearing_block",
+    "g_bearing_block_cap_room": "g_bearing_block_room",
+    "g_bearing_block_rear__bearing_block_cap": "g_bearing_block__bearing_block_cap",
+}
 #: a share that is the rest of the others: the oil keeps what the parts under the base do not take
 REST: dict[str, tuple[str, ...]] = {
     "hyd_share_oil": (
@@ -85,9 +110,11 @@ REST: dict[str, tuple[str, ...]] = {
         "hyd_share_t_plate",
     )
 }
-#: uncertainty of a measured rise, K [estimate: one thermocouple per point; a rise cancels its
-#: offset, not its local placement on the body]
-SIGMA_MEAS_K = 0.3
+#: uncertainty of a measured rise, K [estimate: one thermometer per point, the paper reads each
+#: rise to 0.1 K; a rise cancels the thermometer's offset, and where the lumps hid a gradient at
+#: a thermometer (the bearing block's cap, the frame's bottom, the pole's lower part) the network
+#: now has a node for it, so what is left of the placement is about a tenth of a kelvin]
+SIGMA_MEAS_K = 0.15
 BODIES = ("bearing_block", "heel_block", "bearing", "t_plate", "base", "long_pole", "detecting_frame")
 #: the room shapes the fit is repeated under (the scenario's own first)
 ROOM_SHAPES = rooms.ROOM_SHAPES

@@ -10,6 +10,11 @@ The replay scenario names the experiment it replays (``[reference] experiment = 
 - ``thermal_parts_mm_truth``: the tester's own (true, noise-free) displacement of each of the
   paper's FEM parts over the run, from the outputs the FMUs declare as each body's thermal
   displacement (role ``thermal_dz.<body>``), with its sign in the probe's reading;
+- ``gradients``: each gradient the twin resolves across a body and what it moves (the bearing
+  block's front half minus its rear half, K; the tilt it gives the block, urad; the T-plate's Z
+  at the spindle's overhang from that tilt, mm, Z down), from the roles ``gradient.<body>``,
+  ``tilt.<body>`` and ``thermal_dz.<body>_tilt``. The paper's FEM loads each body uniformly, so
+  no FEM part holds them;
 - ``paper.fem_components_mm``: the paper's FEM displacements beside the error model's thermal
   parts and the truth's (with their 90 % interval over the Monte Carlo);
 - from the Monte Carlo: whether the measured drift lies inside the 90 % interval, and its
@@ -51,6 +56,14 @@ TRUTH_PARTS: dict[str, tuple[tuple[str, float], ...]] = {
 }
 #: the parts the paper derives rather than prints (facts 2: Table 6 is not in the text)
 _DERIVED = {"bearing_block"}
+#: the gradients across a body the summary reports: body -> (role, its key, scale to the unit)
+GRADIENTS: dict[str, tuple[tuple[str, str, float], ...]] = {
+    "bearing_block": (
+        ("gradient.bearing_block", "front_minus_rear_K", 1.0),
+        ("tilt.bearing_block", "tilt_urad", 1e6),
+        ("thermal_dz.bearing_block_tilt", "z_t_plate_mm", 1e3),
+    ),
+}
 SIGN_CONVENTION = "paper: displacement, Z down positive; twin: the part's contribution to the probe's reading"
 
 
@@ -63,6 +76,7 @@ class PaperReport:
 
     def __init__(self) -> None:
         self._truth: dict[str, list[tuple[str, float]]] = {}
+        self._gradients: dict[str, list[tuple[str, str, float]]] = {}
 
     def columns(self, plan: Plan) -> set[str]:
         """The bodies' true thermal displacements, where the run has one instance giving each."""
@@ -71,7 +85,14 @@ class PaperReport:
             cols = [(plan.role_columns(f"thermal_dz.{body}"), sign) for body, sign in bodies]
             if all(len(c) == 1 for c, _ in cols):
                 self._truth[part] = [(c[0], sign) for c, sign in cols]
-        return {c for terms in self._truth.values() for c, _ in terms}
+        self._gradients = {}
+        for body, roles in GRADIENTS.items():
+            found = [(plan.role_columns(role), key, scale) for role, key, scale in roles]
+            if all(len(c) == 1 for c, _, _ in found):
+                self._gradients[body] = [(c[0], key, scale) for c, key, scale in found]
+        return {c for terms in self._truth.values() for c, _ in terms} | {
+            c for terms in self._gradients.values() for c, _, _ in terms
+        }
 
     def add(self, results: dict[str, Any], table: SignalTable) -> None:
         results.setdefault("drift_mm", {})["paper_measured"] = DRIFT_M * 1e3
@@ -83,6 +104,14 @@ class PaperReport:
         }
         if truth:
             results["thermal_parts_mm_truth"] = truth
+        # each since the start, as every thermal term (the outputs are zero at the start)
+        gradients = {
+            body: {key: scale * float(table[c][-1] - table[c][0]) for c, key, scale in terms}
+            for body, terms in self._gradients.items()
+            if all(c in table for c, _, _ in terms)
+        }
+        if gradients:
+            results["gradients"] = gradients
         results["paper"] = {
             "fem_components_mm": fem_components(results, ()),
             "sign_convention": SIGN_CONVENTION,
