@@ -145,3 +145,12 @@ def test_the_run_reports_its_prior_predictive(tmp_path: Path) -> None:
         table
     )
     assert REST not in table
+
+
+def test_the_replay_sweep_draws_the_same_prior() -> None:
+    from twin.sweep.spec import load_spec
+
+    spec = load_spec(scenarios_dir() / "sweeps" / "paper-replay-montecarlo.toml")
+    prior = load_prior(PRIORS, spec.scenario)
+    assert {r[0] for r in prior.rows} <= set(spec.names)
+    assert POLE in spec.names and FRAME in spec.names and "input.thermal.t_room.rise" in spec.names
