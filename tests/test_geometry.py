@@ -99,20 +99,20 @@ def test_the_error_models_topology_agrees_with_the_drawing() -> None:
 def test_the_thermal_priors_are_alpha_times_the_drawn_length() -> None:
     priors = tomllib.loads((SCENARIOS / "calibration" / "priors.toml").read_text(encoding="utf-8"))["priors"]
     m = derive(G)["FixtureMechanics"]
-    a_ci, a_st, a_b = m["alpha_cast_iron"].value, m["alpha_steel"].value, m["alpha_bearing_steel"].value
+    a = {k.removeprefix("alpha_"): v.value for k, v in m.items() if k.startswith("alpha_")}
     expected = {
-        "alpha_l_heel_block": a_ci * m["h_heel_block"].value,
-        "alpha_l_bearing_block": a_ci * m["h_bearing_block"].value,
-        "alpha_l_spindle": a_st * m["r_spindle"].value,
-        "alpha_l_bearing_rings": a_b * m["t_bearing_rings"].value,
-        "alpha_l_t_plate": a_st * m["l_t_plate"].value,
-        "alpha_l_detecting_frame": a_st * m["l_detecting_frame"].value,
-        "alpha_l_base_inset": a_ci * m["l_base_inset"].value,
-        "alpha_l_probe_body": a_st * m["l_probe_body"].value,
-        "alpha_l_clamp": a_st * m["l_clamp"].value,
-        "alpha_l_pole_heel": a_st * m["l_pole_heel"].value,
-        "alpha_l_pole_base": a_st * m["l_pole_base"].value,
-        "alpha_l_pole_lower": a_st * m["l_pole_lower"].value,
+        "alpha_l_heel_block": a["heel_block"] * m["h_heel_block"].value,
+        "alpha_l_bearing_block": a["bearing_block"] * m["h_bearing_block"].value,
+        "alpha_l_spindle": a["spindle"] * m["r_spindle"].value,
+        "alpha_l_bearing_rings": a["bearing_rings"] * m["t_bearing_rings"].value,
+        "alpha_l_t_plate": a["t_plate"] * m["l_t_plate"].value,
+        "alpha_l_detecting_frame": a["detecting_frame"] * m["l_detecting_frame"].value,
+        "alpha_l_base_inset": a["base"] * m["l_base_inset"].value,
+        "alpha_l_probe_body": a["probe_body"] * m["l_probe_body"].value,
+        "alpha_l_clamp": a["clamp"] * m["l_clamp"].value,
+        "alpha_l_pole_heel": a["long_pole"] * m["l_pole_heel"].value,
+        "alpha_l_pole_base": a["long_pole"] * m["l_pole_base"].value,
+        "alpha_l_pole_lower": a["long_pole"] * m["l_pole_lower"].value,
     }
     for k, v in expected.items():
         assert priors[k]["value"] == pytest.approx(v, rel=1e-3), k

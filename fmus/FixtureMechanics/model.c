@@ -48,6 +48,19 @@ enum {
     BBLOCK_REAR
 };
 
+/* The parts that grow: each has its own expansion coefficient (parts of one material still
+ * differ, so a tester as built draws them apart, and the pole's and the frame's do not cancel)
+ * and its own factor from its lump's rise to its mean rise (a thermometer reads a point). */
+enum { P_HEEL, P_BBLOCK, P_SPINDLE, P_RINGS, P_TPLATE, P_FRAME, P_POLE, P_CLAMP, P_BASE, P_PROBE, FM_PARTS };
+static const int VR_ALPHAS[FM_PARTS] = {VR_alpha_heel_block, VR_alpha_bearing_block, VR_alpha_spindle,
+                                        VR_alpha_bearing_rings, VR_alpha_t_plate, VR_alpha_detecting_frame,
+                                        VR_alpha_long_pole, VR_alpha_clamp, VR_alpha_base, VR_alpha_probe_body};
+static const int VR_RISES[FM_PARTS] = {VR_rise_factor_heel_block, VR_rise_factor_bearing_block,
+                                       VR_rise_factor_spindle, VR_rise_factor_bearing_rings,
+                                       VR_rise_factor_t_plate, VR_rise_factor_detecting_frame,
+                                       VR_rise_factor_long_pole, VR_rise_factor_clamp, VR_rise_factor_base,
+                                       VR_rise_factor_probe_body};
+
 int model_check(ModelInstance *comp, char *msg, size_t msg_size) {
     double *r = comp->v.r;
     if (r[VR_k_spring] + r[VR_k_head] <= 0.0) {
@@ -126,10 +139,10 @@ static void transform_point(const double t[16], const double p[3], double out[3]
  * right-handed frame (Y toward the T-plate, Z down). The pivot is the block's foot centre; the
  * test bearing sits at the overhang along +Y, on the spindle's axis h above the foot. Its Z
  * through the block's homogeneous matrix, less where it was, is the tilt's part of z_t_plate. */
-static void bearing_block_tilt(double *r, const double *dt) {
+static void bearing_block_tilt(double *r, const double *dt, double alpha_block) {
     double h = r[VR_h_bearing_block], foot[3] = {0.0, 0.0, 0.0}, bearing[3], moved[3], t[16];
     r[VR_bearing_block_gradient] = dt[BBLOCK] - dt[BBLOCK_REAR];
-    r[VR_bearing_block_tilt] = -r[VR_alpha_cast_iron] * h * r[VR_bearing_block_gradient] / r[VR_d_bearing_block_halves];
+    r[VR_bearing_block_tilt] = -alpha_block * h * r[VR_bearing_block_gradient] / r[VR_d_bearing_block_halves];
     bearing[0] = 0.0;
     bearing[1] = r[VR_l_overhang];
     bearing[2] = -h;
@@ -141,16 +154,17 @@ static void bearing_block_tilt(double *r, const double *dt) {
 /* Branch 1: heel and bearing block grow up (-Z); below the spindle axis the spindle radius,
  * the bearing rings and the T-plate grow down (+Z). The load compresses the liner
  * (thickness * pressure / modulus) and bends the structure. Returns the T-plate bottom's Z. */
-static double bearing_branch(ModelInstance *comp, const double *dt) {
+static double bearing_branch(ModelInstance *comp, const double *dt, const double *a) {
     double *r = comp->v.r;
-    double a_st = r[VR_alpha_steel];
-    /* the block's two lower halves stand side by side on the heel block: the axis rises with their mean */
-    r[VR_dz_bearing_block] = -r[VR_alpha_cast_iron] * (r[VR_h_heel_block] * dt[HEEL] +
-                                                        r[VR_h_bearing_block] * 0.5 * (dt[BBLOCK] + dt[BBLOCK_REAR]));
-    bearing_block_tilt(r, dt);
-    r[VR_dz_spindle] = a_st * r[VR_r_spindle] * dt[SPINDLE];
-    r[VR_dz_bearing] = r[VR_alpha_bearing_steel] * r[VR_t_bearing_rings] * dt[BEARING];
-    r[VR_dz_t_plate] = a_st * r[VR_l_t_plate] * dt[TPLATE];
+    /* the block's two lower halves stand side by side on the heel block: the axis rises with
+     * their mean; heel block and bearing block each grow with their own coefficient */
+    double heel = r[VR_h_heel_block] * dt[HEEL];
+    double block = r[VR_h_bearing_block] * 0.5 * (dt[BBLOCK] + dt[BBLOCK_REAR]);
+    r[VR_dz_bearing_block] = -(a[P_HEEL] * heel + a[P_BBLOCK] * block);
+    bearing_block_tilt(r, dt, a[P_BBLOCK]);
+    r[VR_dz_spindle] = a[P_SPINDLE] * r[VR_r_spindle] * dt[SPINDLE];
+    r[VR_dz_bearing] = a[P_RINGS] * r[VR_t_bearing_rings] * dt[BEARING];
+    r[VR_dz_t_plate] = a[P_TPLATE] * r[VR_l_t_plate] * dt[TPLATE];
     /* liner: elastic compression through its hysteresis, plus creep; structure: a compliance
      * that changes with the swing angle */
     r[VR_dz_liner_creep] = comp->v.m.creep;
@@ -173,7 +187,7 @@ static double bearing_branch(ModelInstance *comp, const double *dt) {
  * side, goes down (+Z) by e * tilt. Rises since the start, as every thermal term. */
 static void frame_bending(double *r, const double *dt) {
     double q = r[VR_h_radiation_frame] * r[VR_frame_view_factor] * (dt[BEARING] - 0.5 * (dt[FRAME] + dt[FRAME_LOWER]));
-    r[VR_frame_tilt] = r[VR_alpha_steel] * q / r[VR_k_frame] * r[VR_l_detecting_frame];
+    r[VR_frame_tilt] = r[VR_alpha_detecting_frame] * q / r[VR_k_frame] * r[VR_l_detecting_frame];
     r[VR_dz_frame_bending] = r[VR_abbe_offset] * r[VR_frame_tilt];
 }
 
@@ -181,15 +195,14 @@ static void frame_bending(double *r, const double *dt) {
  * and that face grows with the base) and grows down, carrying the probe, whose body grows up
  * from its fixing to the tip; the pole grows down from its top (held on the T-plate) to the
  * clamp, and the clamp down to the head's contact face. */
-static void detecting_branch(double *r, const double *dt) {
-    double a_st = r[VR_alpha_steel];
-    r[VR_dz_base_inset] = r[VR_alpha_cast_iron] * r[VR_l_base_inset] * dt[BASE];
-    r[VR_dz_probe_body] = -a_st * r[VR_l_probe_body] * dt[SENSOR];
+static void detecting_branch(double *r, const double *dt, const double *a) {
+    r[VR_dz_base_inset] = a[P_BASE] * r[VR_l_base_inset] * dt[BASE];
+    r[VR_dz_probe_body] = -a[P_PROBE] * r[VR_l_probe_body] * dt[SENSOR];
     /* two lumps along the frame: each half grows with its own temperature */
-    r[VR_dz_detecting_frame] = a_st * r[VR_l_detecting_frame] * 0.5 * (dt[FRAME] + dt[FRAME_LOWER]);
-    r[VR_dz_long_pole] = a_st * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
-                                 r[VR_l_pole_lower] * dt[POLE_LOWER]);
-    r[VR_dz_clamp] = a_st * r[VR_l_clamp] * dt[CLAMP];
+    r[VR_dz_detecting_frame] = a[P_FRAME] * r[VR_l_detecting_frame] * 0.5 * (dt[FRAME] + dt[FRAME_LOWER]);
+    r[VR_dz_long_pole] = a[P_POLE] * (r[VR_l_pole_heel] * dt[POLE_HEEL] + r[VR_l_pole_base] * dt[POLE_BASE] +
+                                      r[VR_l_pole_lower] * dt[POLE_LOWER]);
+    r[VR_dz_clamp] = a[P_CLAMP] * r[VR_l_clamp] * dt[CLAMP];
     frame_bending(r, dt);
     r[VR_z_sensor] = r[VR_dz_base_inset] + r[VR_dz_detecting_frame] + r[VR_dz_probe_body] + r[VR_dz_frame_bending];
 }
@@ -234,13 +247,15 @@ static void probe_reading(double *r) {
 
 void model_outputs(ModelInstance *comp) {
     double *r = comp->v.r;
-    double dt[FM_TEMPS], z_t;
+    double dt[FM_TEMPS], a[FM_PARTS], z_t;
     int i;
 
-    /* all displacements are small, so each body's thermal term is linear in its dT */
+    /* all displacements are small, so each body's thermal term is linear in its dT; a part's
+     * effective coefficient carries its mean-over-lump rise factor (x 1.0 exactly as lumped) */
     for (i = 0; i < FM_TEMPS; i++) dt[i] = r[VR_TEMPS[i]] - comp->v.m.t_ref[i];
-    z_t = bearing_branch(comp, dt);
-    detecting_branch(r, dt);
+    for (i = 0; i < FM_PARTS; i++) a[i] = r[VR_ALPHAS[i]] * r[VR_RISES[i]];
+    z_t = bearing_branch(comp, dt, a);
+    detecting_branch(r, dt, a);
     pole_contact(r, z_t);
     probe_reading(r);
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *

@@ -82,7 +82,7 @@ def _errormodel(extra: str) -> Callable[[Path], Path]:
 
 
 def _with_uncertainty(line: str) -> Callable[[Path], Path]:
-    return lambda d: _scenario(d, paper_text().replace("samples = 64", line, 1))
+    return lambda d: _scenario(d, paper_text().replace("samples = 200", line, 1))
 
 
 HOSTILE = [

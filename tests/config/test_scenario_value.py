@@ -23,12 +23,12 @@ def paper() -> Scenario:
 
 
 def test_with_parameter_is_the_loaders_value_and_leaves_the_original(paper: Scenario) -> None:
-    changed = paper.with_parameter("mechanics", "alpha_steel", 1.21e-5, source="a tester as built")
-    assert changed.fmu("mechanics").parameters["alpha_steel"].value == 1.21e-5
-    assert changed.fmu("mechanics").parameters["alpha_steel"].source == "a tester as built"
-    assert paper.fmu("mechanics").parameters["alpha_steel"].value == 1.17e-5  # the drawing's, untouched
-    loaded = load_scenario(PAPER, ["fmu.mechanics.parameters.alpha_steel=1.21e-5"])
-    assert dict(loaded.fmu("mechanics").parameters)["alpha_steel"].value == 1.21e-5
+    changed = paper.with_parameter("mechanics", "alpha_long_pole", 1.21e-5, source="a tester as built")
+    assert changed.fmu("mechanics").parameters["alpha_long_pole"].value == 1.21e-5
+    assert changed.fmu("mechanics").parameters["alpha_long_pole"].source == "a tester as built"
+    assert paper.fmu("mechanics").parameters["alpha_long_pole"].value == 1.17e-5  # the drawing's, untouched
+    loaded = load_scenario(PAPER, ["fmu.mechanics.parameters.alpha_long_pole=1.21e-5"])
+    assert dict(loaded.fmu("mechanics").parameters)["alpha_long_pole"].value == 1.21e-5
     # the same parameters in the same order as the loader gives them (the order they are set)
     assert list(changed.fmu("mechanics").parameters) == list(loaded.fmu("mechanics").parameters)
 
@@ -38,21 +38,27 @@ def test_with_parameter_is_the_loaders_value_and_leaves_the_original(paper: Scen
     [
         (
             "mechanics",
-            "alpha_stel",
+            "alpha_long_pol",
             1e-5,
-            "fmu.mechanics.parameters.alpha_stel",
-            "did you mean 'alpha_steel'",
+            "fmu.mechanics.parameters.alpha_long_pol",
+            "did you mean 'alpha_long_pole'",
         ),
         (
             "mechanics",
-            "alpha_steel",
+            "alpha_long_pole",
             -1.0,
-            "fmu.mechanics.parameters.alpha_steel",
+            "fmu.mechanics.parameters.alpha_long_pole",
             "outside the physical range",
         ),
-        ("mechanics", "alpha_steel", "1e-5", "fmu.mechanics.parameters.alpha_steel", "expected a number"),
-        ("mechanics", "alpha_steel", float("nan"), "fmu.mechanics.parameters.alpha_steel", "finite"),
-        ("mechanix", "alpha_steel", 1e-5, "fmu.mechanix", "unknown FMU instance"),
+        (
+            "mechanics",
+            "alpha_long_pole",
+            "1e-5",
+            "fmu.mechanics.parameters.alpha_long_pole",
+            "expected a number",
+        ),
+        ("mechanics", "alpha_long_pole", float("nan"), "fmu.mechanics.parameters.alpha_long_pole", "finite"),
+        ("mechanix", "alpha_long_pole", 1e-5, "fmu.mechanix", "unknown FMU instance"),
     ],
 )
 def test_with_parameter_refuses_what_the_loader_refuses(

@@ -29,8 +29,8 @@ from twin.errors import ConfigError
 
 #: the tester's truth, changed well beyond the spreads of a tester as built (facts 6)
 PERTURBED_TRUTH = [
-    "fmu.mechanics.parameters.alpha_steel=1.6e-5",
-    "fmu.mechanics.parameters.alpha_cast_iron=0.8e-5",
+    "fmu.mechanics.parameters.alpha_long_pole=1.6e-5",
+    "fmu.mechanics.parameters.alpha_heel_block=0.8e-5",
     "fmu.mechanics.parameters.l_detecting_frame=0.30",
     "fmu.mechanics.parameters.l_pole_lower=0.35",
     "fmu.mechanics.parameters.h_bearing_block=0.2",
@@ -88,9 +88,11 @@ def test_changing_the_tester_does_not_change_the_error_models_coefficients(scena
     nominal = load_scenario(scenarios_dir() / scenario)
     perturbed = load_scenario(scenarios_dir() / scenario, PERTURBED_TRUTH)
     # the truth did change ...
-    assert perturbed.fmu("mechanics").parameters["alpha_steel"].value == 1.6e-5
+    assert perturbed.fmu("mechanics").parameters["alpha_long_pole"].value == 1.6e-5
     assert perturbed.fmu("sensors").parameters["probe_zero_drift"].value == 1.0e-6
-    assert nominal.fmu("mechanics").parameters["alpha_steel"].value == 1.17e-5  # the drawing's handbook value
+    assert (
+        nominal.fmu("mechanics").parameters["alpha_long_pole"].value == 1.17e-5
+    )  # the drawing's handbook value
     # ... the model did not: its coefficients are the file's, for both runs
     a, b = evaluation_config(nominal), evaluation_config(perturbed)
     assert a.thermal == b.thermal == committed().thermal()

@@ -59,6 +59,11 @@ def test_reproduces_the_papers_fem_parts_at_the_measured_rises(mech: Driver) -> 
     assert probe - 4.805e-3 == pytest.approx(bb + sp + br + tp + pole + cl - fr - bending, abs=1e-12)
 
 
+#: the parts that grow, each with its own expansion coefficient (alpha_<part>)
+PARTS = ("heel_block", "bearing_block", "spindle", "bearing_rings", "t_plate", "detecting_frame",
+         "long_pole", "clamp", "base", "probe_body")  # fmt: skip
+
+
 def test_the_loop_closes_a_uniform_rise_with_one_alpha_leaves_the_reading(fmu_paths: dict[str, Path]) -> None:
     """Both branches, from the base top to the probe's contact, add up to the same Z as drawn
     (-0.140 + 0.512 = 0.050 + 0.362 - 0.040 = 0.372 m): with every body of one material warmed
@@ -68,7 +73,7 @@ def test_the_loop_closes_a_uniform_rise_with_one_alpha_leaves_the_reading(fmu_pa
     d = Driver(fmu_paths["FixtureMechanics"])
     try:
         d.init(
-            parameters={"alpha_cast_iron": alpha, "alpha_steel": alpha, "alpha_bearing_steel": alpha},
+            parameters={f"alpha_{part}": alpha for part in PARTS},
             inputs=dict.fromkeys(TEMPS, T0),
         )
         before = d.get(["probe_true"])[0]
@@ -83,6 +88,25 @@ def test_the_loop_closes_a_uniform_rise_with_one_alpha_leaves_the_reading(fmu_pa
     # and the two new segments are what close it: each alone is microns
     assert inset == pytest.approx(alpha * 0.050 * rise, rel=1e-12)
     assert probe_body == pytest.approx(-alpha * 0.040 * rise, rel=1e-12)
+
+
+def test_each_part_grows_with_its_own_alpha_and_rise_factor(fmu_paths: dict[str, Path]) -> None:
+    """The pole's and the frame's coefficients are parameters of their own (a tester as built
+    draws them apart), and a part's rise factor scales its growth alone."""
+    rise = 8.9
+    d = Driver(fmu_paths["FixtureMechanics"])
+    try:
+        d.init(
+            parameters={"alpha_long_pole": 12.5e-6, "rise_factor_detecting_frame": 1.1},
+            inputs=dict.fromkeys(TEMPS, T0),
+        )
+        d.set({k: T0 + rise for k in TEMPS})
+        pole, frame, clamp = d.get(["dz_long_pole", "dz_detecting_frame", "dz_clamp"])
+    finally:
+        d.close()
+    assert pole == pytest.approx(12.5e-6 * (0.14 + 0.1 + 0.262) * rise, rel=1e-12)
+    assert frame == pytest.approx(11.7e-6 * 1.1 * 0.362 * rise, rel=1e-12)
+    assert clamp == pytest.approx(11.7e-6 * 0.010 * rise, rel=1e-12)  # the clamp's steel: untouched
 
 
 def test_hand_calculation_of_the_frames_thermal_bending(mech: Driver) -> None:

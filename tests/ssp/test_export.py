@@ -169,11 +169,11 @@ def test_the_paper_replay_carries_its_room_its_settings_and_their_files(tmp_path
         names = set(zf.namelist())
         text = zf.read("SystemStructure.ssd").decode()
         room = zf.read("resources/thermal_t_room_profile.ssv").decode()
-    assert {"resources/SignalSource.fmu", "resources/twin/testers-as-built.toml"} <= names
+    assert {"resources/SignalSource.fmu", "resources/twin/priors.toml"} <= names
     assert '<twin:Profile source="paper: room +8.9 K over 480 min' in text
     assert 'name="profile">\n      <ssv:Integer value="2"' in room  # exponential
     assert '"reference": {"experiment": "li2017"}' in text
-    assert '"spreads": "resources/twin/testers-as-built.toml"' in text
+    assert '"spreads": "resources/twin/priors.toml"' in text
 
 
 def test_an_external_fmu_travels_in_the_archive(tmp_path: Path, lowpass_fmu: Path) -> None:

@@ -23,7 +23,7 @@ def test_a_changed_file_of_a_held_out_scenario_is_named(tmp_path: Path) -> None:
     assert {"testers", "seed", "twin version", "FMU sources"} <= set(before)
     files = [k for k in before if k.startswith("file ")]
     assert any(k.endswith("heldout.toml") for k in files) and any(
-        k.endswith("testers-as-built.toml") for k in files
+        k.endswith("base/priors.toml") for k in files
     )
     network = copy / "calibration" / "li2017-thermal-network.toml"
     assert f"file {network}" in before  # read by a held-out scenario through its parameter files

@@ -53,7 +53,7 @@ samples = 4
 # from the calibration file the paper's scenario includes: 0.538856 W/K
 "fmu.thermal.parameters.g_detecting_frame_room" = { dist = "lognormal", sigma = 0.3 }
 # from the FMU's declared start value: 1.17e-5 1/K, 4 % of it
-"fmu.mechanics.parameters.alpha_steel" = { dist = "normal", sigma = 0.04, relative = true }
+"fmu.mechanics.parameters.alpha_long_pole" = { dist = "normal", sigma = 0.04, relative = true }
 "fmu.sensors.parameters.probe_zero_drift" = { dist = "normal", mean = 0.0, sigma = 0.3e-6 }
 # the probe's mounting tilt of the tester as built: the mechanics model's declared value
 "fmu.mechanics.parameters.sensor_tilt" = { dist = "uniform", half_width = 0.0087 }
@@ -66,7 +66,10 @@ samples = 4
     assert rows["fmu.thermal.parameters.g_detecting_frame_room"][1] == pytest.approx(
         [math.log(0.538856), 0.3]
     )
-    assert rows["fmu.mechanics.parameters.alpha_steel"] == ("norm", pytest.approx([1.17e-5, 0.04 * 1.17e-5]))
+    assert rows["fmu.mechanics.parameters.alpha_long_pole"] == (
+        "norm",
+        pytest.approx([1.17e-5, 0.04 * 1.17e-5]),
+    )
     assert rows["fmu.sensors.parameters.probe_zero_drift"] == ("norm", [0.0, 0.3e-6])
     tilt = float(model_variables("FixtureMechanics")["sensor_tilt"].start)
     assert rows["fmu.mechanics.parameters.sensor_tilt"] == (

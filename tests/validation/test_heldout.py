@@ -40,7 +40,7 @@ def write_heldout(path: Path, testers: int = TESTERS, extra: str = "", goals: st
     path.write_text(
         f"""
 [heldout]
-spreads = "{SCENARIOS / "validation" / "testers-as-built.toml"}"
+spreads = "{SCENARIOS / "base" / "priors.toml"}"
 testers = {testers}
 seed = 12
 calibration = "{SCENARIOS / "calibration"}"
@@ -126,8 +126,11 @@ def test_coefficients_are_what_identify_finds_on_that_tester(five, tmp_path: Pat
     }
     found = identify(sets, per_experiment=seeds).values()
     row = table.iloc[0]
+    # the worker fits with BLAS on one thread (Dask's nanny sets it), this process with several:
+    # the summation order moves the last digits of the fit, which the per-part expansion
+    # coefficients and the drawn lengths leave less well conditioned (about 2e-6 relative)
     for name, value in found.items():
-        assert row[f"identified.{name}"] == value, name
+        assert row[f"identified.{name}"] == pytest.approx(value, rel=1e-4, abs=1e-15), name
     # not the drawn FMU value, not the committed nominal file, and different per tester
     assert row["identified.probe_zero_drift"] != row["fmu.sensors.parameters.probe_zero_drift"]
     nominal = load_coefficients(default_path()).values()

@@ -29,6 +29,27 @@ __all__ = ["derive", "derived_file", "derived_file_text", "write_derived_files"]
 # --- FixtureMechanics ---------------------------------------------------------------------------
 
 
+#: FixtureMechanics' parts that grow (``alpha_<part>``) and the drawn body each is made of
+_PARTS = {
+    "heel_block": "heel_block",
+    "bearing_block": "bearing_block",
+    "spindle": "spindle",
+    "bearing_rings": "bearing",
+    "t_plate": "t_plate",
+    "detecting_frame": "detecting_frame",
+    "long_pole": "long_pole",
+    "clamp": "clamp",
+    "base": "base",
+    "probe_body": "sensor",
+}
+
+
+def _alpha(g: Geometry, body: str) -> Derived:
+    """A part's expansion coefficient: its drawn material's handbook value (each part its own
+    parameter, so a tester as built draws them apart: scenarios/base/priors.toml)."""
+    return Derived(g.prop(body, "alpha"), f"handbook: facts 5, {g.material(body)}")
+
+
 def mechanics(g: Geometry) -> dict[str, Derived]:
     """FixtureMechanics' lengths and expansion coefficients from the drawing."""
     pos = positions(g)
@@ -37,9 +58,7 @@ def mechanics(g: Geometry) -> dict[str, Derived]:
     plate = g.dim("bodies.t_plate.centre_to_bottom") - g.dim(f"{bearing}.outer_diameter") / 2
     rod = math.pi / 4 * g.dim("bodies.long_pole.diameter") ** 2 * g.dim("bodies.long_pole.length")
     return {
-        "alpha_cast_iron": Derived(g.dim("materials.grey_cast_iron.alpha"), "handbook: facts 5"),
-        "alpha_steel": Derived(g.dim("materials.steel_45.alpha"), "handbook: facts 5"),
-        "alpha_bearing_steel": Derived(g.dim("materials.bearing_steel.alpha"), "handbook: facts 5"),
+        **{f"alpha_{part}": _alpha(g, body) for part, body in _PARTS.items()},
         "h_heel_block": Derived(g.dim("bodies.heel_block.z"), "drawing estimate: heel block height"),
         "h_bearing_block": Derived(
             g.dim("bodies.bearing_block.axis_height"), "drawing estimate: block foot to spindle axis"

@@ -8,7 +8,7 @@ written to be parsed back.
 
 ::
 
-    tester = scenario.with_parameter("mechanics", "alpha_steel", 1.21e-5, source="drawn")
+    tester = scenario.with_parameter("mechanics", "alpha_long_pole", 1.21e-5, source="drawn")
     warmer = tester.with_value("input.thermal.t_room.rise", 9.9).with_seed(7)
 """
 

@@ -73,7 +73,7 @@ _SOURCE_PARAMS = {
 #: the scenario's tables the twin's annotation carries, and the file each may name
 _TABLES = {"errormodel": "coefficients", "uncertainty": "spreads", "reference": None}
 #: where a table's file is looked for when the table names none (the Monte Carlo's default)
-_DEFAULT_FILES = {"uncertainty": "validation/testers-as-built.toml"}
+_DEFAULT_FILES = {"uncertainty": "base/priors.toml"}
 
 
 @dataclass(frozen=True)

@@ -4,32 +4,30 @@ A scenario's ``[uncertainty]`` table (the paper's experiment has one) makes its 
 after the nominal run, a Monte Carlo of the same scenario (:func:`twin.pipeline.run.run`, on
 Dask) over every uncertain input:
 
-- the tester as built (the spreads file, ``scenarios/validation/testers-as-built.toml``,
-  around this scenario's values; spreads of FMU instances the scenario does not have are
-  left out), with a calibrated parameter's own standard error (``std_error`` in its
-  parameter file: lognormal with that relative sigma) in place of its spread;
-- the room curve: a rise of unknown shape (an ``exponential`` profile, the paper's) takes the
-  shapes of :data:`~twin.uncertainty.rooms.ROOM_SHAPES` in turn (each a third of the samples)
-  reaching the scenario's rise at its rise time; any other room keeps its own curve; both
-  plus a slow random drift (zero at both ends, largest excursion uniform up to
-  ``room_drift_K``);
+- the tester as built (the prior file, ``scenarios/base/priors.toml``, around this scenario's
+  values; spreads of FMU instances the scenario does not have are left out), with a
+  calibrated parameter's own standard error (``std_error`` in its parameter file: lognormal
+  with that relative sigma) in place of its spread;
+- the room curve (the prior file's ``[room]``): a rise of unknown shape (an ``exponential``
+  profile, the paper's) takes its shapes in turn reaching the scenario's rise at its rise time;
+  any other room keeps its own curve; both plus a slow random drift (zero at both ends, largest
+  excursion uniform up to its ``drift_K``);
 - the sensors' noise (each sample its own seed).
 
 ::
 
     [uncertainty]
-    samples = 64                                   # 0: none (twin run --uncertainty N overrides)
+    samples = 200                       # 0: none (twin run --uncertainty N overrides)
     seed = 2017
-    spreads = "validation/testers-as-built.toml"   # relative to the scenario file
+    spreads = "base/priors.toml"        # the prior file, relative to the scenario file
     room = "input.thermal.t_room"
-    room_shapes = ["exponential", "ramp", "s-curve"]
-    room_drift_K = 1.0
 
-The figures (summary.json): ``drift_mm.interval_90`` (5 and 95 % quantiles of the virtual
-probe's drift), ``sigma``, ``samples``, and ``drift_mm.uncertainty`` with the same for the
-error model's predicted drift and the medians per room shape; ``uncertainty.csv`` holds every
-sample. What a measured experiment makes of them is its report's
-(:mod:`twin.pipeline.report`).
+The figures (summary.json): ``drift_mm.prior``, the prior predictive of the virtual probe's
+drift (median, 90 % interval, samples, and the share of its variance each input group
+explains: :mod:`twin.uncertainty.shares`); ``drift_mm.interval_90`` and ``sigma`` beside the
+nominal figures, and ``drift_mm.uncertainty`` with the same for the error model's predicted
+drift and the medians per room shape; ``uncertainty.csv`` holds every sample with its drawn
+inputs. What a measured experiment makes of them is its report's (:mod:`twin.pipeline.report`).
 """
 
 from __future__ import annotations
@@ -39,7 +37,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -49,11 +47,13 @@ from twin.errors import ConfigError
 from twin.files import write_atomic
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
+from twin.uncertainty.shares import NOISE, ROOM, THERMAL_NETWORK, variance_shares
 from twin.uncertainty.spreads import calibrated_rows, merge_rows
-from twin.uncertainty.testers import Testers, apply, load_testers
+from twin.uncertainty.testers import Testers, apply, load_prior, load_room, with_rests
 
 __all__ = [
     "MAX_SAMPLES",
+    "Draw",
     "Progress",
     "Uncertainty",
     "add_to_summary",
@@ -68,8 +68,14 @@ _KEYS = {"samples", "seed", "spreads", "room", "room_shapes", "room_drift_K"}
 #: every sample's row is kept until uncertainty.csv is written; a mistyped count (1e9) would
 #: otherwise fill the memory before the first sample ran
 MAX_SAMPLES = 100_000
-#: the figures of a sample that uncertainty.csv keeps (and the thermal parts)
+#: the figures of a sample that uncertainty.csv keeps (then the thermal parts, then its drawn inputs)
 SAMPLE_COLUMNS = ("sample", "room_shape", "status", "error", "drift_mm.probe", "drift_mm.predicted")
+#: a sample's room as inputs of the variance shares: the shape's index, the slow drift's mean
+ROOM_INPUTS = ("room.shape", "room.drift_mean_K")
+#: the sensors' noise: each sample its own seed, no number a share could be estimated on
+NOISE_INPUT = "sensor noise seed"
+#: the default prior file, relative to the scenario's folder
+PRIOR_FILE = "base/priors.toml"
 
 
 @dataclass(frozen=True)
@@ -103,44 +109,66 @@ def parse_uncertainty(scenario: Scenario, samples: int | None = None) -> Uncerta
     if not isinstance(shapes, list) or not shapes or not set(shapes) <= set(rooms.ROOM_SHAPES):
         p.add("uncertainty.room_shapes", f"expected a list from {list(rooms.ROOM_SHAPES)}")
     folder = Path(scenario.source_path).resolve().parent
-    spreads = (folder / str(table.get("spreads", "validation/testers-as-built.toml"))).resolve()
+    spreads = (folder / str(table.get("spreads", PRIOR_FILE))).resolve()
     if not spreads.is_file():
         p.add("uncertainty.spreads", f"no such file {spreads}")
     p.check()
     n = samples if samples is not None else count
     if n <= 0:
         return None
+    room = load_room(spreads)  # the prior's room curve, unless the table overrides it
     return Uncertainty(
-        n, seed, spreads, str(table.get("room", "input.thermal.t_room")), tuple(shapes), float(drift or 0.0)
+        n,
+        seed,
+        spreads,
+        str(table.get("room", "input.thermal.t_room")),
+        tuple(shapes) if "room_shapes" in table else room.shapes,
+        float(drift or 0.0) if "room_drift_K" in table else room.drift_K,
     )
 
 
 # ----------------------------------------------------------------------------- the samples
 
 
-def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[list[str], Callable[[int], tuple[Scenario, str]]]:
-    """The varied keys, and sample ``i``'s scenario with the name of its room's shape."""
-    rows = merge_rows(load_testers(unc.spreads, scenario), calibrated_rows(scenario))
-    testers = Testers(tuple(rows), unc.seed)
+class Draw(NamedTuple):
+    """One sample: its scenario, its room's shape and what was drawn for it (by key)."""
+
+    scenario: Scenario
+    room_shape: str
+    inputs: dict[str, float]
+
+
+def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Callable[[int], Draw]]:
+    """The varied keys with their input groups (the room's and the noise's last), and sample
+    ``i``'s draw."""
+    prior = load_prior(unc.spreads, scenario)
+    calibrated = calibrated_rows(scenario)
+    testers = Testers(tuple(merge_rows(list(prior.rows), calibrated)), unc.seed)
+    groups = {n: prior.groups.get(n, THERMAL_NETWORK) for n in testers.names}
+    groups |= dict.fromkeys(ROOM_INPUTS, ROOM) | {NOISE_INPUT: NOISE}
     target = unc.room.split(".", 1)[1]
 
-    def make(i: int) -> tuple[Scenario, str]:
-        profile, name = _room(unc, scenario, target, i)
-        sample = apply(scenario, testers.draw(i)).with_input(profile)
-        return sample.with_seed(scenario_seed(unc.seed, Key.RUN, Key.SAMPLE, i)), name
+    def make(i: int) -> Draw:
+        profile, name, mean = _room(unc, scenario, target, i)
+        drawn = testers.draw(i)
+        sample = apply(scenario, with_rests(scenario, drawn, prior.rests)).with_input(profile)
+        shape = float(unc.room_shapes.index(name)) if name in unc.room_shapes else 0.0
+        inputs = drawn | dict(zip(ROOM_INPUTS, (shape, mean), strict=True))
+        return Draw(sample.with_seed(scenario_seed(unc.seed, Key.RUN, Key.SAMPLE, i)), name, inputs)
 
-    return testers.names, make
+    return groups, make
 
 
-def _room(unc: Uncertainty, scenario: Scenario, target: str, i: int) -> tuple[Any, str]:
+def _room(unc: Uncertainty, scenario: Scenario, target: str, i: int) -> tuple[Any, str, float]:
     """Sample ``i``'s room: a rise takes a shape in turn; any other room keeps its own curve;
-    both with a slow drift."""
+    both with a slow drift (and that drift's mean over the run, K)."""
     drift = rooms.smooth_drift(generator(unc.seed, Key.SAMPLE, i), unc.room_drift_K)
+    mean = float(np.mean(drift(np.linspace(0.0, 1.0, 401))))
     if rooms.rise_of(scenario.profile(target), scenario.duration_ns / NS_PER_S) is None:
-        return rooms.drifted(scenario, target, drift), "own"
+        return rooms.drifted(scenario, target, drift), "own", mean
     name = unc.room_shapes[i % len(unc.room_shapes)]
     source = f"twin run uncertainty: room shape {name} plus a slow drift"
-    return rooms.shaped(scenario, target, name, drift, source), name
+    return rooms.shaped(scenario, target, name, drift, source), name, mean
 
 
 # ----------------------------------------------------------------------------- the figures
@@ -162,7 +190,8 @@ def column(rows: Sequence[Mapping[str, Any]], key: str) -> np.ndarray:
 
 
 def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, Any]:
-    """The run's summary with the drift's uncertainty added."""
+    """The run's summary with the drift's uncertainty added: its prior predictive
+    (``drift_mm.prior``) and the figures beside the nominal ones."""
     rows = mc["rows"]
     probe = column(rows, "drift_mm.probe")
     drift = summary.setdefault("drift_mm", {})
@@ -171,6 +200,14 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
         return summary
     s = stats(probe)
     drift.update(interval_90=s["interval_90"], sigma=s["sigma"], samples=len(probe))
+    ok = [r for r in rows if r["status"] == "ok" and "drift_mm.probe" in r]
+    drift["prior"] = {
+        "quantity": "drift_mm.probe over the prior (scenarios/base/priors.toml): the prior predictive",
+        "median": s["median"],
+        "interval_90": s["interval_90"],
+        "samples": len(probe),
+        "variance_shares": variance_shares(ok, "drift_mm.probe", mc.get("groups", {})),
+    }
     shapes = sorted({r["room_shape"] for r in rows})
     by_shape = {k: column([r for r in rows if r["room_shape"] == k], "drift_mm.probe") for k in shapes}
     drift["uncertainty"] = {
@@ -189,26 +226,39 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
 
 
 def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """The Monte Carlo's samples as a CSV (``uncertainty.csv`` of a run folder)."""
+    """The Monte Carlo's samples as a CSV (``uncertainty.csv`` of a run folder): each sample's
+    figures, then what was drawn for it."""
     import pandas as pd
 
     frame = pd.DataFrame.from_records(list(rows))
     parts = sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))
-    frame = frame.reindex(columns=[*SAMPLE_COLUMNS, *parts])
+    # then every drawn input, in the order drawn: a sample can be rerun or analysed from its row
+    inputs = [c for c in frame.columns if c not in SAMPLE_COLUMNS and c not in parts]
+    frame = frame.reindex(columns=[*SAMPLE_COLUMNS, *parts, *inputs])
     return write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))  # never through a link
 
 
 def line(summary: Mapping[str, Any]) -> str | None:
-    """The terminal's line on the interval (None without one)."""
+    """The terminal's lines on the prior predictive (None without one): the nominal drift
+    beside the prior's median and 90 % interval, where a measured drift falls in it, and the
+    input groups' shares of its variance."""
     d = summary.get("drift_mm", {})
     if "interval_90" not in d:
         return None
     lo, hi = d["interval_90"]
+    prior = d.get("prior", {})
     wall = d.get("uncertainty", {}).get("wall_s", math.nan)
-    return (
-        f"drift (probe) {d['probe']:+.4f} mm, sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm "
-        f"({d['samples']} samples, {wall:.1f} s)"
+    out = (
+        f"drift (probe) nominal {d['probe']:+.4f} mm; prior predictive median {prior.get('median', math.nan):+.4f}, "
+        f"sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm ({d['samples']} samples, {wall:.1f} s)"
     )
+    if "quantile_of_measured" in prior:
+        out += f"\n  the measured {d['paper_measured']:+.4f} mm sits at quantile {prior['quantile_of_measured']:.3f} of it"
+    shares = prior.get("variance_shares", {}).get("groups", {})
+    if shares:
+        parts = ", ".join(f"{g} {100 * v:.0f} %" for g, v in sorted(shares.items(), key=lambda kv: -kv[1]))
+        out += f"\n  variance shares: {parts}"
+    return out
 
 
 class Progress:

@@ -91,12 +91,13 @@ def run_samples(
 
     unc = prepared.uncertainty
     assert unc is not None
-    names, make = montecarlo.sampler(unc, prepared.scenario)
+    groups, make = montecarlo.sampler(unc, prepared.scenario)
     shapes: dict[int, str] = {}
+    drawn: dict[int, dict[str, float]] = {}
 
     def payload(i: int) -> dict[str, Any]:
         try:
-            scenario, shapes[i] = make(i)
+            scenario, shapes[i], drawn[i] = make(i)
         except ConfigError as exc:
             return failed(i, one_line(exc))
         return {"index": i, "run": prepare_scenario(scenario, prepared.evaluation)}
@@ -117,11 +118,12 @@ def run_samples(
             on_stop(caught)  # the client closes the cluster on the way out
     rows = [
         {"sample": i, "room_shape": shapes.get(i, ""), "status": records[i]["status"],
-         "error": records[i]["error"], **records[i]["figures"]}
+         "error": records[i]["error"], **records[i]["figures"], **drawn.get(i, {})}
         for i in sorted(records)
     ]  # fmt: skip
     return {
-        "inputs": names,
+        "inputs": [n for n in groups if n not in montecarlo.ROOM_INPUTS and n != montecarlo.NOISE_INPUT],
+        "groups": groups,
         "rows": rows,
         "wall_s": time.perf_counter() - start,
         "workers": threads,

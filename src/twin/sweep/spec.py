@@ -10,6 +10,7 @@
     set = ['scenario.duration = "1 h"'] # fixed overrides of the base (--set syntax, applied first)
     outputs = ["compensation.residual_rms_um.before"]   # summary figures kept (default: all)
     vary_seed = false                   # one seed for every point (default for saltelli, morris)
+    priors = "../base/priors.toml"      # the prior file's spreads -> more rows ([spread] overrides them)
 
     [problem]                           # SALib's problem dict, one to one
     names = ["input.thermal.t_room.amplitude", "fmu.hydraulic.parameters.load_amplitude"]
@@ -42,7 +43,7 @@ from twin.config.load import load_scenario
 from twin.config.reader import Problems, read_toml, unsafe_name
 from twin.config.spec import Scenario
 from twin.errors import ConfigError, ConfigErrors
-from twin.uncertainty.spreads import Row, centre, check_dist, ends, problem, spread_rows
+from twin.uncertainty.spreads import Row, centre, check_dist, ends, merge_rows, problem, spread_rows
 
 __all__ = ["DESIGNS", "MAX_POINTS", "Spec", "load_spec", "point_count"]
 
@@ -60,6 +61,7 @@ _SWEEP_KEYS = {
     "levels",
     "vary_seed",
     "run_folders",
+    "priors",
 }
 #: designs whose indices compare points: their points share the base's seed by default
 _SENSITIVITY = ("saltelli", "morris")
@@ -190,9 +192,14 @@ def _grid(p: Problems, raw: Mapping[str, Any]) -> tuple[list[str], tuple[tuple[A
     return names, tuple(levels)
 
 
-def _rows(p: Problems, raw: Mapping[str, Any], scenario: Scenario) -> list[Row]:
+def _rows(p: Problems, raw: Mapping[str, Any], scenario: Scenario, path: Path) -> list[Row]:
     rows = _problem_rows(p, p.table(raw, "problem")) if "problem" in raw else []
-    rows += spread_rows(p, p.table(raw, "spread"), scenario)
+    own = (
+        spread_rows(p, p.table(raw, "spread"), scenario)
+        if "spread" in raw or "priors" not in raw["sweep"]
+        else []
+    )
+    rows += merge_rows(_prior_rows(p, raw["sweep"].get("priors"), scenario, path), own)
     names = [r[0] for r in rows]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -200,6 +207,20 @@ def _rows(p: Problems, raw: Mapping[str, Any], scenario: Scenario) -> list[Row]:
     if not rows and not p.items:
         p.add("problem", "empty design: no [problem] names and no [spread]")
     return rows
+
+
+def _prior_rows(p: Problems, priors: Any, scenario: Scenario, path: Path) -> list[Row]:
+    """The prior file's rows (``[sweep] priors``, relative to the sweep file) around the base
+    scenario: a sweep over the testers as built draws what ``twin run``'s Monte Carlo draws."""
+    from twin.uncertainty.testers import load_testers
+
+    if priors is None:
+        return []
+    file = (path.resolve().parent / str(priors)).resolve()
+    if not isinstance(priors, str) or not file.is_file():
+        p.add("sweep.priors", f"expected the prior file's name (relative to this file), no such file {file}")
+        return []
+    return load_testers(file, scenario)
 
 
 def _groups(p: Problems, raw: Mapping[str, Any], n: int) -> list[str] | None:
@@ -297,7 +318,7 @@ def load_spec(path: str | Path, base: Scenario | None = None) -> Spec:
     else:
         if "grid" in raw:
             p.add("grid", f"only design = 'grid' takes a [grid] table (this is {sw['design']!r})")
-        rows = _rows(p, raw, scenario)
+        rows = _rows(p, raw, scenario, path)
         levels = ()
         prob = problem(rows, _groups(p, raw, len(rows)))
         values = [[centre(r[1], r[2]), *ends(r[1], r[2])] for r in rows]

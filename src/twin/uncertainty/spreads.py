@@ -4,14 +4,16 @@ A ``[spread]`` entry names a value a study varies (a key of
 :meth:`twin.config.spec.Scenario.with_value`) and its spread around the scenario's own value::
 
     "fmu.thermal.parameters.g_base_room" = { dist = "lognormal", sigma = 0.3 }
-    "fmu.mechanics.parameters.alpha_steel" = { dist = "normal", sigma = 0.04, relative = true }
-    "fmu.sensors.parameters.probe_zero_drift" = { dist = "normal", mean = 0.0, sigma = 0.3e-6 }
+    "fmu.mechanics.parameters.alpha_long_pole" = { dist = "normal", sigma = 0.04, relative = true }
+    "fmu.sensors.parameters.probe_zero_drift" = { dist = "normal", mean = 0.0, sigma = 0.5e-6 }
     "fmu.mechanics.parameters.abbe_offset" = { dist = "uniform", half_width = 0.005 }
 
 normal, lognormal, uniform or truncnorm around the base value, with ``sigma`` absolute or,
 ``relative = true``, a fraction of the base value; a lognormal's ``sigma`` is that of ln (about
 the relative spread). Each becomes a row in SALib's own terms (``norm``, ``lognorm``, ``unif``,
-``truncnorm`` with SALib's bounds), so a spread means what it means to SALib's samplers.
+``truncnorm`` with SALib's bounds), so a spread means what it means to SALib's samplers. An
+entry may also name its input ``group`` and its ``source`` (words the draw does not read: the
+prior file's, scenarios/base/priors.toml).
 """
 
 from __future__ import annotations
@@ -37,7 +39,9 @@ __all__ = [
 
 #: SALib's distributions and the number of values each takes in ``bounds`` (SALib's order)
 DISTS = {"unif": 2, "logunif": 2, "triang": 3, "norm": 2, "truncnorm": 4, "lognorm": 2}
-_SPREAD_KEYS = {"dist", "sigma", "relative", "mean", "median", "half_width", "low", "high"}
+_SPREAD_KEYS = {"dist", "sigma", "relative", "mean", "median", "half_width", "low", "high", "group", "source"}
+#: an entry's words, not numbers: the input group it belongs to and where its spread comes from
+_WORDS = {"dist", "relative", "group", "source"}
 
 #: one SALib row: (name, distribution, bounds)
 Row = tuple[str, str, list[float]]
@@ -95,9 +99,13 @@ def _row(p: Problems, key: str, raw: Any, nominal: float | None) -> Row | None:
         p.add(where, "expected a table { dist = ..., sigma = ... }")
         return None
     p.unknown_keys(raw, _SPREAD_KEYS, where + ".")
-    bad = [k for k in sorted(_SPREAD_KEYS - {"dist", "relative"}) if k in raw and not finite_number(raw[k])]
+    bad = [k for k in sorted(_SPREAD_KEYS - _WORDS) if k in raw and not finite_number(raw[k])]
     if bad:
         p.add(f"{where}.{bad[0]}", f"expected a finite number, got {raw[bad[0]]!r}")
+        return None
+    words = [k for k in ("group", "source") if k in raw and not isinstance(raw[k], str)]
+    if words:
+        p.add(f"{where}.{words[0]}", f"expected a string, got {raw[words[0]]!r}")
         return None
     if not isinstance(raw.get("relative", False), bool):
         p.add(f"{where}.relative", "expected true or false")

@@ -1,8 +1,10 @@
-"""Testers as built: drawn from a spreads file, one tester per index, and a scenario changed
+"""Testers as built: drawn from the prior file, one tester per index, and a scenario changed
 to one of them.
 
-The spreads file (``scenarios/validation/testers-as-built.toml``) is the one file that names
-the FMU parameters a tester as built varies (a sweep file: ``[sweep] base`` and ``[spread]``).
+The prior file (``scenarios/base/priors.toml``) is the one file that names what is not known of
+the tester as built: its ``[spread]`` tables (each with its ``group`` and ``source``), the room's
+curve (``[room]``: shapes and slow drift) and the shares that are the rest of others (``[rest]``).
+A spreads file in a sweep file's format (``[sweep] base`` and ``[spread]``) is read too.
 Its spreads are resolved around a base scenario's values (:mod:`twin.uncertainty.spreads`);
 tester ``i`` is drawn from :func:`twin.seeds.generator` with key ``(TESTER, i)`` alone: the
 same tester whatever the number of testers, workers or the order they finish in. Its values
@@ -24,7 +26,21 @@ from twin.errors import ConfigError
 from twin.seeds import Key, generator
 from twin.uncertainty.spreads import Row, problem, spread_rows
 
-__all__ = ["Testers", "apply", "instance_of", "load_testers"]
+__all__ = [
+    "Prior",
+    "Room",
+    "Testers",
+    "apply",
+    "instance_of",
+    "load_prior",
+    "load_room",
+    "load_testers",
+    "with_rests",
+]
+
+_TOP = {"priors", "room", "rest", "spread", "sweep", "problem"}
+#: the room of a file that does not say (the paper replay's shapes, a drift of up to 1 K)
+_ROOM = {"shapes": ["exponential", "ramp", "s-curve"], "drift_K": 1.0}
 
 
 def instance_of(key: str) -> str | None:
@@ -55,37 +71,121 @@ class Testers:
         return {n: float(v) for n, v in zip(self.names, row, strict=True)}
 
 
-def load_testers(path: Path, scenario: Scenario | None = None) -> list[Row]:
-    """The spreads file's rows around ``scenario``'s values (default: the file's own base
-    scenario); spreads of FMU instances the scenario does not have are left out (the paper
-    replay has no loader and no drive). Every problem at once, one line each."""
+@dataclass(frozen=True)
+class Room:
+    """The room curve's prior: the shapes a rise of unknown shape takes, the slow drift's
+    largest excursion (K)."""
+
+    shapes: tuple[str, ...]
+    drift_K: float
+
+
+@dataclass(frozen=True)
+class Prior:
+    """A prior file read around a scenario: SALib rows, each row's input group, the room, and
+    the shares kept as the rest of others (key -> the prefix of the keys it is the rest of)."""
+
+    rows: tuple[Row, ...]
+    groups: Mapping[str, str]
+    room: Room
+    rests: Mapping[str, str]
+
+
+def load_prior(path: Path, scenario: Scenario | None = None) -> Prior:
+    """The prior file's rows around ``scenario``'s values (default: the file's own base
+    scenario, ``[priors] base`` or a sweep file's ``[sweep] base``); spreads of FMU instances the
+    scenario does not have are left out (the paper replay has no loader and no drive). Every
+    problem at once, one line each."""
     raw = read_toml(path, str(path))
     p = Problems(str(path))
-    p.unknown_keys(raw, {"sweep", "spread", "problem"}, "")
+    p.unknown_keys(raw, _TOP, "")
     spread = p.table(raw, "spread")
+    room = _room(p, p.table(raw, "room") if "room" in raw else {})
+    rests = _rests(p, p.table(raw, "rest") if "rest" in raw else {})
     if scenario is None:
-        base = p.table(raw, "sweep").get("base")
+        where = "priors" if "priors" in raw else "sweep"
+        base = p.table(raw, where).get("base")
         if not isinstance(base, str):
-            p.add("sweep.base", "expected the base scenario's file name (relative to this file)")
+            p.add(f"{where}.base", "expected the base scenario's file name (relative to this file)")
             p.check()
-        scenario = _base(path, str(base))
+        scenario = _base(path, str(base), where)
     instances = {f.name for f in scenario.fmus}
     spread = {k: v for k, v in spread.items() if instance_of(str(k)) in (None, *instances)}
     rows = spread_rows(p, spread, scenario)
     if not rows and not p.items:
         p.add("spread", "no spread: nothing to draw")
     p.check()
-    return rows
+    groups = {str(k): str(v.get("group", "other")) for k, v in spread.items() if isinstance(v, dict)}
+    return Prior(tuple(rows), groups, room, rests)
 
 
-def _base(path: Path, base: str) -> Scenario:
+def load_room(path: Path) -> Room:
+    """The prior file's room curve (``[room]``; the paper replay's shapes and a 1 K drift when
+    the file has none)."""
+    raw = read_toml(path, str(path))
+    p = Problems(str(path))
+    room = _room(p, p.table(raw, "room") if "room" in raw else {})
+    p.check()
+    return room
+
+
+def load_testers(path: Path, scenario: Scenario | None = None) -> list[Row]:
+    """The prior file's SALib rows (:func:`load_prior`)."""
+    return list(load_prior(path, scenario).rows)
+
+
+def _room(p: Problems, table: Mapping[str, Any]) -> Room:
+    from twin.uncertainty.rooms import ROOM_SHAPES
+
+    p.unknown_keys(table, {"shapes", "drift_K", "source"}, "room.")
+    shapes = table.get("shapes", _ROOM["shapes"])
+    if not isinstance(shapes, list) or not shapes or not set(shapes) <= set(ROOM_SHAPES):
+        p.add("room.shapes", f"expected a list from {list(ROOM_SHAPES)}")
+        shapes = list(ROOM_SHAPES)
+    drift = p.number(_ROOM | dict(table), "drift_K", "room.", lo=0.0)
+    return Room(tuple(shapes), float(drift or 0.0))
+
+
+def _rests(p: Problems, table: Mapping[str, Any]) -> dict[str, str]:
+    out = {}
+    for key, entry in table.items():
+        if not isinstance(entry, dict) or not isinstance(entry.get("of"), str):
+            p.add(f'rest."{key}"', "expected a table { of = the prefix of the keys it is the rest of }")
+            continue
+        p.unknown_keys(entry, {"of", "source"}, f'rest."{key}".')
+        out[str(key)] = entry["of"]
+    return out
+
+
+def with_rests(scenario: Scenario, values: Mapping[str, float], rests: Mapping[str, str]) -> dict[str, float]:
+    """``values`` with each rest (a share kept as 1 minus the others of its prefix, drawn or the
+    scenario's), where a value of its prefix was drawn: drawn shares still sum to 1."""
+    out = dict(values)
+    for key, prefix in rests.items():
+        instance = instance_of(key)
+        if not any(k.startswith(prefix) and k != key for k in values) or instance not in {
+            f.name for f in scenario.fmus
+        }:
+            continue
+        spec = scenario.fmu(instance)
+        others = [
+            values.get(f"fmu.{instance}.parameters.{name}", param.value)
+            for name, param in spec.parameters.items()
+            if f"fmu.{instance}.parameters.{name}".startswith(prefix)
+            and f"fmu.{instance}.parameters.{name}" != key
+        ]
+        out[key] = 1.0 - float(sum(others))
+    return out
+
+
+def _base(path: Path, base: str, where: str = "sweep") -> Scenario:
     base_path = (path.resolve().parent / base).resolve()
     try:
         return load_scenario(base_path)
     except ConfigError as exc:
         if exc.source != str(base_path) or exc.key is not None:
             raise
-        raise ConfigError(f"{base}: {exc.message}", source=str(path), key="sweep.base") from None
+        raise ConfigError(f"{base}: {exc.message}", source=str(path), key=f"{where}.base") from None
 
 
 def apply(scenario: Scenario, values: Mapping[str, Any]) -> Scenario:

@@ -1,7 +1,7 @@
 """``twin heldout``: the error model judged on testers it was not identified on... by a lab's rules.
 
-For each of N testers as built (:mod:`twin.uncertainty.testers`, the spreads of docs/reference/facts.md
-section 6), on a Dask worker:
+For each of N testers as built (:mod:`twin.uncertainty.testers`, drawn from the one prior file
+scenarios/base/priors.toml), on a Dask worker:
 
 1. every calibration experiment of ``twin identify`` (``scenarios/calibration/``) runs on that
    tester, and :func:`twin.errormodel.identify.fit_records` fits the error model's
@@ -14,7 +14,7 @@ section 6), on a Dask worker:
 One row per tester and scenario: the RMS error before and after, the % of the RMS removed and
 the largest residual, for the MBS model and the baseline, the tester's drawn values and its
 identified coefficients. The held-out file (``scenarios/validation/heldout.toml``) names the
-spreads file, the scenarios and the goals; it names no FMU parameter.
+prior file, the scenarios and the goals; it names no FMU parameter.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from twin.errors import ConfigError, RunError
 from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
-from twin.uncertainty.testers import Testers, apply, load_testers
+from twin.uncertainty.testers import Testers, apply, load_room, load_testers
 
 __all__ = ["HeldOut", "load_heldout", "run_heldout", "run_tester", "summarise"]
 
@@ -167,7 +167,7 @@ def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     p.unknown_keys(raw, _TOP, "")
     h = p.table(raw, "heldout")
     p.unknown_keys(h, _HELDOUT_KEYS, "heldout.")
-    spreads = (folder / str(h.get("spreads", "testers-as-built.toml"))).resolve()
+    spreads = (folder / str(h.get("spreads", "../base/priors.toml"))).resolve()
     if not spreads.is_file():
         p.add("heldout.spreads", f"no such file {spreads.name!r}")
     calibration = (folder / str(h.get("calibration", "../calibration"))).resolve()
@@ -180,7 +180,9 @@ def load_heldout(path: str | Path, *, testers: int | None = None) -> HeldOut:
     count = {"testers": testers} if testers is not None else h
     loaded: list[tuple[str, Scenario]] = []
     scenarios = tuple(_scenarios(p, folder, raw.get("scenario"), loaded))
-    room_drift = p.number({"room_drift_K": 1.0} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0
+    # the room's slow drift: the prior file's, unless this file overrides it
+    prior_drift = load_room(spreads).drift_K if spreads.is_file() and "room_drift_K" not in h else 1.0
+    room_drift = p.number({"room_drift_K": prior_drift} | h, "room_drift_K", "heldout.", lo=0.0) or 0.0
     room = h.get("room", "input.thermal.t_room")
     if room_drift > 0:  # the room's key is used only to drift it
         room = _check_room(p, room, loaded)
