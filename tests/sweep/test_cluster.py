@@ -218,23 +218,22 @@ dists = ["unif", "unif", "unif"]
 
 
 def test_sobol_finds_the_room_the_dominant_input_of_the_thermal_drift(tmp_path: Path) -> None:
-    """No load, no motion: the detecting frame follows the room air, while the hydraulic
-    station's idle heat stays in its oil (no conduction path to the tester) and the probe's
-    white noise averages out of a drift read off 5-min fits. So the room's rise carries nearly
-    all the variance of the frame's temperature rise, and the most of the probe's drift. (With
-    the drawing's lengths the pole's and the frame's growth nearly cancel: the probe's drift over
-    this hour is a few tenths of a um, a few of its 0.1 um steps, so its first-order index is not
-    resolved by 16 base samples; its total index is.)"""
+    """No load, no motion: the detecting frame follows the room air and, through the share of
+    the embedded station's heat that reaches its bottom (scenarios/base/tester-geometry.toml
+    [hydraulic_station]), the station's idle heat; the probe's white noise averages out of a
+    drift read off 5-min fits. So the room carries most of the variance of the frame's rise,
+    the station's heat a clear part of it (about a third over 200-400 W against a 0-9 K room),
+    the noise none; and the room nearly all of the probe's drift."""
     spec = load_spec(write_spec(tmp_path / "sobol.toml", SOBOL))
     summary = run_sweep(spec, tmp_path / "out")
     assert summary["points"] == 16 * (3 + 2) and summary["failed"] == 0
     room, heat, noise = spec.names
     frame = summary["indices"]["temperature_rise_C.detecting_frame"]
-    assert frame["ST"][room] > 0.9 and frame["S1"][room] > 0.8
-    assert frame["ST"][room] > 10 * max(frame["ST"][heat], frame["ST"][noise])
+    assert frame["ST"][room] > 0.5 and frame["ST"][room] > 1.5 * frame["ST"][heat]
+    assert frame["ST"][heat] > 0.1 and frame["ST"][noise] < 0.01
     found = summary["indices"]["drift_mm.probe"]
-    assert found["ST"][room] > 0.5
-    assert found["ST"][room] > max(found["ST"][heat], found["ST"][noise])
+    assert found["ST"][room] > 0.8
+    assert found["ST"][room] > 5 * max(found["ST"][heat], found["ST"][noise])
     assert {"S1_conf", "ST_conf"} <= set(found)
     for png in ("sensitivity.png", "scatter.png", "histogram.png"):
         assert (tmp_path / "out" / png).read_bytes().startswith(b"\x89PNG")

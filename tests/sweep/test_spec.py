@@ -11,7 +11,7 @@ import pytest
 
 from tests.sweep.helpers import PAPER, write_spec
 from twin.cli import main as twin
-from twin.config.load import scenarios_dir
+from twin.config.load import load_scenario, scenarios_dir
 from twin.fmu.catalog import variables as model_variables
 from twin.sweep.spec import Spec, load_spec
 
@@ -50,7 +50,7 @@ def test_spreads_compile_to_salib_rows_around_the_base_values(tmp_path: Path) ->
         """design = "montecarlo"
 samples = 4
 [spread]
-# from the calibration file the paper's scenario includes: 0.538856 W/K
+# from the calibration file the paper's scenario includes
 "fmu.thermal.parameters.g_detecting_frame_room" = { dist = "lognormal", sigma = 0.3 }
 # from the FMU's declared start value: 1.17e-5 1/K, 4 % of it
 "fmu.mechanics.parameters.alpha_long_pole" = { dist = "normal", sigma = 0.04, relative = true }
@@ -63,8 +63,10 @@ samples = 4
     pairs = zip(spec.problem["dists"], spec.problem["bounds"], strict=True)
     rows = dict(zip(spec.problem["names"], pairs, strict=True))
     assert rows["fmu.thermal.parameters.g_detecting_frame_room"][0] == "lognorm"
+    calibrated = load_scenario(PAPER).nominal("fmu.thermal.parameters.g_detecting_frame_room")
+    assert calibrated is not None and calibrated != 1.0  # the calibration's value, not a default
     assert rows["fmu.thermal.parameters.g_detecting_frame_room"][1] == pytest.approx(
-        [math.log(0.538856), 0.3]
+        [math.log(calibrated), 0.3]
     )
     assert rows["fmu.mechanics.parameters.alpha_long_pole"] == (
         "norm",
