@@ -33,6 +33,7 @@ from twin.errormodel.sources import (
     DEFAULT_READING,
     DEFAULT_TEMPERATURES,
     DEFAULT_TRUE_WEAR,
+    EXTRA_TEMPERATURES,
     MechanicalCoefficients,
     ThermalCoefficients,
 )
@@ -175,11 +176,11 @@ def _temperatures(p: Problems, em: Mapping[str, Any]) -> dict[str, str]:
         return temperatures
     for point, column in given.items():
         key = f"errormodel.temperatures.{point}"
-        if point not in DEFAULT_TEMPERATURES:  # a misspelt point would be read as nothing
+        known = {**DEFAULT_TEMPERATURES, **EXTRA_TEMPERATURES}
+        if point not in known:  # a misspelt point would be read as nothing
             p.add(
                 key,
-                f"unknown measuring point{did_you_mean(str(point), DEFAULT_TEMPERATURES)} "
-                f"(the points: {', '.join(DEFAULT_TEMPERATURES)})",
+                f"unknown measuring point{did_you_mean(str(point), known)} (the points: {', '.join(known)})",
             )
         elif (why := _column_problem(column)) is not None:
             p.add(key, why)

@@ -52,6 +52,10 @@ DEFAULT_TEMPERATURES: dict[str, str] = {
     "detecting_frame": "sensors.t_detecting_frame_meas",
     "room": "sensors.t_room_meas",
 }
+#: measuring points a tester may add to the paper's eight: a thermometer on the probe's body
+#: (the probe-heating bench has one; on the tester it lets the probe's drifts read their own
+#: temperature instead of the frame's bottom)
+EXTRA_TEMPERATURES: dict[str, str] = {"probe_body": "sensors.t_probe_body_meas"}
 DEFAULT_READING = "sensors.probe_meas"
 DEFAULT_LOAD = "sensors.load_meas"
 DEFAULT_TORQUE = "sensors.torque_meas"
