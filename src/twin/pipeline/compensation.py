@@ -400,8 +400,11 @@ def run_folder_config(run_dir: Path) -> tuple[Path, tuple[EvaluationConfig, str]
 
 
 TEMPLATE_TOML = """# The error model on a lab's own record: `twin compensate lab.csv --config LAB.toml`.
-# Every column is named as in the CSV's header; values in SI units (K, m, N, N.m, rad).
+# Every column is named as in the CSV's header; values in SI units (K, m, N, N.m, rad) unless
+# `units` gives a column's own (any unit pint knows: mm, um, degC, kN, deg, min).
 [errormodel]
+# time = "time"                   # the time column (s unless `units` says otherwise)
+# units = { probe = "mm", T_room = "degC", time = "min" }
 # the paper's eight temperature measuring points -> the CSV's columns (K)
 temperatures = { bearing_block = "T_bearing_block", heel_block = "T_heel_block", bearing = "T_bearing", t_plate = "T_t_plate", base = "T_base", long_pole = "T_long_pole", detecting_frame = "T_detecting_frame", room = "T_room" }
 reading = "probe"                 # the wear-depth probe's reading (m)
