@@ -67,7 +67,9 @@ def _compensate(tmp_path: Path, record: Path, toml: str, out: str) -> int:
     return main(["compensate", str(record), "--config", str(config), "--out", str(tmp_path / out)])
 
 
-def test_a_record_in_mm_degc_and_minutes_equals_the_same_record_in_si(twin_record: Path, tmp_path: Path) -> None:
+def test_a_record_in_mm_degc_and_minutes_equals_the_same_record_in_si(
+    twin_record: Path, tmp_path: Path
+) -> None:
     lab = tmp_path / "lab_mm.csv"
     _lab_units(twin_record, lab)
     units = {"t_min": "min", "probe": "mm", **{c: "degC" for c in COLUMNS.values()}}
