@@ -27,7 +27,7 @@ from twin.uncertainty.testers import instance_of
 #: a growth identified below this (m/K) sits at its bound 0 (the bounded solver's zero)
 AT_BOUND = 1e-12
 
-__all__ = ["HEADER", "identify", "report_lines", "run_experiment"]
+__all__ = ["HEADER", "identify", "lab_records", "report_lines", "run_experiment"]
 
 HEADER = """Coefficients of the error model, identified by `twin identify` from the calibration
 experiments in scenarios/calibration/ (DAQ channels only; priors from priors.toml).
@@ -58,21 +58,26 @@ def identify(
     calibrations: Sequence[Calibration] = CALIBRATIONS,
     per_experiment: Mapping[str, Sequence[str]] | None = None,
     folder: Path | None = None,
+    records: Mapping[str, Record] | None = None,
 ) -> Coefficients:
     """Run the calibration experiments on the twin and fit the error model's coefficients.
 
     ``overrides`` (``--set KEY=VALUE``) make the tester as built: they apply to every
     experiment, ``per_experiment`` adds some to one experiment only (by name). ``priors``
     default to ``scenarios/calibration/priors.toml``. In process and without files.
+    ``records`` (a lab's own, :func:`lab_records`) are fitted instead of runs on the twin.
     """
     priors = load_priors() if priors is None else priors
     per_experiment = per_experiment or {}
+    lab = records is not None
     needed = {e for cal in calibrations for e in cal.experiments}
-    records = {
-        e.name: run_experiment(e, [*overrides, *per_experiment.get(e.name, ())], folder)
-        for e in EXPERIMENTS
-        if e.name in needed
-    }
+    if records is None:
+        records = {
+            e.name: run_experiment(e, [*overrides, *per_experiment.get(e.name, ())], folder)
+            for e in EXPERIMENTS
+            if e.name in needed
+        }
+    lab_named = set(records) if lab else set()
     identified = {
         "by": "twin identify",
         "twin_version": __version__,
@@ -81,8 +86,9 @@ def identify(
         "experiments": {
             name: {
                 "scenario": r.experiment.scenario,
-                "sha256": r.scenario_sha256,
+                "sha256": r.scenario_sha256,  # a lab's record: the hash of its file
                 "overrides": list(per_experiment.get(name, ())),
+                "record": "lab" if name in lab_named else "twin",
             }
             for name, r in records.items()
         },
@@ -109,3 +115,34 @@ def report_lines(c: Coefficients) -> list[str]:
         bound = ", at its bound 0" if name in growths and x.value < AT_BOUND else ""
         lines.append(f"  {name} = {x.value:.6g} +- {x.std_error:.2g} {x.unit} [{x.experiment}{bound}]{prior}")
     return lines
+
+
+def lab_records(
+    folder: Path, config: Path, calibrations: Sequence[Calibration] = CALIBRATIONS
+) -> dict[str, Record]:
+    """A lab's own records of the calibration experiments: ``folder`` holds one CSV per
+    experiment, named as its scenario (``thermal-soak.csv`` for ``thermal-soak.toml``), its
+    columns and units named by ``config`` (a LAB.toml, as ``twin compensate`` reads it). The
+    experiments' designs (loads, gauge blocks, what each fit uses) are the shipped calibration
+    scenarios'. Every experiment the fits need must be there: the fits depend on each other
+    (:func:`~twin.errormodel.identify.fit_records`), so a set that mixed a lab's records with
+    the twin's runs would fit a tester that is neither."""
+    from twin.config.reader import Problems
+    from twin.pipeline.compensation import lab_config
+    from twin.pipeline.lab import recorded
+
+    lab = lab_config(config)
+    needed = [e for e in EXPERIMENTS if any(e.name in cal.experiments for cal in calibrations)]
+    p = Problems(str(folder))
+    for e in needed:
+        csv = folder / (Path(e.scenario).stem + ".csv")
+        if not csv.is_file():
+            p.add(e.name, f"no record {csv.name} (the lab's record of calibration/{e.scenario})")
+    p.check()
+    calibration = scenarios_dir() / "calibration"
+    return {
+        e.name: recorded(
+            e, load_scenario(calibration / e.scenario), folder / (Path(e.scenario).stem + ".csv"), lab
+        )
+        for e in needed
+    }

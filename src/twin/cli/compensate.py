@@ -19,7 +19,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     optional(
         p,
         "csv",
-        "CSV with a time column (s) and named columns in SI units, or a run folder (its own error model)",
+        "CSV with a time column and named columns (SI unless LAB.toml gives their units), or a run "
+        "folder (its own error model)",
     )
     p.add_argument(
         "--template", metavar="DIR", help="write a commented LAB.toml and an example lab.csv into DIR"
@@ -61,9 +62,16 @@ def command(args: argparse.Namespace) -> int:
             f"every one in {job.out / summary['input_rows']['flagged_rows']}",
             file=sys.stderr,
         )
+    if summary["coefficients"] == compensation.DEFAULT_COEFFICIENTS:
+        print(
+            f"twin: {job.csv}: compensated with the twin's default coefficients, not your tester's: "
+            "name its own in LAB.toml ([errormodel] coefficients, written by twin identify)",
+            file=sys.stderr,
+        )
     parts = summary["error_parts_mm"]
     print(
         f"{job.csv}: predicted error over the record {parts['total']:+.4f} mm "
-        f"(thermal {parts['thermal']:+.4f}); outputs: {job.out}"
+        f"(thermal {parts['thermal']:+.4f}), compensated wear {summary['wear_mm']['compensated']:+.4f} mm; "
+        f"outputs: {job.out}"
     )
     return 0

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.cli.common import add_set, flag
+from twin.errors import ConfigError
 
 NAME = "identify"
 #: where the coefficients go without --out: the current folder (a file of the user's)
@@ -29,12 +30,23 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--priors", metavar="TOML", help="priors file (default: scenarios/calibration/priors.toml)"
     )
+    p.add_argument(
+        "--records",
+        metavar="DIR",
+        help=(
+            "a lab's own records of the calibration experiments, one CSV per experiment named as its "
+            "scenario (thermal-soak.csv, ...), fitted instead of runs on the twin (needs --config)"
+        ),
+    )
+    p.add_argument(
+        "--config", metavar="TOML", help="LAB.toml naming the records' columns and units (with --records)"
+    )
     flag(p, "--quiet", "print only the file written")
     return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from twin.calibration.identify import HEADER, identify, report_lines
+    from twin.calibration.identify import HEADER, identify, lab_records, report_lines
     from twin.errormodel.coefficients import load_priors
     from twin.outputs.run_folder import check_output_file
 
@@ -43,7 +55,17 @@ def command(args: argparse.Namespace) -> int:
     # identify must not change them (the maintainer names that file with --out to renew it)
     out = check_output_file(Path(args.out) if args.out is not None else Path(DEFAULT_OUT), "--out", ".toml")
     priors = load_priors(Path(args.priors)) if args.priors else None
-    coefficients = identify(args.set or [], priors=priors)
+    records = None
+    if args.records is not None or args.config is not None:
+        if args.records is None or args.config is None:
+            missing = "--config" if args.config is None else "--records"
+            raise ConfigError(f"a lab's records need {missing} too", source=missing)
+        if args.set:
+            raise ConfigError(
+                "--set changes the twin's experiments; a lab's records are its own", source="--set"
+            )
+        records = lab_records(Path(args.records), Path(args.config))
+    coefficients = identify(args.set or [], priors=priors, records=records)
     out.parent.mkdir(parents=True, exist_ok=True)
     coefficients.write(out, header=HEADER)
     if not args.quiet:

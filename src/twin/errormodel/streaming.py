@@ -258,6 +258,7 @@ class StreamingEvaluation:
         return {
             self.cfg.reading,
             "errormodel.e_z",
+            "errormodel.wear_compensated",  # what a lab wants of its record: the wear, compensated
             *(f.column for f in FACTORS),
             *self.cfg.temperatures.values(),
         }

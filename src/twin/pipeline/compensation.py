@@ -36,6 +36,7 @@ from twin.outputs.run_folder import (
     check_output_folder,
 )
 from twin.outputs.sink import Outcome
+from twin.pipeline.record_units import RecordUnits, record_units
 from twin.pipeline.stages import OutputsLog, budget_columns, write_outputs
 from twin.signals.csv import BLOCK_BYTES, CsvReader, Flag
 from twin.signals.table import Signal
@@ -48,6 +49,11 @@ DEFAULT_WINDOW_S = 300.0
 FLAGGED_CSV = "flagged_rows.csv"
 #: flagged rows the summary lists (flagged_rows.csv has every one)
 SUMMARY_FLAGS = 5
+#: what a compensation says of coefficients nobody named: those of the nominal twin, which
+#: compensate another tester's record only as well as that tester resembles the twin's drawing
+DEFAULT_COEFFICIENTS = "the twin's defaults (the nominal twin's identification), not this tester's"
+#: LAB.toml's keys that are the record's, not the error model's
+LAB_KEYS = ("drift_window", "time", "units")
 
 
 def compensate(
@@ -75,7 +81,13 @@ def compensate(
     whole record at once), each chunk's results appended to errormodel.csv. A file refused
     part way (a time out of order on line 150,000) leaves none of this command's files.
     """
-    cfg, source = config or compensation_config(config_path)
+    if config is not None:
+        cfg, source = config
+        units, coefficients = RecordUnits(), "the run's own"
+    else:
+        lab = lab_config(config_path)
+        cfg, source, units = lab.cfg, lab.source, lab.units
+        coefficients = lab.coefficients if lab.coefficients is not None else DEFAULT_COEFFICIENTS
     folder = RunFolder(out_dir)
     flags = _FlagFile(folder.file(FLAGGED_CSV))
     reader = CsvReader(
@@ -84,6 +96,7 @@ def compensate(
         input_columns(cfg),
         on_flag=flags.add,
         block_bytes=block_bytes,
+        time_column=units.time,
     )
     # matplotlib's import (pure Python, holding the GIL) runs while Arrow parses the
     # file without the GIL; the plot at the end finds it done
@@ -94,12 +107,13 @@ def compensate(
     try:
         folder.make()
         flags.path.unlink(missing_ok=True)  # an earlier compensate's: this one's outputs replace it
-        _stream(reader, evaluation, folder.file(ERRORMODEL_CSV), flags)
+        _stream(reader, units, evaluation, folder.file(ERRORMODEL_CSV), flags)
     finally:
         reader.close()
     summary = {
         "input": str(csv_path),
         "config": source,
+        "coefficients": coefficients,
         "status": "completed",
         "input_rows": {
             "read": reader.read_rows,
@@ -110,6 +124,9 @@ def compensate(
         },
         **evaluation.summary(),
     }
+    if "wear_mm" not in summary:  # no true wear to judge it by: the compensated wear alone
+        drift = summary["drift_mm"]
+        summary["wear_mm"] = {"compensated": drift["probe"] - drift["predicted"]}
     from twin.outputs.plot_sinks import ErrorBudgetSink
     from twin.outputs.summary import SummarySink
 
@@ -122,14 +139,16 @@ def compensate(
     return summary
 
 
-def _stream(reader: CsvReader, evaluation: StreamingEvaluation, path: Path, flags: _FlagFile) -> None:
-    """Read, evaluate and write errormodel.csv (and flagged_rows.csv) chunk by chunk; a file
-    refused part way removes what was written of them."""
+def _stream(
+    reader: CsvReader, units: RecordUnits, evaluation: StreamingEvaluation, path: Path, flags: _FlagFile
+) -> None:
+    """Read (in SI: ``units``), evaluate and write errormodel.csv (and flagged_rows.csv) chunk
+    by chunk; a file refused part way removes what was written of them."""
     writer = _LazyCsv(path, evaluation)
     try:
         with writer, flags:
             for block in reader.blocks():
-                for done in evaluation.feed(block):
+                for done in evaluation.feed(units.to_si(block, reader.source)):
                     writer.append(done)
             for done in evaluation.finish():
                 writer.append(done)
@@ -232,28 +251,58 @@ def compensation_config(config_path: Path | None) -> tuple[EvaluationConfig, str
     """The error model's configuration from a lab's ``config_path`` (LAB.toml: its
     ``[errormodel]`` table, and ``drift_window``; the twin's defaults without one), and the name
     problems are reported under."""
+    lab = lab_config(config_path)
+    return lab.cfg, lab.source
+
+
+@dataclass(frozen=True)
+class LabConfig:
+    """A LAB.toml read: the error model's configuration, the name problems are reported
+    under, the record's units, and the coefficients file it names (None: the twin's defaults,
+    the nominal twin's identification, not this tester's)."""
+
+    cfg: EvaluationConfig
+    source: str
+    units: RecordUnits
+    coefficients: str | None
+
+
+def lab_config(config_path: Path | None) -> LabConfig:
+    """:func:`compensation_config` with the record's units (LAB.toml's ``time`` and ``units``:
+    :mod:`twin.pipeline.record_units`) and its coefficients' origin, every problem at once."""
     source = str(config_path) if config_path else "compensate"
     em: dict[str, Any] = {}
     window_s = DEFAULT_WINDOW_S
-    if config_path is not None:
-        from twin.config.reader import Problems, read_toml
+    if config_path is None:
+        cfg = errormodel_config(model_defaults(), em, source, window_s)
+        return LabConfig(cfg, source, RecordUnits(), None)
+    from twin.config.reader import Problems, read_toml
 
-        data = read_toml(config_path, source)
-        p = Problems(source)
-        p.unknown_keys(data, {"errormodel"}, "")
-        em = dict(p.table(data, "errormodel"))
-        if "drift_window" in em:
-            window_ns = p.duration(em, "drift_window", "errormodel.")
-            if window_ns is not None and window_ns <= 0:
-                p.add(
-                    "errormodel.drift_window",
-                    "must be positive (the drift's ends are lines through this much of the record)",
-                )
-            elif window_ns is not None:
-                window_s = window_ns / NS_PER_S
-            em.pop("drift_window")
+    data = read_toml(config_path, source)
+    p = Problems(source)
+    p.unknown_keys(data, {"errormodel"}, "")
+    em = dict(p.table(data, "errormodel"))
+    if "drift_window" in em:
+        window_ns = p.duration(em, "drift_window", "errormodel.")
+        if window_ns is not None and window_ns <= 0:
+            p.add(
+                "errormodel.drift_window",
+                "must be positive (the drift's ends are lines through this much of the record)",
+            )
+        elif window_ns is not None:
+            window_s = window_ns / NS_PER_S
+        em.pop("drift_window")
+    layout = {k: em.pop(k) for k in ("time", "units") if k in em}
+    try:
+        cfg = errormodel_config(model_defaults(), em, source, window_s, also=LAB_KEYS)
+    except ConfigError as exc:
+        p.items.extend(getattr(exc, "problems", [exc]))  # with the record's own, all at once
         p.check()
-    return errormodel_config(model_defaults(), em, source, window_s, also=("drift_window",)), source
+        raise
+    units = record_units(p, layout, cfg)
+    p.check()
+    named = em.get("coefficients")
+    return LabConfig(cfg, source, units, named if isinstance(named, str) else "inline" if named else None)
 
 
 @dataclass(frozen=True)
@@ -351,8 +400,11 @@ def run_folder_config(run_dir: Path) -> tuple[Path, tuple[EvaluationConfig, str]
 
 
 TEMPLATE_TOML = """# The error model on a lab's own record: `twin compensate lab.csv --config LAB.toml`.
-# Every column is named as in the CSV's header; values in SI units (K, m, N, N.m, rad).
+# Every column is named as in the CSV's header; values in SI units (K, m, N, N.m, rad) unless
+# `units` gives a column's own (any unit pint knows: mm, um, degC, kN, deg, min).
 [errormodel]
+# time = "time"                   # the time column (s unless `units` says otherwise)
+# units = { probe = "mm", T_room = "degC", time = "min" }
 # the paper's eight temperature measuring points -> the CSV's columns (K)
 temperatures = { bearing_block = "T_bearing_block", heel_block = "T_heel_block", bearing = "T_bearing", t_plate = "T_t_plate", base = "T_base", long_pole = "T_long_pole", detecting_frame = "T_detecting_frame", room = "T_room" }
 reading = "probe"                 # the wear-depth probe's reading (m)

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.errors import ConfigError
+from twin.errors import ConfigError, did_you_mean
 from twin.signals.table import Block, Signal, SignalTable
 
 __all__ = ["BLOCK_BYTES", "TIME", "CsvReader", "Flag", "read_table"]
@@ -103,8 +103,11 @@ class CsvReader:
         *,
         on_flag: Callable[[Flag], None],
         block_bytes: int = BLOCK_BYTES,
+        time_column: str = TIME,
     ) -> None:
         self.path, self.source = path, str(path)
+        #: the time axis's column: the first of a signals CSV, any one a lab's LAB.toml names
+        self.time_column = time_column
         self.block_bytes = max(1, block_bytes)
         self.on_flag = on_flag
         self.partial_last_line = False
@@ -125,7 +128,9 @@ class CsvReader:
         except BaseException:
             self._file.close()
             raise
-        self.kept = [j for j, h in enumerate(self.header) if j == 0 or keep is None or h in keep]
+        at = self.header.index(time_column)
+        # the time first, whatever its place in the file: every block hands it on as its axis
+        self.kept = [at, *(j for j, h in enumerate(self.header) if j != at and (keep is None or h in keep))]
         self.names = [self.header[j] for j in self.kept]
 
     def close(self) -> None:
@@ -146,14 +151,20 @@ class CsvReader:
                 f"line 1: not UTF-8 text (byte {raw[exc.start]:#04x})", source=self.source
             ) from None
         header = [h.strip().strip('"').strip() for h in text.rstrip("\r\n").split(",")]
-        if header[0] != TIME:
+        if self.time_column == TIME and header[0] != TIME:
             raise ConfigError(f"line 1: first column must be '{TIME}', got {header[0]!r}", source=self.source)
+        if self.time_column not in header:
+            raise ConfigError(
+                f"line 1: no time column {self.time_column!r} (the record's time axis, [errormodel] "
+                f"time of its LAB.toml){did_you_mean(self.time_column, header)}",
+                source=self.source,
+            )
         if len(header) > MAX_COLUMNS:
             raise ConfigError(
                 f"line 1: {len(header)} columns, more than the {MAX_COLUMNS} a CSV of signals may have",
                 source=self.source,
             )
-        if not all(header[1:]):
+        if not all(header):
             raise ConfigError("line 1: empty column name", source=self.source)
         seen: set[str] = set()
         twice = sorted({h for h in header if h in seen or seen.add(h)})  # linear in the columns
@@ -253,7 +264,7 @@ class CsvReader:
             if len(fields) != ncol:
                 self._flag(lineno, f"{len(fields)} values, the header has {ncol} columns")
                 continue
-            t = self._time(fields[0], lineno)
+            t = self._time(fields[self.kept[0]], lineno)
             row, bad = [t], None
             for j in self.kept[1:]:
                 value = _number(fields[j])
@@ -303,8 +314,8 @@ class CsvReader:
         if t - self._last_time < MIN_TIME_STEP_S:
             raise ConfigError(
                 f"line {lineno}: time {t!r} s is less than {MIN_TIME_STEP_S * 1e9:g} ns after "
-                f"{self._last_time!r} s (the time column must be seconds; no logger samples "
-                "faster than 1 GHz)",
+                f"{self._last_time!r} s (the time column must be seconds, or LAB.toml give its "
+                "unit; no logger samples faster than 1 GHz)",
                 source=self.source,
             )
         self._last_time = t
