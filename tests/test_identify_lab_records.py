@@ -13,18 +13,19 @@ from twin.calibration.identify import identify, run_experiment
 from twin.cli import main
 from twin.errormodel.coefficients import load_coefficients
 from twin.errormodel.identify import CALIBRATIONS, EXPERIMENTS, LAB_FIELDS
-from twin.errormodel.sources import Columns
+from twin.errormodel.sources import EXTRA_TEMPERATURES, Columns
 
 TWIN = Columns()
 # the lab's own names: "T_<point>" for the temperatures, "<field>_ch" for the rest
 LAB_NAMES = {
     **{col: f"T_{point}" for point, col in TWIN.temperatures.items()},
+    **{col: f"T_{point}" for point, col in EXTRA_TEMPERATURES.items()},  # the probe bench's
     **{TWIN.names(f)[0]: f"{f}_ch" for f in LAB_FIELDS if f != "temperatures"},
 }
 LAB_TOML = (
     "[errormodel]\n"
     + "temperatures = { "
-    + ", ".join(f'{p} = "T_{p}"' for p in TWIN.temperatures)
+    + ", ".join(f'{p} = "T_{p}"' for p in [*TWIN.temperatures, *EXTRA_TEMPERATURES])
     + " }\n"
     + "".join(f'{f} = "{f}_ch"\n' for f in LAB_FIELDS if f != "temperatures")
 )
@@ -78,3 +79,21 @@ def test_a_missing_record_is_named_and_nothing_written(
 def test_records_need_their_lab_toml(lab_folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["identify", "--records", str(lab_folder)]) == 2
     assert "--config" in capsys.readouterr().err
+
+
+def test_the_probes_bench_needs_the_thermometer_on_its_body(
+    lab_folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # the bench identifies the probe's drifts against its body's temperature: without that
+    # column named, the fit would read the frame's, which the bench does not have
+    toml = tmp_path / "LAB.toml"
+    toml.write_text(LAB_TOML.replace(', probe_body = "T_probe_body"', ""))
+    assert "probe_body" not in toml.read_text()
+    code = main(
+        ["identify", "--records", str(lab_folder), "--config", str(toml), "--out", str(tmp_path / "x.toml")]
+    )
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        len(err.splitlines()) == 1 and "errormodel.temperatures.probe_body" in err and "probe_heating" in err
+    )

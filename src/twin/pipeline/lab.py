@@ -18,7 +18,7 @@ from twin.config.spec import Scenario
 from twin.errormodel.identify import LAB_FIELDS, Experiment, Record, known_displacement, lab_channels
 from twin.errormodel.sources import Columns
 from twin.errors import ConfigError, RunError
-from twin.pipeline.compensation import LabConfig, required_columns
+from twin.pipeline.compensation import LabConfig
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.stages import simulate
 from twin.signals.csv import CsvReader, Flag
@@ -54,15 +54,30 @@ def recorded(experiment: Experiment, scenario: Scenario, csv: Path, lab: LabConf
     count on stderr); a column the experiment's fits read missing is refused naming its key.
     """
     cfg, twin_names = lab.cfg, Columns()
-    rename = {
+    # the paper's eight thermometers, and those the experiment adds (the probe's bench: one on
+    # the probe's body), mapped by measuring point to the twin's channels
+    points = [*twin_names.temperatures, *experiment.temperatures]
+    lacking = [pt for pt in experiment.temperatures if pt not in cfg.temperatures]
+    if lacking:
+        raise ConfigError(
+            f"the record of {experiment.name} needs a thermometer on {', '.join(lacking)}: name its column "
+            f"in [errormodel] temperatures ({', '.join(f'{pt} = ...' for pt in lacking)})",
+            source=lab.source,
+            key=f"errormodel.temperatures.{lacking[0]}",
+        )
+    twin_points = {**twin_names.temperatures, **experiment.temperatures}
+    rename = {cfg.temperatures[pt]: twin_points[pt] for pt in points}
+    rename |= {
         lab_col: twin_col
         for fld in LAB_FIELDS
+        if fld != "temperatures"
         for lab_col, twin_col in zip(cfg.names(fld), twin_names.names(fld), strict=True)
     }
+    required = {cfg.reading: "reading", **{cfg.temperatures[pt]: f"temperatures.{pt}" for pt in points}}
     flags: list[Flag] = []
     reader = CsvReader(
         csv,
-        (required_columns(cfg), lab.source),
+        (required, lab.source),
         set(rename),
         on_flag=flags.append,
         time_column=lab.units.time,
