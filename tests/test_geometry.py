@@ -100,22 +100,20 @@ def test_the_thermal_priors_are_alpha_times_the_drawn_length() -> None:
     priors = tomllib.loads((SCENARIOS / "calibration" / "priors.toml").read_text(encoding="utf-8"))["priors"]
     m = derive(G)["FixtureMechanics"]
     a = {k.removeprefix("alpha_"): v.value for k, v in m.items() if k.startswith("alpha_")}
-    expected = {
-        "alpha_l_heel_block": a["heel_block"] * m["h_heel_block"].value,
-        "alpha_l_bearing_block": a["bearing_block"] * m["h_bearing_block"].value,
-        "alpha_l_spindle": a["spindle"] * m["r_spindle"].value,
-        "alpha_l_bearing_rings": a["bearing_rings"] * m["t_bearing_rings"].value,
-        "alpha_l_t_plate": a["t_plate"] * m["l_t_plate"].value,
-        "alpha_l_detecting_frame": a["detecting_frame"] * m["l_detecting_frame"].value,
-        "alpha_l_base_inset": a["base"] * m["l_base_inset"].value,
-        "alpha_l_probe_body": a["probe_body"] * m["l_probe_body"].value,
-        "alpha_l_clamp": a["clamp"] * m["l_clamp"].value,
-        "alpha_l_pole_heel": a["long_pole"] * m["l_pole_heel"].value,
-        "alpha_l_pole_base": a["long_pole"] * m["l_pole_base"].value,
-        "alpha_l_pole_lower": a["long_pole"] * m["l_pole_lower"].value,
+    # each growth is its part's alpha times its drawn length: l_<body> unless named here
+    length = {"heel_block": "h_heel_block", "bearing_block": "h_bearing_block", "spindle": "r_spindle",
+              "bearing_rings": "t_bearing_rings"}  # fmt: skip
+    part = {
+        "base_inset": "base",
+        "pole_heel": "long_pole",
+        "pole_base": "long_pole",
+        "pole_lower": "long_pole",
     }
-    for k, v in expected.items():
-        assert priors[k]["value"] == pytest.approx(v, rel=1e-3), k
+    growths = [k.removeprefix("alpha_l_") for k in priors if k.startswith("alpha_l_")]
+    assert len(growths) == 12  # every body between the heel block's foot and the probe's tip
+    for body in growths:
+        expected = a[part.get(body, body)] * m[length.get(body, f"l_{body}")].value
+        assert priors[f"alpha_l_{body}"]["value"] == pytest.approx(expected, rel=1e-3), body
 
 
 def test_twin_geometry_writes_the_files(tmp_path: Path) -> None:

@@ -31,22 +31,8 @@ static const int VR_TEMPS[FM_TEMPS] = {VR_t_heel_block, VR_t_bearing_block, VR_t
                                        VR_t_sensor, VR_t_bearing_block_rear};
 /* BBLOCK is the bearing block's lower front half (toward the T-plate), BBLOCK_REAR its lower rear
  * half (toward the drive): appended last so the older inputs keep their order */
-enum {
-    HEEL,
-    BBLOCK,
-    SPINDLE,
-    BEARING,
-    TPLATE,
-    FRAME,
-    POLE_HEEL,
-    POLE_BASE,
-    POLE_LOWER,
-    CLAMP,
-    FRAME_LOWER,
-    BASE,
-    SENSOR,
-    BBLOCK_REAR
-};
+enum { HEEL, BBLOCK, SPINDLE, BEARING, TPLATE, FRAME, POLE_HEEL, POLE_BASE, POLE_LOWER, CLAMP, FRAME_LOWER, BASE,
+       SENSOR, BBLOCK_REAR };
 
 /* The parts that grow: each has its own expansion coefficient (parts of one material still
  * differ, so a tester as built draws them apart, and the pole's and the frame's do not cancel)
