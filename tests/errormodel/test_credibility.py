@@ -71,3 +71,18 @@ def test_hampel_removes_spikes_and_keeps_the_signal() -> None:
     # nothing to remove: nothing removed
     _, none = hampel(signal)
     assert not none.any()
+
+
+def test_a_summary_without_the_credibility_indexes_keeps_every_other_figure() -> None:
+    # a Monte Carlo's samples leave the indexes out (their Frechet recursion is half of a
+    # replay's evaluation); what they do report must be the same numbers
+    from twin.errormodel.evaluate import compensation_summary
+
+    t = np.linspace(0.0, 28800.0, 2881)
+    wear = 1e-5 * t / t[-1]
+    raw = wear + 2e-6 * np.sin(t / 3000.0)
+    comp = wear + 2e-7 * np.cos(t / 700.0)
+    full = compensation_summary(t, 1800.0, raw, comp, wear)
+    lean = compensation_summary(t, 1800.0, raw, comp, wear, credibility=False)
+    assert "credibility" in full and "credibility" not in lean
+    assert lean == {k: v for k, v in full.items() if k != "credibility"}

@@ -101,7 +101,9 @@ def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
     summary = summarize(m, contributions, e_z, rms={k: _rms(v) for k, v in parts.items()}, spikes=m.spikes)
     if "residual" in columns:
         wear = table[cfg.true_wear] - table[cfg.true_wear][0]  # as evaluate_rows took it
-        summary.update(compensation_summary(table.time, cfg.ra_window_s, raw_change, compensated, wear))
+        summary.update(
+            compensation_summary(table.time, cfg.ra_window_s, raw_change, compensated, wear, cfg.credibility)
+        )
     meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in columns)}
     for name, values in columns.items():
         table.add(meta[f"errormodel.{name}"], values)
@@ -173,19 +175,26 @@ def _sensors_used(m: Measured) -> dict[str, bool]:
 
 
 def compensation_summary(
-    t: np.ndarray, ra_window_s: float, raw_change: np.ndarray, compensated: np.ndarray, wear: np.ndarray
+    t: np.ndarray,
+    ra_window_s: float,
+    raw_change: np.ndarray,
+    compensated: np.ndarray,
+    wear: np.ndarray,
+    credibility: bool = True,
 ) -> dict[str, Any]:
-    """The true and compensated wear, the residuals and the credibility indexes of the on-line
-    wear curve, before (raw reading change) and after compensation (minus e_z), over the whole
-    record (time ``t``)."""
+    """The true and compensated wear, the residuals and (``credibility``) the credibility
+    indexes of the on-line wear curve, before (raw reading change) and after compensation
+    (minus e_z), over the whole record (time ``t``)."""
     before, after = raw_change - wear, compensated - wear
-    return {
+    out: dict[str, Any] = {
         "wear_mm": {"true": float(wear[-1]) * 1e3, "compensated": float(compensated[-1]) * 1e3},
         "compensation": {
             "residual_rms_um": {"before": _rms(before) * 1e6, "after": _rms(after) * 1e6},
             "residual_max_um": {"before": _absmax(before) * 1e6, "after": _absmax(after) * 1e6},
         },
-        "credibility": {
+    }
+    if credibility:
+        out["credibility"] = {
             "frechet_um": {
                 "before": _frechet_um(t, raw_change, wear),
                 "after": _frechet_um(t, compensated, wear),
@@ -194,8 +203,8 @@ def compensation_summary(
                 "before": ra_fluctuation(t, raw_change, ra_window_s) * 1e6,
                 "after": ra_fluctuation(t, compensated, ra_window_s) * 1e6,
             },
-        },
-    }
+        }
+    return out
 
 
 def _rms(x: np.ndarray) -> float:

@@ -35,6 +35,10 @@ class EvaluationConfig(Columns):
     #: whether the run evaluates the model at all: a scenario that is not the tester (one FMU
     #: alone, ``twin run X.fmu``) says ``[errormodel] evaluate = false``
     evaluate: bool = True
+    #: whether a run with a true wear computes the credibility indexes (the Frechet distance's
+    #: O(n^2) recursion is half a replay's evaluation): a Monte Carlo's samples report only the
+    #: drift and its parts, so they leave them out
+    credibility: bool = True
 
     def factor_on(self, name: str) -> bool:
         """Whether the factor ``name`` is evaluated (else it contributes zero)."""

@@ -92,6 +92,9 @@ def run_samples(
     unc = prepared.uncertainty
     assert unc is not None
     groups, make = montecarlo.sampler(unc, prepared.scenario)
+    # a sample reports its drift and parts (montecarlo.SAMPLE_COLUMNS), not the credibility
+    # indexes: their Frechet recursion would be half of each sample's evaluation
+    evaluation = dataclasses.replace(prepared.evaluation, credibility=False)
     shapes: dict[int, str] = {}
     drawn: dict[int, dict[str, float]] = {}
 
@@ -100,7 +103,7 @@ def run_samples(
             scenario, shapes[i], drawn[i] = make(i)
         except ConfigError as exc:
             return failed(i, one_line(exc))
-        return {"index": i, "run": prepare_scenario(scenario, prepared.evaluation)}
+        return {"index": i, "run": prepare_scenario(scenario, evaluation)}
 
     controls.echo(f"uncertainty: {unc.samples} samples of {prepared.scenario.name} on Dask")
     start = time.perf_counter()
