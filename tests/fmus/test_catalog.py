@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import ctypes
 import math
+import os
 import shutil
 import textwrap
+import time
 from pathlib import Path
 from types import MappingProxyType
 
@@ -150,9 +152,15 @@ def test_cached_builds_once_and_prunes_older_entries(tmp_path: Path, monkeypatch
     assert toolchain.cached("thing", "aaaa", ".bin", make("again")) == first
     second = toolchain.cached("thing", "bbbb", ".bin", make("two"))
     assert made == ["one", "two"] and second.read_text() == "two"
-    # the entry and its record (SHA-256 at build time); the older entry's record went with it
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["thing-bbbb.bin", "thing-bbbb.bin.sha256"]
-    assert toolchain.verified(second)
+    # another checkout's entry in use (used just now) is kept: pruning it would break that
+    # checkout's next run
+    assert first.exists() and toolchain.verified(second)
+    # one nobody used for longer than PRUNE_AFTER_S goes, with its record (SHA-256 at build time)
+    old = time.time() - toolchain.PRUNE_AFTER_S - 60
+    os.utime(first, (old, old))
+    toolchain.cached("thing", "cccc", ".bin", make("three"))
+    assert not first.exists() and not toolchain.digest_file(first).exists()
+    assert second.exists() and made == ["one", "two", "three"]
 
 
 _LIBRARY = {

@@ -24,6 +24,7 @@ put there) is never returned: it is built anew over it.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
@@ -31,6 +32,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Mapping
 from importlib.resources.abc import Traversable
 from pathlib import Path
@@ -253,14 +255,22 @@ def clean_scratch(folder: Path) -> list[Path]:
     return gone
 
 
+#: an entry of other sources is pruned once nobody used it for this long: several checkouts
+#: (versions of the twin, worktrees) may share the cache, and deleting another's entry as soon
+#: as this one builds its own made the other's next run rebuild, or fail mid-way
+PRUNE_AFTER_S = 7 * 86400.0
+
+
 def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *, prune: bool = True) -> Path:
     """The cache entry ``<name>-<digest><suffix>``, made by ``make(scratch_dir)`` when missing.
 
-    ``make`` returns the file it built inside the scratch folder (removed afterwards). With
-    ``prune``, the other entries of ``name`` (older sources) are deleted once the new one is in.
+    ``make`` returns the file it built inside the scratch folder (removed afterwards). Each use
+    stamps the entry's time; with ``prune``, the other entries of ``name`` (other sources) that
+    nobody used for :data:`PRUNE_AFTER_S` are deleted once the new one is in.
     """
     target = private_cache_dir() / f"{name}-{digest}{suffix}"
     if verified(target):
+        _used(target)
         return target
     # missing, or a file whose bytes are not what this cache built: build it anew over it
     clean_scratch(target.parent)
@@ -270,11 +280,25 @@ def cached(name: str, digest: str, suffix: str, make: Callable[[Path], Path], *,
         os.replace(built, target)  # atomic: the scratch folder is on the same disk
     record_digest(target, sha256)
     if prune:
+        now = time.time()
         for stale in target.parent.glob(f"{name}-*{suffix}"):
-            if stale != target:
+            try:
+                st = stale.stat()
+                unused = now - max(st.st_atime, st.st_mtime) > PRUNE_AFTER_S
+            except OSError:
+                continue  # gone already (another process pruned it)
+            if stale != target and unused:
                 stale.unlink(missing_ok=True)
                 digest_file(stale).unlink(missing_ok=True)
     return target
+
+
+def _used(entry: Path) -> None:
+    """Stamp ``entry``'s access time (its modification time stays its build's): it is in use
+    (see :data:`PRUNE_AFTER_S`)."""
+    # a cache we may read but not stamp: its entries are then pruned by their build time
+    with contextlib.suppress(OSError):
+        os.utime(entry, ns=(time.time_ns(), entry.stat().st_mtime_ns))
 
 
 def build_cached_library(name: str, files: Mapping[str, bytes], *, salt: str = "") -> Path:
