@@ -69,9 +69,10 @@ class Emulator:
         return [{"mm_at_nominal": c, "product_of": [self.names[i] for i in idx]} for c, idx in self.terms]
 
 
-def twin_drift(scenario: Scenario) -> Callable[[Mapping[str, float]], float]:
+def twin_drift(scenario: Scenario) -> Callable[..., float]:
     """The twin's probe drift (mm, ``drift_mm.probe``) of ``scenario`` with some values
-    changed: a full run of its FMUs in process, the instances pooled."""
+    changed (or of another scenario of the same FMUs, ``other``): a full run of its FMUs in
+    process, the instances pooled."""
     from twin.errormodel.config import evaluation_config
     from twin.fmu.pool import SlotPool
     from twin.pipeline.prepare import prepare_scenario
@@ -81,8 +82,9 @@ def twin_drift(scenario: Scenario) -> Callable[[Mapping[str, float]], float]:
     evaluation = evaluation_config(scenario)
     pool = SlotPool()
 
-    def run(values: Mapping[str, float]) -> float:
-        summary = run_point(prepare_scenario(apply(scenario, values), evaluation), pool=pool)
+    def run(values: Mapping[str, float], other: Scenario | None = None) -> float:
+        changed = apply(scenario if other is None else other, values)
+        summary = run_point(prepare_scenario(changed, evaluation), pool=pool)
         if summary.status != "completed":
             raise RunError(f"a forward run of the update failed: {summary.error}")
         return float(summary.figures()["drift_mm.probe"])
