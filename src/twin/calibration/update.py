@@ -218,8 +218,22 @@ def run_update(
     summary = summarise(record, prior, emulator, chains, held)
     summary["emulator"] = check | {"terms": emulator.describe()}
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
+    summary["rises_K"] |= twin_rises(scenario, record.rises_K)
     write_outputs(out, summary, prior, emulator, chains)
     return summary
+
+
+def twin_rises(scenario: Any, measured: Mapping[str, float]) -> dict[str, Any]:
+    """The nominal twin's rises beside the record's (K): what the held thermal network gives."""
+    from twin.pipeline.prepare import prepare_scenario
+    from twin.pipeline.stages import run_point
+
+    figures = run_point(prepare_scenario(scenario)).figures()
+    twin = {
+        k: float(figures[f"temperature_rise_C.{k}"]) for k in measured if f"temperature_rise_C.{k}" in figures
+    }
+    diffs = [abs(twin[k] - measured[k]) for k in twin]
+    return {"twin": twin, "largest_difference_K": max(diffs) if diffs else None}
 
 
 def held_spread(
