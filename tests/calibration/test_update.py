@@ -121,5 +121,7 @@ def test_a_bad_record_gets_one_line_naming_its_key_and_exit_2(edit, word, tmp_pa
 def test_a_missing_record_or_a_negative_count_is_refused_in_one_line(tmp_path, capsys) -> None:
     assert main(["update", str(tmp_path / "none.toml")]) == 2
     assert main(["update", "--steps", "-1"]) == 2
+    assert main(["update", "--walkers", "3"]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 2 and "none.toml" in lines[0] and "--steps" in lines[1], lines
+    assert len(lines) == 3 and "none.toml" in lines[0], lines
+    assert "--steps" in lines[1] and "--walkers" in lines[2] and ">= 8" in lines[2], lines

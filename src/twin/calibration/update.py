@@ -51,6 +51,8 @@ EMULATOR_LIMIT_UM = 0.1
 VERIFY_DRAWS = 20
 PRIOR_DRAWS = 4000
 DELTA = "discrepancy_mm"
+#: the least of each sampler setting (a command line's override is refused below it)
+_LEAST = {"walkers": 8, "steps": 10, "burn": 0, "thin": 1}
 _TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler"}
 
 
@@ -78,11 +80,23 @@ class Record:
 def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] | None = None) -> Record:
     """The record file at ``path``, checked (every problem at once, one line each);
     ``seed`` and ``sampler`` (walkers, steps, burn) override its own."""
+    for key, value in (sampler or {}).items():
+        lo = _LEAST[key]
+        if not isinstance(value, int) or value < lo:
+            raise ConfigError(f"expected an integer >= {lo}, got {value!r}", source=f"--{key}")
     raw = read_toml(path, str(path))
     p = Problems(str(path))
     p.unknown_keys(raw, _TOP, "")
     rec, drift, upd = p.table(raw, "record"), p.table(raw, "drift"), p.table(raw, "update")
     disc, samp = p.table(raw, "discrepancy"), dict(p.table(raw, "sampler")) | dict(sampler or {})
+    for where, table, keys in (
+        ("record.", rec, {"name", "scenario", "prior", "source"}),
+        ("drift.", drift, {"measured_mm", "sigma_mm", "source"}),
+        ("update.", upd, {"groups", "hold", "hold_source"}),
+        ("discrepancy.", disc, {"scale", "samples", "source"}),
+        ("sampler.", samp, set(_LEAST) | {"seed"}),
+    ):
+        p.unknown_keys(table, keys, where)
     folder = path.resolve().parent
     files = {}
     for key in ("scenario", "prior"):
@@ -103,9 +117,15 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     walkers = p.integer(samp, "walkers", "sampler.", default=96, lo=8, hi=10_000)
     steps = p.integer(samp, "steps", "sampler.", default=4000, lo=10, hi=10_000_000)
     burn = p.integer(samp, "burn", "sampler.", default=1000, lo=0, hi=10_000_000)
+    thin = p.integer(samp, "thin", "sampler.", default=10, lo=1, hi=100_000)
     if steps is not None and burn is not None and burn >= steps:
         p.add("sampler.burn", f"expected fewer than the {steps} steps")
-    thin = p.integer(samp, "thin", "sampler.", default=10, lo=1, hi=100_000)
+    elif None not in (steps, burn, thin) and (steps - burn) // thin < 4:
+        # R-hat and ESS need a few kept steps per walker (arviz gives NaN below)
+        p.add(
+            "sampler.steps",
+            f"keeps {(steps - burn) // thin} steps per walker after burn and thinning: at least 4",
+        )
     own_seed = p.integer(samp, "seed", "sampler.", default=0, lo=0, hi=2**63 - 1)
     rises = {str(k): v for k, v in p.table(raw, "rises").items() if k not in ("resolution_K", "source")}
     p.check()
