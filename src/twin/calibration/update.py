@@ -114,6 +114,35 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
             "discrepancy.scale", 'expected "held inputs" (the spread of the drift over what the update holds)'
         )
     held = p.integer(disc, "samples", "discrepancy.", default=40, lo=2, hi=10_000)
+    walkers, steps, burn, thin = _sampler(p, samp)
+    own_seed = p.integer(samp, "seed", "sampler.", default=0, lo=0, hi=2**63 - 1)
+    table = p.table(raw, "rises")
+    rises = {str(k): p.number(table, k, "rises.") for k in table if k not in ("resolution_K", "source")}
+    hold = upd.get("hold", [])
+    if not isinstance(hold, list) or not all(isinstance(h, str) for h in hold):
+        p.add("update.hold", "expected a list of the prior file's keys")
+    p.check()
+    return Record(
+        path,
+        str(rec.get("name", path.stem)),
+        files["scenario"],
+        files["prior"],
+        float(measured),
+        float(sigma),
+        {k: float(v) for k, v in rises.items()},
+        tuple(groups),
+        tuple(hold),
+        int(held),
+        int(walkers),
+        int(steps),
+        int(burn),
+        int(thin),
+        int(own_seed if seed is None else seed),
+    )
+
+
+def _sampler(p: Problems, samp: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
+    """The ``[sampler]`` table's walkers, steps, burn and thin (None where a problem is)."""
     walkers = p.integer(samp, "walkers", "sampler.", default=96, lo=8, hi=10_000)
     steps = p.integer(samp, "steps", "sampler.", default=4000, lo=10, hi=10_000_000)
     burn = p.integer(samp, "burn", "sampler.", default=1000, lo=0, hi=10_000_000)
@@ -126,26 +155,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
             "sampler.steps",
             f"keeps {(steps - burn) // thin} steps per walker after burn and thinning: at least 4",
         )
-    own_seed = p.integer(samp, "seed", "sampler.", default=0, lo=0, hi=2**63 - 1)
-    rises = {str(k): v for k, v in p.table(raw, "rises").items() if k not in ("resolution_K", "source")}
-    p.check()
-    return Record(
-        path,
-        str(rec.get("name", path.stem)),
-        files["scenario"],
-        files["prior"],
-        float(measured),
-        float(sigma),
-        {k: float(v) for k, v in rises.items()},
-        tuple(groups),
-        tuple(upd.get("hold", [])),
-        int(held),
-        int(walkers),
-        int(steps),
-        int(burn),
-        int(thin),
-        int(own_seed if seed is None else seed),
-    )
+    return walkers, steps, burn, thin
 
 
 # ----------------------------------------------------------------------------- the prior
