@@ -34,6 +34,7 @@ class Key(IntEnum):
     ROOM = 3  # a held-out scenario's slow room drift
     RUN = 4  # a held-out or calibration run's scenario seed
     SAMPLE = 7  # a run's Monte Carlo sample (its room drift and scenario seed)
+    UPDATE = 8  # twin update: its walkers' start, its sampler and its prior draws
 
 
 def sequence(seed: int, *key: int) -> np.random.SeedSequence:

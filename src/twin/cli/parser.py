@@ -22,6 +22,7 @@ from twin.cli import (
     run,
     scenarios,
     sweep,
+    update,
     validate,
 )
 from twin.cli.common import Parser
@@ -42,6 +43,7 @@ COMMANDS = (
     export_ssp,
     sweep,
     heldout,
+    update,
 )
 
 
