@@ -26,6 +26,7 @@ difference: the emulator is only used with that figure beside it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -79,7 +80,9 @@ def twin_drift(scenario: Scenario) -> Callable[..., float]:
     from twin.pipeline.stages import run_point
     from twin.uncertainty.testers import apply
 
-    evaluation = evaluation_config(scenario)
+    # the drift is all a forward run reports: the credibility indexes (their Frechet recursion
+    # is half of an evaluation) would be computed and dropped in each of the update's runs
+    evaluation = dataclasses.replace(evaluation_config(scenario), credibility=False)
     pool = SlotPool()
 
     def run(values: Mapping[str, float], other: Scenario | None = None) -> float:
