@@ -136,7 +136,7 @@ def record_units(p: Problems, em: Mapping[str, Any], cfg: EvaluationConfig) -> R
         if not isinstance(unit, str):
             p.add(key, f"expected a unit (a string such as 'mm' or 'degC'), got {unit!r}")
         elif name == time:
-            time_factor = _factor(p, key, unit, "s", offset_allowed=False)
+            time_factor = _seconds(p, key, unit)
         elif name not in read:
             known = ", ".join(sorted([time, *read]))
             p.add(key, f"no column the error model reads is named {name!r} (it reads {known})")
@@ -164,11 +164,10 @@ def _conversion(p: Problems, key: str, unit: str, si: str) -> tuple[float, float
         return 1.0, 0.0
 
 
-def _factor(p: Problems, key: str, unit: str, si: str, *, offset_allowed: bool) -> float:
-    factor, offset = _conversion(p, key, unit, si)
-    if offset and not offset_allowed:
-        p.add(key, f"{unit!r} is not a duration")
-    if not factor > 0:
-        p.add(key, f"{unit!r} does not count time forward")
+def _seconds(p: Problems, key: str, unit: str) -> float:
+    """The factor from the time column's ``unit`` to seconds (a duration, counting forward)."""
+    factor, offset = _conversion(p, key, unit, "s")
+    if offset or not factor > 0:
+        p.add(key, f"{unit!r} is not a duration counting time forward")
         return 1.0
     return factor
