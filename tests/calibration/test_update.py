@@ -14,6 +14,7 @@ from twin.calibration.emulator import derive, twin_drift, verify
 from twin.cli import main
 from twin.config.load import load_scenario, scenarios_dir
 from twin.seeds import generator
+from twin.uncertainty.updated import load_updated
 
 RECORD = scenarios_dir() / "records" / "li2017.toml"
 #: a short chain: enough for the posterior's centre and spread to within ~10 %
@@ -84,6 +85,15 @@ def test_the_update_moves_the_drift_toward_the_record_and_leaves_what_it_does_no
     assert written["drift_mm"]["updated"]["samples"] == summary["drift_mm"]["updated"]["samples"]
     for name in ("samples.parquet", "corner.png"):
         assert (tmp_path / "out" / name).stat().st_size > 1000
+    # the updated tester file: the posterior means as its values, its draws from the chains
+    tester = load_updated(tmp_path / "out" / "tester.toml")
+    for name, value in tester.values.items():
+        assert value == pytest.approx(summary["parameters"][name]["posterior"]["mean"], rel=1e-12)
+    assert tester.draws.shape == (U.TESTER_DRAWS, len(paper["prior"].rows))
+    lo, hi = summary["parameters"]["fmu.sensors.parameters.probe_zero_drift"]["posterior"]["interval_90"]
+    column = tester.draws[:, tester.names.index("fmu.sensors.parameters.probe_zero_drift")]
+    assert 0.8 < np.mean((column >= lo) & (column <= hi)) < 1.0
+    assert tester.stamps["diagnostics"]["r_hat_max"] == summary["diagnostics"]["r_hat_max"]
 
 
 def test_the_same_seed_gives_the_same_samples(paper) -> None:

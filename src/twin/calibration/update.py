@@ -13,7 +13,10 @@ prior groups the update samples and the discrepancy's scale. The update:
    ``low + (high - low) Phi(u)``), the discrepancy delta one more coordinate;
 4. writes ``samples.parquet``, ``summary.json`` (each parameter's prior and posterior, the
    discrepancy, the prior and posterior predictive of the drift, R-hat and ESS from arviz,
-   the emulator's check) and ``corner.png`` into the output folder.
+   the emulator's check), ``corner.png`` and ``tester.toml`` into the output folder: the
+   updated tester file (:mod:`twin.uncertainty.updated`) that ``twin run``, ``twin
+   compensate`` and ``twin identify`` take with ``--tester``; ``--write`` also puts it where
+   the record's ``[tester] file`` says (the shipped ``scenarios/records/li2017-updated.toml``).
 
 Likelihood: ``measured ~ N(drift(theta) + delta, sigma_measured)``, ``delta ~ N(0, scale)``.
 """
@@ -22,7 +25,8 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Mapping
+import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +57,10 @@ PRIOR_DRAWS = 4000
 DELTA = "discrepancy_mm"
 #: the least of each sampler setting (a command line's override is refused below it)
 _LEAST = {"walkers": 8, "steps": 10, "burn": 0, "thin": 1}
-_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler"}
+_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler", "tester"}
+#: posterior draws an updated tester file keeps (evenly thinned): an updated prediction of
+#: ``twin run`` takes one per Monte Carlo sample (the paper's: 200)
+TESTER_DRAWS = 400
 
 
 @dataclass(frozen=True)
@@ -75,6 +82,10 @@ class Record:
     burn: int
     thin: int
     seed: int
+    #: where ``--write`` puts the updated tester file, and the coefficients file it names
+    #: (identified on the updated tester by ``twin identify --tester``), both or neither
+    tester_file: Path | None = None
+    tester_coefficients: str | None = None
 
 
 def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] | None = None) -> Record:
@@ -89,6 +100,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     p.unknown_keys(raw, _TOP, "")
     rec, drift, upd = p.table(raw, "record"), p.table(raw, "drift"), p.table(raw, "update")
     disc, samp = p.table(raw, "discrepancy"), dict(p.table(raw, "sampler")) | dict(sampler or {})
+    tester_file, tester_coefficients = _tester(p, raw, path.resolve().parent)
     for where, table, keys in (
         ("record.", rec, {"name", "scenario", "prior", "source"}),
         ("drift.", drift, {"measured_mm", "sigma_mm", "source"}),
@@ -138,7 +150,22 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         int(burn),
         int(thin),
         int(own_seed if seed is None else seed),
+        tester_file,
+        tester_coefficients,
     )
+
+
+def _tester(p: Problems, raw: Mapping[str, Any], folder: Path) -> tuple[Path | None, str | None]:
+    """The ``[tester]`` table: where ``--write`` puts the updated tester file, and the
+    coefficients file that file names (both relative to the record file)."""
+    tester = p.table(raw, "tester") if "tester" in raw else {}
+    p.unknown_keys(tester, {"file", "coefficients", "source"}, "tester.")
+    for key in ("file", "coefficients"):
+        if key in tester and not (isinstance(tester[key], str) and tester[key].endswith(".toml")):
+            p.add(f"tester.{key}", "expected a .toml file name (relative to this file)")
+            return None, None
+    file = (folder / tester["file"]).resolve() if "file" in tester else None
+    return file, tester.get("coefficients")
 
 
 def _sampler(p: Problems, samp: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
@@ -216,15 +243,28 @@ def sampled_rows(record: Record, scenario: Any) -> tuple[PriorMap, dict[str, str
 
 
 def run_update(
-    record: Record, out: Path, echo: Callable[[str], None] = print, emulator: Emulator | None = None
+    record: Record,
+    out: Path,
+    echo: Callable[[str], None] = print,
+    emulator: Emulator | None = None,
+    *,
+    write: bool = False,
 ) -> dict[str, Any]:
     """Update the twin from ``record`` into ``out`` (see the module); the summary. An
-    ``emulator`` derived before (of the same record) is checked again, not derived again."""
+    ``emulator`` derived before (of the same record) is checked again, not derived again;
+    ``write`` also writes the updated tester file where the record's ``[tester] file`` says."""
     from twin.config.load import load_scenario
 
     start = time.perf_counter()
     scenario = load_scenario(record.scenario)
     prior, roles = sampled_rows(record, scenario)
+    dims = len(prior.rows) + 1
+    if record.walkers < 2 * dims:
+        # emcee's ensemble moves need the walkers to span the space (its start is refused below)
+        raise ConfigError(
+            f"expected at least {2 * dims} walkers (twice the {dims} sampled coordinates), got {record.walkers}",
+            source=f"{record.path}: sampler.walkers (or --walkers)",
+        )
     run = twin_drift(scenario)
     nominal = {n: float(scenario.nominal(n)) for n in prior.names}
     if emulator is None:
@@ -249,7 +289,13 @@ def run_update(
     summary["emulator"] = check | {"terms": emulator.describe()}
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
-    write_outputs(out, summary, prior, emulator, chains)
+    values = write_outputs(out, summary, prior, emulator, chains)
+    write_tester(out / "tester.toml", record, summary, (prior.names, values), coefficients=False)
+    if write:
+        if record.tester_file is None:
+            raise ConfigError("the record names no [tester] file to write", source=str(record.path))
+        write_tester(record.tester_file, record, summary, (prior.names, values), coefficients=True)
+        echo(f"update: the updated tester written to {record.tester_file}")
     return summary
 
 
@@ -351,8 +397,12 @@ def summarise(
     post = _physical(prior, flat_u, scale)
     draws = generator(record.seed, Key.UPDATE, 2).standard_normal((PRIOR_DRAWS, len(names)))
     pri = _physical(prior, draws, scale)
-    data = az.convert_to_dataset({n.split(".")[-1]: chains[:, :, k] for k, n in enumerate(names)})
-    rhat, ess = az.rhat(data), az.ess(data)
+    with warnings.catch_warnings():
+        # a short chain (a test's, a trial's) has more walkers than kept steps: arviz warns of
+        # a transposed array, which this is not (walkers are its chains)
+        warnings.filterwarnings("ignore", "More chains", UserWarning)
+        data = az.convert_to_dataset({n.split(".")[-1]: chains[:, :, k] for k, n in enumerate(names)})
+        rhat, ess = az.rhat(data), az.ess(data)
     params = {}
     for k, n in enumerate(names):
         short = n.split(".")[-1]
@@ -424,8 +474,9 @@ def _predictive(
 
 def write_outputs(
     out: Path, summary: Mapping[str, Any], prior: PriorMap, emulator: Emulator, chains: np.ndarray
-) -> None:
-    """samples.parquet, summary.json and corner.png into ``out``."""
+) -> np.ndarray:
+    """samples.parquet, summary.json and corner.png into ``out``; the posterior's samples
+    (physical units, the sampled parameters then delta) in walker order."""
     import pandas as pd
 
     out.mkdir(parents=True, exist_ok=True)
@@ -439,7 +490,9 @@ def write_outputs(
     theta = np.empty((flat.shape[0], len(emulator.names)))
     theta[:, order] = values[:, :-1]
     frame["drift_mm"] = emulator.drift(theta)
-    write_atomic(out / "samples.parquet", lambda tmp: frame.to_parquet(tmp, index=False))
+    # single precision keeps 7 digits, more than any parameter is known to, at half the file
+    stored = frame.astype({c: "float32" for c in frame.columns if c not in ("walker", "step")})
+    write_atomic(out / "samples.parquet", lambda tmp: stored.to_parquet(tmp, index=False))
     text = json.dumps(summary, indent=2, sort_keys=False) + "\n"
     write_atomic(out / "summary.json", lambda tmp: Path(tmp).write_text(text))
     leading = sorted(
@@ -447,6 +500,64 @@ def write_outputs(
     )[:5]
     columns = [*[n for n in leading if n != DELTA], DELTA, "drift_mm"]
     write_atomic(out / "corner.png", lambda tmp: corner_plot(frame[columns], tmp))
+    return values
+
+
+def write_tester(
+    path: Path,
+    record: Record,
+    summary: Mapping[str, Any],
+    posterior: tuple[Sequence[str], np.ndarray],
+    *,
+    coefficients: bool,
+) -> Path:
+    """The updated tester file (:mod:`twin.uncertainty.updated`) at ``path``: the posterior
+    means as its values, :data:`TESTER_DRAWS` evenly thinned draws, the stamps of what it was
+    made from, and (``coefficients``) the record's ``[tester] coefficients``."""
+    import os
+
+    from twin.fmu.build import source_hash
+    from twin.fmu.sources import model_names
+    from twin.uncertainty.updated import file_sha256, write_updated
+
+    names, values = posterior
+    params = summary["parameters"]
+    means = {n: params[n]["posterior"]["mean"] for n in names}
+    rows = values[np.linspace(0, len(values) - 1, min(TESTER_DRAWS, len(values))).astype(int), : len(names)]
+    g, d = summary["diagnostics"], summary["drift_mm"]["updated"]
+    folder = path.resolve().parent
+    head: dict[str, Any] = {
+        "name": f"{record.name}-updated",
+        # relative beside the record (the shipped tester), absolute from a run folder elsewhere
+        "record": rel
+        if not (rel := os.path.relpath(record.path.resolve(), folder)).startswith("../..")
+        else str(record.path.resolve()),
+        "record_sha256": file_sha256(record.path),
+        "prior_sha256": file_sha256(record.prior),
+        "fmu_sources": {m: source_hash(m) for m in model_names()},
+        "source": (
+            f"twin update {record.path.name}: emcee, {record.walkers} walkers x {record.steps} steps "
+            f"(burn {record.burn}, thin {record.thin}), seed {record.seed}"
+        ),
+        "diagnostics": {
+            "r_hat_max": g["r_hat_max"],
+            "ess_min": g["ess_min"],
+            "beyond_3_prior_sigma": list(summary["beyond_3_prior_sigma"]),
+            "discrepancy_prior_sigma_mm": summary["discrepancy"]["prior_sigma_mm"],
+            "discrepancy_posterior_mean_mm": summary["discrepancy"]["posterior"]["mean"],
+            "updated_drift_median_mm": d["median"],
+            "updated_drift_interval_90_mm": d["interval_90"],
+        },
+    }
+    if coefficients and record.tester_coefficients is not None:
+        named = (record.path.resolve().parent / record.tester_coefficients).resolve()
+        head["coefficients"] = os.path.relpath(named, folder)
+    comment = (
+        f"The tester of the record {record.name}, updated by `twin update` (made by a program: rerun\n"
+        "`twin update --write` to renew it, do not edit by hand). [values] are the posterior means,\n"
+        "[posterior] evenly thinned posterior draws; see twin.uncertainty.updated."
+    )
+    return write_updated(path, head, means, (names, rows), comment)
 
 
 def corner_plot(frame: Any, path: Path) -> None:

@@ -69,6 +69,34 @@ def add_set(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: the updated tester ``twin run`` runs when it names no scenario: the paper's tester, updated
+#: from its record by ``twin update --write`` (relative to the scenarios folder)
+DEFAULT_TESTER = "records/li2017-updated.toml"
+#: what ``--tester`` takes for no tester: the twin before any record
+NO_TESTER = "none"
+
+
+def add_tester(p: argparse.ArgumentParser, what: str) -> None:
+    """The ``--tester FILE`` option: an updated tester file written by ``twin update``."""
+    p.add_argument(
+        "--tester", metavar="FILE", help=f"an updated tester file (twin update's tester.toml): {what}"
+    )
+
+
+def tester_path(value: str | None, default: bool) -> Path | None:
+    """The tester file ``--tester`` names; ``default``: the paper's updated tester when none is
+    named (``none``: the twin before any record)."""
+    if value == NO_TESTER:
+        return None
+    if value is None:
+        if not default:
+            return None
+        from twin.config.load import scenarios_dir
+
+        return scenarios_dir() / DEFAULT_TESTER
+    return Path(value)
+
+
 def add_experiment(p: argparse.ArgumentParser) -> None:
     """The experiment's options, as fmpy's ``simulate`` names them: times (seconds, or a
     duration with its unit) and an input file."""

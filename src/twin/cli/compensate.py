@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import flag, optional
+from twin.cli.common import add_tester, flag, optional
 from twin.errors import ConfigError
 
 NAME = "compensate"
@@ -31,6 +31,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         help="[errormodel] column map and coefficients (default: the twin's names)",
     )
     p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
+    add_tester(p, "the error model takes its coefficients (identified on it by twin identify --tester)")
     flag(p, "--force", "write into an --out folder that holds another command's outputs (a run's, a sweep's)")
     return p
 
@@ -53,7 +54,8 @@ def command(args: argparse.Namespace) -> int:
         Path(args.out) if args.out else None,
         args.force,
     )
-    summary = compensation.compensate(job.csv, job.config_path, job.out, job.config)
+    lab = job.config_path if args.tester is None else _tester_lab(job, Path(args.tester))
+    summary = compensation.compensate(job.csv, lab, job.out, job.config)
     flagged = summary["input_rows"]["flagged"]
     if flagged:
         first = summary["input_rows"]["first_flagged"][0]
@@ -75,3 +77,21 @@ def command(args: argparse.Namespace) -> int:
         f"outputs: {job.out}"
     )
     return 0
+
+
+def _tester_lab(job: Any, tester: Path) -> Any:
+    """LAB.toml read with the updated tester's coefficients (a run folder brings its own)."""
+    from twin.pipeline.compensation import lab_config
+    from twin.uncertainty.updated import load_updated
+
+    if job.config is not None:
+        raise ConfigError("a run folder brings its own error model: leave out --tester", source="--tester")
+    updated = load_updated(tester)
+    if updated.coefficients is None:
+        raise ConfigError(
+            "names no coefficients: identify them on it (twin identify --tester FILE --out C.toml) "
+            "and name C.toml in its [tester] coefficients",
+            source=str(tester),
+            key="tester.coefficients",
+        )
+    return lab_config(job.config_path, updated.coefficients)

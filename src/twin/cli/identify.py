@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import add_set, flag
+from twin.cli.common import add_set, add_tester, flag
 from twin.errors import ConfigError
 
 NAME = "identify"
@@ -27,6 +27,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         ),
     )
     add_set(p)
+    add_tester(p, "the calibration experiments run on it (its values as --set, before yours)")
     p.add_argument(
         "--priors", metavar="TOML", help="priors file (default: scenarios/calibration/priors.toml)"
     )
@@ -56,6 +57,8 @@ def command(args: argparse.Namespace) -> int:
     out = check_output_file(Path(args.out) if args.out is not None else Path(DEFAULT_OUT), "--out", ".toml")
     priors = load_priors(Path(args.priors)) if args.priors else None
     records = None
+    if args.tester is not None and args.records is not None:
+        raise ConfigError("a lab's records are its tester's own: leave out --tester", source="--tester")
     if args.records is not None or args.config is not None:
         if args.records is None or args.config is None:
             missing = "--config" if args.config is None else "--records"
@@ -65,7 +68,13 @@ def command(args: argparse.Namespace) -> int:
                 "--set changes the twin's experiments; a lab's records are its own", source="--set"
             )
         records = lab_records(Path(args.records), Path(args.config))
-    coefficients = identify(args.set or [], priors=priors, records=records)
+    overrides = list(args.set or [])
+    if args.tester is not None:
+        from twin.uncertainty.updated import load_updated
+
+        tester = load_updated(Path(args.tester), coefficients=False)  # what this writes
+        overrides = [*tester.overrides(coefficients=False), *overrides]
+    coefficients = identify(overrides, priors=priors, records=records)
     out.parent.mkdir(parents=True, exist_ok=True)
     coefficients.write(out, header=HEADER)
     if not args.quiet:

@@ -1,5 +1,7 @@
 """``twin run [SCENARIO]``: a scenario into its run folder, with its uncertainty (default: the
-paper's 480 min thermal experiment); ``twin run X.fmu``: one FMU alone.
+paper's 480 min thermal experiment, run by the paper's tester as ``twin update`` learnt it from
+that experiment's record: the prior predictive and the updated prediction side by side);
+``twin run X.fmu``: one FMU alone; ``--tester FILE``: an updated tester.
 
 The experiment's options follow fmpy's ``simulate`` and cosim-cli's ``run``: ``--start-time``,
 ``--stop-time``, ``--step-size``, ``--output-interval``, ``--input-file``, ``--fmi-logging``;
@@ -16,12 +18,14 @@ from typing import Any
 from twin.cli.common import (
     add_experiment,
     add_set,
+    add_tester,
     experiment,
     finish,
     flag,
     optional,
     progress_bar,
     stop_on_signals,
+    tester_path,
 )
 
 #: the signal files ``--format`` names (twin.pipeline.prepare.FORMATS; not imported here: the
@@ -42,6 +46,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="run folder (default: runs/<scenario name>)")
     flag(p, "--force", "replace the outputs of an earlier run in the run folder")
     add_set(p)
+    add_tester(
+        p,
+        "its values and coefficients set, its posterior's updated prediction beside the prior "
+        "predictive (default without a scenario: scenarios/records/li2017-updated.toml, the paper's "
+        "tester updated from its record; 'none': the twin before any record)",
+    )
     flag(p, "--quiet", "no progress bar, no summary line")
     p.add_argument(
         "--uncertainty",
@@ -96,6 +106,7 @@ def command(args: argparse.Namespace) -> int:
         record=tuple(args.record) if args.record is not None else None,
         formats=tuple(dict.fromkeys(args.format or ())),
         fmi_logging=args.fmi_logging,
+        tester=tester_path(args.tester, default=args.scenario is None),
     )
     with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
         if args.own_process:
@@ -103,6 +114,12 @@ def command(args: argparse.Namespace) -> int:
         assert prepared.folder is not None
         folder = prepared.folder.path
         watch_folder(folder, prepared.uncertainty is not None, prepared.scenario.name)
+        if prepared.tester is not None and prepared.tester.coefficients is None:
+            print(
+                f"twin: {prepared.tester.path}: names no coefficients: the error model uses the "
+                "scenario's (the nominal twin's), not this tester's (twin identify --tester)",
+                file=sys.stderr,
+            )
         with interrupt.cooperative(), progress_bar(args.quiet) as update:
             summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
             return finish(summary, folder, args.quiet, stop())

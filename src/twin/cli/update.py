@@ -22,6 +22,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--walkers", type=int, metavar="N", help="emcee walkers (default: the record's)")
     p.add_argument("--steps", type=int, metavar="N", help="steps per walker (default: the record's)")
     p.add_argument("--burn", type=int, metavar="N", help="steps discarded (default: the record's)")
+    flag(
+        p,
+        "--write",
+        "also write the updated tester file where the record's [tester] file says (the paper's: "
+        "scenarios/records/li2017-updated.toml, the tester `twin run` runs by default)",
+    )
     flag(p, "--quiet", "print only the last line")
     return p
 
@@ -44,8 +50,8 @@ def command(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out is not None else Path("runs") / f"update-{record.name}"
     check_output_folder(out, "--out")
     echo = (lambda _: None) if args.quiet else print
-    summary = run_update(record, out, echo)
+    summary = run_update(record, out, echo, write=args.write)
     for line in report_lines(summary):
         echo(line)
-    print(f"update: {record.name}, outputs in {out}")
+    print(f"update: {record.name}, outputs in {out} (the updated tester: {out / 'tester.toml'})")
     return 0

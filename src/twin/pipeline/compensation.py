@@ -58,7 +58,7 @@ LAB_KEYS = ("drift_window", "time", "units")
 
 def compensate(
     csv_path: Path,
-    config_path: Path | None,
+    config_path: Path | LabConfig | None,
     out_dir: Path,
     config: tuple[EvaluationConfig, str] | None = None,
     *,
@@ -74,7 +74,8 @@ def compensate(
     ``drift_window`` (default 5 min). Writes errormodel.csv, summary.json, error_budget.png
     (and flagged_rows.csv when rows were left out) into ``out_dir``; returns the summary.
     ``config`` (an error-model configuration and its name) replaces the file:
-    :func:`run_folder_config` gives a run's own.
+    :func:`run_folder_config` gives a run's own. ``config_path`` may be a LAB.toml already read
+    (:func:`lab_config`, with an updated tester's coefficients).
 
     The file is streamed: read ``block_bytes`` at a time and evaluated ``chunk_rows`` rows at a
     time (:class:`~twin.errormodel.streaming.StreamingEvaluation`, the same numbers as the
@@ -85,7 +86,7 @@ def compensate(
         cfg, source = config
         units, coefficients = RecordUnits(), "the run's own"
     else:
-        lab = lab_config(config_path)
+        lab = config_path if isinstance(config_path, LabConfig) else lab_config(config_path)
         cfg, source, units = lab.cfg, lab.source, lab.units
         coefficients = lab.coefficients if lab.coefficients is not None else DEFAULT_COEFFICIENTS
     folder = RunFolder(out_dir)
@@ -267,21 +268,27 @@ class LabConfig:
     coefficients: str | None
 
 
-def lab_config(config_path: Path | None) -> LabConfig:
+def lab_config(config_path: Path | None, coefficients: Path | None = None) -> LabConfig:
     """:func:`compensation_config` with the record's units (LAB.toml's ``time`` and ``units``:
-    :mod:`twin.pipeline.record_units`) and its coefficients' origin, every problem at once."""
+    :mod:`twin.pipeline.record_units`) and its coefficients' origin, every problem at once.
+    ``coefficients``: an updated tester's own file (``--tester``), which LAB.toml then must not
+    name too."""
     source = str(config_path) if config_path else "compensate"
-    em: dict[str, Any] = {}
+    em: dict[str, Any] = {} if coefficients is None else {"coefficients": str(coefficients.resolve())}
     window_s = DEFAULT_WINDOW_S
     if config_path is None:
         cfg = errormodel_config(model_defaults(), em, source, window_s)
-        return LabConfig(cfg, source, RecordUnits(), None)
+        return LabConfig(cfg, source, RecordUnits(), em.get("coefficients"))
     from twin.config.reader import Problems, read_toml
 
     data = read_toml(config_path, source)
     p = Problems(source)
     p.unknown_keys(data, {"errormodel"}, "")
     em = dict(p.table(data, "errormodel"))
+    if coefficients is not None:
+        if "coefficients" in em:
+            p.add("errormodel.coefficients", "--tester names the tester's own coefficients: leave this out")
+        em["coefficients"] = str(coefficients.resolve())
     if "drift_window" in em:
         window_ns = p.duration(em, "drift_window", "errormodel.")
         if window_ns is not None and window_ns <= 0:

@@ -22,12 +22,21 @@ Dask) over every uncertain input:
     spreads = "base/priors.toml"        # the prior file, relative to the scenario file
     room = "input.thermal.t_room"
 
+A run of an updated tester (``twin run --tester FILE``, the default ``twin run``: the paper's
+experiment with the tester ``twin update`` learnt from it) adds as many samples again, its
+updated prediction: sample ``i`` is prior sample ``i`` (the same room, noise and held inputs:
+the thermal network, the mounting, what the update left to its discrepancy) with the sampled
+parameters set to the tester file's posterior draw ``i``. The prior predictive is drawn around
+the scenario before the tester's values were set.
+
 The figures (summary.json): ``drift_mm.prior``, the prior predictive of the virtual probe's
 drift (median, 90 % interval, samples, and the share of its variance each input group
-explains: :mod:`twin.uncertainty.shares`); ``drift_mm.interval_90`` and ``sigma`` beside the
-nominal figures, and ``drift_mm.uncertainty`` with the same for the error model's predicted
-drift and the medians per room shape; ``uncertainty.csv`` holds every sample with its drawn
-inputs. What a measured experiment makes of them is its report's (:mod:`twin.pipeline.report`).
+explains: :mod:`twin.uncertainty.shares`), and ``drift_mm.updated``, the updated prediction
+(the same figures); ``drift_mm.interval_90`` and ``sigma`` beside the nominal figures (of the
+run's own twin: the updated one where there is a tester), and ``drift_mm.uncertainty`` with the
+same for the error model's predicted drift and the medians per room shape; ``uncertainty.csv``
+holds every sample (``predictive``: prior or updated) with its drawn inputs. What a measured
+experiment makes of them is its report's (:mod:`twin.pipeline.report`).
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ from twin.uncertainty import rooms
 from twin.uncertainty.shares import NOISE, ROOM, THERMAL_NETWORK, variance_shares
 from twin.uncertainty.spreads import calibrated_rows, merge_rows
 from twin.uncertainty.testers import Testers, apply, load_prior, load_room, with_rests
+from twin.uncertainty.updated import UpdatedTester
 
 __all__ = [
     "MAX_SAMPLES",
@@ -57,8 +67,11 @@ __all__ = [
     "Progress",
     "Uncertainty",
     "add_to_summary",
+    "own_rows",
     "parse_uncertainty",
+    "predictive_rows",
     "sampler",
+    "updated_sampler",
     "write_samples",
 ]
 
@@ -69,7 +82,11 @@ _KEYS = {"samples", "seed", "spreads", "room", "room_shapes", "room_drift_K"}
 #: otherwise fill the memory before the first sample ran
 MAX_SAMPLES = 100_000
 #: the figures of a sample that uncertainty.csv keeps (then the thermal parts, then its drawn inputs)
-SAMPLE_COLUMNS = ("sample", "room_shape", "status", "error", "drift_mm.probe", "drift_mm.predicted")
+SAMPLE_COLUMNS = (
+    "sample", "predictive", "room_shape", "status", "error", "drift_mm.probe", "drift_mm.predicted",
+)  # fmt: skip
+#: the two predictives a sample belongs to: the twin before any record, the updated tester's
+PRIOR, UPDATED = "prior", "updated"
 #: a sample's room as inputs of the variance shares: the shape's index, the slow drift's mean
 ROOM_INPUTS = ("room.shape", "room.drift_mean_K")
 #: the sensors' noise: each sample its own seed, no number a share could be estimated on
@@ -159,6 +176,26 @@ def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Calla
     return groups, make
 
 
+def updated_sampler(make: Callable[[int], Draw], tester: UpdatedTester) -> Callable[[int], Draw]:
+    """Updated sample ``i``: prior sample ``i`` with the tester's posterior draw ``i`` set."""
+
+    def make_updated(i: int) -> Draw:
+        draw, values = make(i), tester.draw(i)
+        return Draw(apply(draw.scenario, values), draw.room_shape, draw.inputs | values)
+
+    return make_updated
+
+
+def predictive_rows(rows: Sequence[Mapping[str, Any]], which: str) -> list[Mapping[str, Any]]:
+    """The samples of one predictive (:data:`PRIOR` or :data:`UPDATED`)."""
+    return [r for r in rows if r.get("predictive", PRIOR) == which]
+
+
+def own_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The samples of the run's own twin: the updated tester's where it has them."""
+    return predictive_rows(rows, UPDATED) or predictive_rows(rows, PRIOR)
+
+
 def _room(unc: Uncertainty, scenario: Scenario, target: str, i: int) -> tuple[Any, str, float]:
     """Sample ``i``'s room: a rise takes a shape in turn; any other room keeps its own curve;
     both with a slow drift (and that drift's mean over the run, K)."""
@@ -191,31 +228,39 @@ def column(rows: Sequence[Mapping[str, Any]], key: str) -> np.ndarray:
 
 def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, Any]:
     """The run's summary with the drift's uncertainty added: its prior predictive
-    (``drift_mm.prior``) and the figures beside the nominal ones."""
-    rows = mc["rows"]
+    (``drift_mm.prior``), an updated tester's prediction (``drift_mm.updated``) and the
+    figures of the run's own twin beside the nominal ones."""
+    rows = own_rows(mc["rows"])
     probe = column(rows, "drift_mm.probe")
     drift = summary.setdefault("drift_mm", {})
     if len(probe) == 0:
-        drift["uncertainty"] = {"samples": 0, "failed": len(rows)}
+        drift["uncertainty"] = {"samples": 0, "failed": len(mc["rows"])}
         return summary
     s = stats(probe)
     drift.update(interval_90=s["interval_90"], sigma=s["sigma"], samples=len(probe))
-    ok = [r for r in rows if r["status"] == "ok" and "drift_mm.probe" in r]
-    drift["prior"] = {
-        "quantity": "drift_mm.probe over the prior (scenarios/base/priors.toml): the prior predictive",
-        "median": s["median"],
-        "interval_90": s["interval_90"],
-        "samples": len(probe),
-        "variance_shares": variance_shares(ok, "drift_mm.probe", mc.get("groups", {})),
-    }
+    groups = mc.get("groups", {})
+    prior = _predictive(predictive_rows(mc["rows"], PRIOR), groups)
+    if prior is not None:
+        drift["prior"] = {
+            "quantity": "drift_mm.probe over the prior (scenarios/base/priors.toml): the prior predictive",
+            **prior,
+        }
+    updated = _predictive(predictive_rows(mc["rows"], UPDATED), groups)
+    if updated is not None:
+        drift["updated"] = {
+            "quantity": "drift_mm.probe over the updated tester's posterior draws (twin update): the updated prediction",
+            "tester": mc.get("tester"),
+            **updated,
+        }
     shapes = sorted({r["room_shape"] for r in rows})
     by_shape = {k: column([r for r in rows if r["room_shape"] == k], "drift_mm.probe") for k in shapes}
     drift["uncertainty"] = {
         "quantity": "drift_mm.probe: the virtual probe's drift, the twin's prediction of the reading",
+        "of": UPDATED if updated is not None else PRIOR,
         "nominal": drift.get("probe"),
         **s,
         "samples": len(probe),
-        "failed": sum(r["status"] != "ok" for r in rows),
+        "failed": sum(r["status"] != "ok" for r in mc["rows"]),
         "predicted": stats(column(rows, "drift_mm.predicted")),
         "median_by_room_shape": {k: float(np.median(v)) for k, v in by_shape.items() if len(v)},
         "inputs": [*mc["inputs"], "room curve shape", "room drift", "sensor noise seed"],
@@ -223,6 +268,20 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
         "workers": mc["workers"],
     }
     return summary
+
+
+def _predictive(rows: Sequence[Mapping[str, Any]], groups: Mapping[str, str]) -> dict[str, Any] | None:
+    """One predictive's figures (None without a sample that ran)."""
+    ok = [r for r in rows if r["status"] == "ok" and "drift_mm.probe" in r]
+    if not ok:
+        return None
+    s = stats(column(ok, "drift_mm.probe"))
+    return {
+        "median": s["median"],
+        "interval_90": s["interval_90"],
+        "samples": len(ok),
+        "variance_shares": variance_shares(ok, "drift_mm.probe", groups),
+    }
 
 
 def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
@@ -239,25 +298,36 @@ def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
 
 
 def line(summary: Mapping[str, Any]) -> str | None:
-    """The terminal's lines on the prior predictive (None without one): the nominal drift
-    beside the prior's median and 90 % interval, where a measured drift falls in it, and the
-    input groups' shares of its variance."""
+    """The terminal's lines on the predictions (None without one): the nominal drift, the
+    prior predictive and an updated tester's prediction side by side (median, 90 % interval,
+    where a measured drift falls in each, which is calibration and which validation), and the
+    input groups' shares of the prior's variance."""
     d = summary.get("drift_mm", {})
     if "interval_90" not in d:
         return None
-    lo, hi = d["interval_90"]
-    prior = d.get("prior", {})
     wall = d.get("uncertainty", {}).get("wall_s", math.nan)
-    out = (
-        f"drift (probe) nominal {d['probe']:+.4f} mm; prior predictive median {prior.get('median', math.nan):+.4f}, "
-        f"sigma {d['sigma']:.4f}, 90 % interval [{lo:+.4f}, {hi:+.4f}] mm ({d['samples']} samples, {wall:.1f} s)"
+    measured = d.get("paper_measured")
+    updated = d.get("updated")
+    who = "updated twin" if updated is not None else "nominal twin"
+    out = f"drift (probe), {who} {d['probe']:+.4f} mm" + (
+        f"; the paper measured {measured:+.4f} mm" if measured is not None else ""
     )
-    if "quantile_of_measured" in prior:
-        out += f"\n  the measured {d['paper_measured']:+.4f} mm sits at quantile {prior['quantile_of_measured']:.3f} of it"
-    shares = prior.get("variance_shares", {}).get("groups", {})
+    out += f" ({d['samples']} samples per predictive, {wall:.1f} s)"
+    for label, entry, role in (
+        ("prior predictive  ", d.get("prior"), "the twin before any record: validated by the measurement"),
+        ("updated prediction", updated, "calibrated on the measurement: no validation of it"),
+    ):
+        if entry is None:
+            continue
+        lo, hi = entry["interval_90"]
+        out += f"\n  {label} median {entry['median']:+.4f}, 90 % [{lo:+.4f}, {hi:+.4f}] mm"
+        if "quantile_of_measured" in entry:
+            out += f", measured at quantile {entry['quantile_of_measured']:.3f}"
+        out += f" ({role})" if measured is not None else ""
+    shares = d.get("prior", {}).get("variance_shares", {}).get("groups", {})
     if shares:
         parts = ", ".join(f"{g} {100 * v:.0f} %" for g, v in sorted(shares.items(), key=lambda kv: -kv[1]))
-        out += f"\n  variance shares: {parts}"
+        out += f"\n  prior variance shares: {parts}"
     return out
 
 

@@ -7,6 +7,8 @@ touched (bad input runs nothing and makes no run folder)::
                                │
                                ├─ [errormodel]  checked into its EvaluationConfig once, the
                                │                columns it reads checked against the plan
+                               ├─ --tester      an updated tester's values and coefficients set
+                               │                as overrides (twin update; kept in run.json)
                                ├─ [uncertainty] the run's Monte Carlo, checked
                                ├─ [reference]   the measured experiment it replays (reports)
                                ├─ the checkpoint interval, a multiple of the step
@@ -55,6 +57,7 @@ from twin.outputs.run_folder import (
 from twin.outputs.sink import ClosesOnExit
 from twin.pipeline.montecarlo import Uncertainty, parse_uncertainty
 from twin.pipeline.report import Report, Reports
+from twin.uncertainty.updated import UpdatedTester, load_updated
 
 __all__ = [
     "FORMATS",
@@ -88,6 +91,9 @@ class RunOptions:
     (``instance.variable``, or ``variable`` alone for a scenario of one FMU; None: every
     recorded column); ``formats``, the signal files besides signals.csv (``"mat"``:
     signals.mat); ``fmi_logging``, the FMUs' own log messages into the run folder's fmi.log.
+    ``tester``: an updated tester file (``twin update``, :mod:`twin.uncertainty.updated`) whose
+    values the run sets, whose coefficients the error model takes, and whose posterior draws
+    the uncertainty's updated prediction runs (beside the prior predictive).
     """
 
     folder: bool = False
@@ -103,6 +109,7 @@ class RunOptions:
     record: tuple[str, ...] | None = None
     formats: tuple[str, ...] = ()
     fmi_logging: bool = False
+    tester: Path | None = None
 
 
 @dataclass
@@ -127,6 +134,10 @@ class PreparedRun(ClosesOnExit):
     started: float = field(default_factory=time.perf_counter)
     #: the columns signals.csv holds, resolved (``options.record``; None: every recorded column)
     record: tuple[str, ...] | None = None
+    #: the updated tester the run is of (``options.tester``) and the scenario before its
+    #: values were set: what the prior predictive draws around
+    tester: UpdatedTester | None = None
+    prior_scenario: Scenario | None = None
 
     def keep(self) -> set[str]:
         """The columns a run keeps in memory: those the error model reads, the reports', and
@@ -191,6 +202,17 @@ def _prepare(
     controls: RunControls,
     plots: PlotProcess | None,
 ) -> PreparedRun:
+    tester, prior_scenario = None, None
+    if options.tester is not None:
+        if isinstance(source, Scenario):
+            raise ConfigError("a scenario value takes no tester file", source="--tester")
+        tester = load_updated(options.tester)
+        # the twin before the record: what the prior predictive draws around
+        prior_scenario = load_scenario(find_scenario(source), overrides, options.experiment)
+        tester.check_against(prior_scenario)
+        # the tester's values go in as overrides before the command line's own, so run.json
+        # keeps them (a resumed run is the same tester) and a --set still has the last word
+        overrides = [*tester.overrides(prior_scenario), *overrides]
     scenario = (
         source
         if isinstance(source, Scenario)
@@ -223,6 +245,8 @@ def _prepare(
         tuple(reports),
         plots=plots,
         record=record,
+        tester=tester,
+        prior_scenario=prior_scenario,
     )
 
 

@@ -91,7 +91,19 @@ def run_samples(
 
     unc = prepared.uncertainty
     assert unc is not None
-    groups, make = montecarlo.sampler(unc, prepared.scenario)
+    # the prior is drawn around the scenario before an updated tester's values were set; the
+    # updated prediction's sample i is prior sample i with the tester's posterior draw i set
+    groups, make = montecarlo.sampler(unc, prepared.prior_scenario or prepared.scenario)
+    tester = prepared.tester
+    updated = min(unc.samples, len(tester.draws)) if tester is not None else 0
+    makers = {montecarlo.PRIOR: make}
+    if tester is not None and updated:
+        makers[montecarlo.UPDATED] = montecarlo.updated_sampler(make, tester)
+    total = unc.samples + updated
+
+    def which(i: int) -> tuple[str, int]:
+        return (montecarlo.PRIOR, i) if i < unc.samples else (montecarlo.UPDATED, i - unc.samples)
+
     # a sample reports its drift and parts (montecarlo.SAMPLE_COLUMNS), not the credibility
     # indexes: their Frechet recursion would be half of each sample's evaluation
     evaluation = dataclasses.replace(prepared.evaluation, credibility=False)
@@ -100,19 +112,21 @@ def run_samples(
 
     def payload(i: int) -> dict[str, Any]:
         try:
-            scenario, shapes[i], drawn[i] = make(i)
+            predictive, j = which(i)
+            scenario, shapes[i], drawn[i] = makers[predictive](j)
         except ConfigError as exc:
             return failed(i, one_line(exc))
         return {"index": i, "run": prepare_scenario(scenario, evaluation)}
 
-    controls.echo(f"uncertainty: {unc.samples} samples of {prepared.scenario.name} on Dask")
+    told = f" and {updated} of the updated tester's posterior" if updated else ""
+    controls.echo(f"uncertainty: {unc.samples} prior samples{told} of {prepared.scenario.name} on Dask")
     start = time.perf_counter()
     records: dict[int, dict[str, Any]] = {}
     with bounded_logs(), open_client(None, None) as client:
         client.register_plugin(BinariesPlugin(collect()))
         threads = max(1, sum(client.nthreads().values()))
-        progress = montecarlo.Progress(unc.samples, controls.echo, start)
-        for record in execute(client, range(unc.samples), payload, point_task, controls.stop):
+        progress = montecarlo.Progress(total, controls.echo, start)
+        for record in execute(client, range(total), payload, point_task, controls.stop):
             records[record["index"]] = record
             progress.done(len(records))
             if controls.stopped() is not None:
@@ -120,8 +134,9 @@ def run_samples(
         if (caught := controls.stopped()) is not None and on_stop is not None:
             on_stop(caught)  # the client closes the cluster on the way out
     rows = [
-        {"sample": i, "room_shape": shapes.get(i, ""), "status": records[i]["status"],
-         "error": records[i]["error"], **records[i]["figures"], **drawn.get(i, {})}
+        {"sample": which(i)[1], "predictive": which(i)[0], "room_shape": shapes.get(i, ""),
+         "status": records[i]["status"], "error": records[i]["error"], **records[i]["figures"],
+         **drawn.get(i, {})}
         for i in sorted(records)
     ]  # fmt: skip
     return {
@@ -131,6 +146,7 @@ def run_samples(
         "wall_s": time.perf_counter() - start,
         "workers": threads,
         "interrupted": controls.stopped(),
+        "tester": str(tester.path) if tester is not None else None,
     }
 
 
