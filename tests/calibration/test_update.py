@@ -116,6 +116,7 @@ def test_the_same_seed_gives_the_same_samples(paper) -> None:
         (("burn = 20000", "burn = 130000"), "sampler.burn"),
         (("t_plate = 6.3", 't_plate = "warm"'), "rises.t_plate"),
         (("steps = 120000", "steps = 120000\nwalker = 3"), "sampler.walker"),
+        (('file = "li2017-updated.toml"', 'file = "../../elsewhere.toml"'), "tester.file"),
     ],
 )
 def test_a_bad_record_gets_one_line_naming_its_key_and_exit_2(edit, word, tmp_path, capsys) -> None:

@@ -164,8 +164,12 @@ def _tester(p: Problems, raw: Mapping[str, Any], folder: Path) -> tuple[Path | N
         if key in tester and not (isinstance(tester[key], str) and tester[key].endswith(".toml")):
             p.add(f"tester.{key}", "expected a .toml file name (relative to this file)")
             return None, None
-    file = (folder / tester["file"]).resolve() if "file" in tester else None
-    return file, tester.get("coefficients")
+    name = tester.get("file")
+    if isinstance(name, str) and Path(name).name != name:
+        # --write writes there: a record from elsewhere must not name a file outside its folder
+        p.add("tester.file", "expected a file name in the record's own folder, no path")
+        return None, None
+    return (folder / name if name else None), tester.get("coefficients")
 
 
 def _sampler(p: Problems, samp: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
