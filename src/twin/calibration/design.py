@@ -15,10 +15,10 @@ them apart:
 2. **Candidates.** The shipped calibration experiments whose reading depends on them
    (:data:`CANDIDATES`: scenarios/calibration/*.toml, each read as a lab reads it: the probe's
    mean over two windows of the scenario's own profile). Each candidate's outcome is linear
-   in the sampled parameters around their posterior mean, from full twin runs (central
-   differences over one posterior sd of each parameter); its noise is the record's reading
-   noise, plus, for an experiment on the tester, the discrepancy's scale (the twin's spread
-   over the inputs the update holds: the thermal network and the room).
+   in the sampled parameters around their posterior mean, from full twin runs (a step of one
+   posterior sd in each parameter); its noise is the record's reading noise and the
+   outcome's spread over the inputs the update holds (the thermal network, the room's slow
+   drift, the sensors' noise: twin runs, as the update's discrepancy scale is the drift's).
 3. **Criterion.** The expected information the outcome gives about the leading explanations'
    contributions: the mutual information of a linear-Gaussian model, ``0.5 log(var(y) /
    var(y | c))`` (nats), from posterior draws of the outcome ``y`` (the linear model plus the
@@ -57,6 +57,7 @@ __all__ = [
     "information",
     "next_experiment",
     "outcome_run",
+    "rank",
 ]
 
 #: posterior draws the criterion and the prediction use (their 90 % interval's ends to ~0.05 sd)
@@ -166,8 +167,9 @@ def information(y: np.ndarray, c: np.ndarray) -> float:
 
 
 def outcome_run(scenario: Scenario, candidate: Candidate) -> Callable[[Mapping[str, float]], float]:
-    """The candidate's outcome (mm) for a tester of some values: a full run of its FMUs in
-    process, the instances pooled, the probe's reading kept alone."""
+    """The candidate's outcome (mm) for a tester of some values (of ``scenario``, or of a
+    draw of it, ``other``): a full run of its FMUs in process, the instances pooled, the
+    probe's reading kept alone."""
     from twin.errormodel.config import evaluation_config
     from twin.fmu.pool import SlotPool
     from twin.pipeline.prepare import prepare_scenario
@@ -179,8 +181,8 @@ def outcome_run(scenario: Scenario, candidate: Candidate) -> Callable[[Mapping[s
     evaluation = dataclasses.replace(evaluation_config(scenario), credibility=False)
     pool = SlotPool()
 
-    def run(values: Mapping[str, float]) -> float:
-        prepared = prepare_scenario(apply(scenario, values), evaluation)
+    def run(values: Mapping[str, float], other: Scenario | None = None) -> float:
+        prepared = prepare_scenario(apply(scenario if other is None else other, values), evaluation)
         sim = simulate(prepared, keep={column}, pool=pool)
         if sim.result.status != "completed":
             raise RunError(f"a run of the {candidate.name} failed: {sim.result.error}")
@@ -267,7 +269,7 @@ def alone(prior: Any, emulator: Emulator, post: Posterior, k: int) -> np.ndarray
 
 
 def next_experiment(
-    record: Any, prior: Any, emulator: Emulator, chains: np.ndarray, held_sigma_mm: float, roles: Any
+    record: Any, prior: Any, emulator: Emulator, chains: np.ndarray, roles: Mapping[str, str]
 ) -> dict[str, Any]:
     """summary.json's ``next_experiment``: the leading explanations, every candidate scored,
     and the best one's predicted outcome (see the module)."""
@@ -275,35 +277,59 @@ def next_experiment(
 
     post = read_posterior(prior, emulator, chains, roles, record.seed)
     mean_theta = post.theta.mean(axis=0)
-    noise = np.sqrt(record.sigma_mm**2 + held_sigma_mm**2)
+    hypotheses = {e.label: alone(prior, emulator, post, k) for k, e in enumerate(post.leading)}
     rng = generator(record.seed, Key.UPDATE, 4)
-    ranked = []
+    entries, draws = {}, {}
     for cand in CANDIDATES:
         scenario = load_scenario(scenarios_dir() / "calibration" / f"{cand.key}.toml")
-        on_tester = any(f.model == "ThermalNetwork" for f in scenario.fmus)
-        sigma = float(noise if on_tester else record.sigma_mm)
         run = outcome_run(scenario, cand)
-        ranked.append(score(cand, run, (emulator.names, mean_theta), post, (sigma, rng)))
-        ranked[-1]["if_alone_mm"] = {
-            e.label: run(_values(emulator.names, alone(prior, emulator, post, k)))
-            for k, e in enumerate(post.leading)
-        }
-        ranked[-1]["noise_source"] = "the record's reading noise (drift.sigma_mm)" + (
-            ", and the discrepancy's scale: the twin's spread over the inputs the update holds"
-            if on_tester
-            else ""
-        )
-    ranked.sort(key=lambda r: -r["information_nats"])
+        held = held_spread(record, scenario, run, _values(emulator.names, mean_theta))
+        sigma = float(np.hypot(record.sigma_mm, held))
+        entry, draws[cand.name] = score(cand, run, (emulator.names, mean_theta), post, (sigma, rng))
+        entry["if_alone_mm"] = {k: run(_values(emulator.names, v)) for k, v in hypotheses.items()}
+        entry["held_spread_mm"] = held
+        entries[cand.name] = entry
+    ranked = [entries[name] | {"information_nats": info} for name, info in rank(draws, post.contrib)]
     best = ranked[0]
-    best["separates"] = separated(best["if_alone_mm"])
+    leading = _leading(post)
+    best["separates"] = separated(best["if_alone_mm"], {e["label"]: e["correlation"] for e in leading})
     return {
         "criterion": "mutual information of the outcome and the leading explanations' contributions (linear-Gaussian, nats)",
-        "leading_explanations": _leading(post),
+        "leading_explanations": leading,
         "name": best["name"],
         "best": best,
         "ranking": [{k: r[k] for k in ("name", "information_nats", "information_all_nats")} for r in ranked],
         "candidates": ranked,
     }
+
+
+def held_spread(
+    record: Any, scenario: Scenario, run: Callable[..., float], values: Mapping[str, float]
+) -> float:
+    """The outcome's spread (mm) over what the update holds, as the update's discrepancy
+    scale is the drift's (:func:`twin.calibration.update.held_spread`): ``held_samples``
+    draws of the prior file's other inputs (the thermal network, the room's slow drift, the
+    sensors' noise), the sampled parameters at ``values``. 0 for a bench without the tester's
+    thermal network (the probe-heating bench holds its room and fixture)."""
+    from twin.pipeline.montecarlo import Uncertainty, sampler
+    from twin.uncertainty.testers import load_room
+
+    if not any(f.model == "ThermalNetwork" for f in scenario.fmus):
+        return 0.0
+    room = load_room(record.prior)
+    unc = Uncertainty(
+        record.held_samples, record.seed, record.prior, "input.thermal.t_room", room.shapes, room.drift_K
+    )
+    _, make = sampler(unc, scenario)
+    outcomes = [run(values, make(i).scenario) for i in range(record.held_samples)]
+    return float(np.std(outcomes, ddof=1))
+
+
+def rank(draws: Mapping[str, np.ndarray], contrib: np.ndarray) -> list[tuple[str, float]]:
+    """The candidates by the information their outcome's draws (noise included) give about
+    the contributions ``contrib`` drawn with them, most first."""
+    scored = [(name, information(y, contrib)) for name, y in draws.items()]
+    return sorted(scored, key=lambda kv: -kv[1])
 
 
 def _values(names: Sequence[str], theta: np.ndarray) -> dict[str, float]:
@@ -316,23 +342,24 @@ def score(
     at: tuple[Sequence[str], np.ndarray],
     post: Posterior,
     noise: tuple[float, np.random.Generator],
-) -> dict[str, Any]:
-    """One candidate: its outcome's linear model around the posterior mean (full runs), the
-    predictive draws, the information about the leading explanations."""
+) -> tuple[dict[str, Any], np.ndarray]:
+    """One candidate: its outcome's linear model around the posterior mean (full runs) and
+    its predictive draws (one per posterior draw, the noise added)."""
     names, centre = at
     sigma, rng = noise
     base = run(_values(names, centre))
     sd = post.theta.std(axis=0)
     slope = np.zeros(len(names))
+    # one step each: the drift is multilinear (twin.calibration.emulator), so a line through
+    # one parameter's step is exact and a central difference would only double the runs
     for i in np.flatnonzero(sd > 0):
-        up, down = centre.copy(), centre.copy()
+        up = centre.copy()
         up[i] += sd[i]
-        down[i] -= sd[i]
-        slope[i] = (run(_values(names, up)) - run(_values(names, down))) / (2.0 * sd[i])
+        slope[i] = (run(_values(names, up)) - base) / sd[i]
     model = base + (post.theta - centre) @ slope
     y = model + sigma * rng.standard_normal(model.size)
     lo, med, hi = np.percentile(y, [5, 50, 95])
-    return {
+    entry = {
         "name": cand.name,
         "scenario": f"scenarios/calibration/{cand.key}.toml",
         "reads": cand.reads,
@@ -345,20 +372,21 @@ def score(
             "sd_twin": float(np.std(model)),
         },
         "noise_mm": sigma,
-        "information_nats": information(y, post.contrib),
         "information_all_nats": float(0.5 * np.log1p(np.var(model) / sigma**2)),
-        "slope_per_sd_mm": {
-            n.split(".")[-1]: float(s * d) for n, s, d in zip(names, slope, sd, strict=True) if s
-        },
+        "slope_mm_per_unit": {n: float(s) for n, s in zip(names, slope, strict=True) if s},
     }
+    return entry, y
 
 
-def separated(if_alone: Mapping[str, float]) -> list[str]:
-    """The two explanations whose outcomes alone lie farthest apart (the first named first)."""
+def separated(if_alone: Mapping[str, float], correlation: Mapping[str, Mapping[str, float]]) -> list[str]:
+    """The two explanations the outcome reads apart: of the pairs whose outcomes alone lie
+    within 10 % of the farthest apart, the one the record trades off most (the most negative
+    posterior correlation of their contributions); in the leading explanations' order."""
     labels = list(if_alone)
     pairs = [(a, b) for i, a in enumerate(labels) for b in labels[i + 1 :]]
-    a, b = max(pairs, key=lambda p: abs(if_alone[p[0]] - if_alone[p[1]]))
-    return [a, b]
+    gap = {p: abs(if_alone[p[0]] - if_alone[p[1]]) for p in pairs}
+    far = [p for p in pairs if gap[p] >= 0.9 * max(gap.values())]
+    return list(min(far, key=lambda p: correlation[p[0]][p[1]]))
 
 
 def _leading(post: Posterior) -> list[dict[str, Any]]:

@@ -248,7 +248,7 @@ def run_update(
     echo(f"update: {record.walkers} walkers x {record.steps} steps in {wall:.1f} s")
     summary = summarise(record, prior, emulator, chains, held)
     summary["emulator"] = check | {"terms": emulator.describe()}
-    summary["next_experiment"] = next_experiment(record, prior, emulator, chains, held["sigma_mm"], roles)
+    summary["next_experiment"] = next_experiment(record, prior, emulator, chains, roles)
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
     write_outputs(out, summary, prior, emulator, chains)
