@@ -261,7 +261,7 @@ def alone(prior: Any, emulator: Emulator, post: Posterior, k: int) -> np.ndarray
         h = 1e-4
         moved = u[None, :] + h * np.eye(u.size)
         a = ((c_of(moved) - c_of(u[None, :])) / h).T
-        u = u + a.T @ np.linalg.solve(a @ a.T, r)
+        u = u + np.linalg.pinv(a) @ r  # the least move that meets the target (minimum norm)
     return _theta(prior, emulator, u[None, :])[0]
 
 
