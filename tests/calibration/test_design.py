@@ -5,6 +5,7 @@ posterior whose answer is known."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -173,3 +174,16 @@ def test_an_experiment_that_reads_what_the_record_read_is_not_chosen() -> None:
     # ... and among pairs read (nearly) as far apart, the one it traded off most
     assert D.separated({"a": 0.0, "b": 0.0005, "c": -0.01}, corr) == ["a", "c"]
     assert D.separated({"a": -0.01, "b": 0.0, "c": 0.0}, corr) == ["a", "c"]
+
+
+def test_twin_update_writes_the_next_experiment_and_says_it_last(paper, tmp_path) -> None:
+    # the hook in run_update: a chain too short to trust, the next experiment all the same
+    record = dataclasses.replace(paper["record"], steps=400, burn=100, thin=1)
+    summary = U.run_update(record, tmp_path / "out", lambda _: None, paper["emulator"])
+    written = json.loads((tmp_path / "out" / "summary.json").read_text())["next_experiment"]
+    assert written["name"] == summary["next_experiment"]["name"]
+    assert written["ranking"][0]["name"] == written["best"]["name"]
+    assert {c["name"] for c in written["candidates"]} == {c.name for c in D.CANDIDATES}
+    lines = U.report_lines(summary)
+    assert lines[-1] == D.report_line(summary["next_experiment"])
+    assert lines[-1].startswith(f"next experiment: {written['name']} (separates ")
