@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.calibration.design import next_experiment, report_line
 from twin.calibration.emulator import Emulator, derive, twin_drift, verify
 from twin.config.reader import Problems, read_toml
 from twin.errors import ConfigError, RunError
@@ -291,6 +292,7 @@ def run_update(
     echo(f"update: {record.walkers} walkers x {record.steps} steps in {wall:.1f} s")
     summary = summarise(record, prior, emulator, chains, held)
     summary["emulator"] = check | {"terms": emulator.describe()}
+    summary["next_experiment"] = next_experiment(record, prior, emulator, chains, roles)
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
     values = write_outputs(out, summary, prior, emulator, chains)
@@ -617,4 +619,5 @@ def report_lines(summary: Mapping[str, Any]) -> list[str]:
     lines.append(
         f"R-hat max {g['r_hat_max']:.4f}, ESS min {g['ess_min']:.0f}; sampler {summary['wall_s']['sampler']:.1f} s, total {summary['wall_s']['total']:.1f} s"
     )
+    lines.append(report_line(summary["next_experiment"]))
     return lines
