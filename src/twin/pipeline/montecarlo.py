@@ -164,10 +164,12 @@ def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Calla
     groups = {n: prior.groups.get(n, THERMAL_NETWORK) for n in testers.names}
     groups |= dict.fromkeys(ROOM_INPUTS, ROOM) | {NOISE_INPUT: NOISE}
     target = unc.room.split(".", 1)[1]
+    # every sample's draw at once (each from its own stream: the same numbers one by one)
+    draws = testers.draw_many(range(unc.samples))
 
     def make(i: int) -> Draw:
         profile, name, mean = _room(unc, scenario, target, i)
-        drawn = testers.draw(i)
+        drawn = dict(draws[i]) if i < len(draws) else testers.draw(i)
         sample = apply(scenario, with_rests(scenario, drawn, prior.rests)).with_input(profile)
         shape = float(unc.room_shapes.index(name)) if name in unc.room_shapes else 0.0
         inputs = drawn | dict(zip(ROOM_INPUTS, (shape, mean), strict=True))

@@ -14,10 +14,12 @@ map through SALib's :func:`~SALib.util.scale_samples`, so a spread means what it
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from twin.config.load import load_scenario
 from twin.config.reader import Problems, read_toml
@@ -63,12 +65,20 @@ class Testers:
 
     def draw(self, index: int) -> dict[str, float]:
         """Tester ``index``'s values by key."""
+        return self.draw_many([index])[0]
+
+    def draw_many(self, indices: Sequence[int]) -> list[dict[str, float]]:
+        """Testers ``indices``' values by key, each from its own stream as :meth:`draw` (the
+        same numbers): scaled in one call, as a column's inverse CDF per tester was most of a
+        Monte Carlo sample's making."""
         from SALib.util import scale_samples
 
-        rng = generator(self.seed, Key.TESTER, index)
-        unit = rng.random((1, len(self.rows)))
-        row = scale_samples(unit, problem(list(self.rows)))[0]
-        return {n: float(v) for n, v in zip(self.names, row, strict=True)}
+        if not len(indices):
+            return []
+        unit = np.vstack([generator(self.seed, Key.TESTER, i).random((1, len(self.rows))) for i in indices])
+        rows = scale_samples(unit, problem(list(self.rows)))
+        names = self.names
+        return [{n: float(v) for n, v in zip(names, row, strict=True)} for row in rows]
 
 
 @dataclass(frozen=True)
@@ -192,7 +202,16 @@ def apply(scenario: Scenario, values: Mapping[str, Any]) -> Scenario:
     """``scenario`` as the tester of ``values`` (keys of
     :meth:`~twin.config.spec.Scenario.with_value`): each value whose instance the scenario has."""
     instances = {f.name for f in scenario.fmus}
+    # an instance's parameters set in one copy: a tester draws about ninety, and a copy of the
+    # scenario per value was most of a Monte Carlo sample's making
+    grouped: dict[str, dict[str, Any]] = {}
     for key, value in values.items():
-        if instance_of(key) in (None, *instances):
+        instance = instance_of(key)
+        parts = key.split(".")
+        if instance in instances and len(parts) == 4 and parts[2] == "parameters":
+            grouped.setdefault(instance, {})[parts[3]] = value
+        elif instance in (None, *instances):
             scenario = scenario.with_value(key, value)
+    for instance, params in grouped.items():
+        scenario = scenario.with_parameters(instance, params)
     return scenario
