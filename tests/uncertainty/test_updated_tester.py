@@ -239,3 +239,22 @@ def test_fewer_posterior_draws_than_samples_are_counted_per_predictive() -> None
     said = montecarlo.line(montecarlo.add_to_summary({"drift_mm": {"probe": -0.018}}, mc))
     # the tester had one draw for two samples: not "1 samples per predictive"
     assert said is not None and "(2 prior and 1 updated samples," in said, said
+
+
+def test_identify_says_a_bad_tester_value_of_the_tester_file(tmp_path, capsys) -> None:
+    # not of the first calibration experiment it would fail in
+    path = _small_tester(tmp_path, values='"fmu.mechanics.parameters.alpha_gearbox" = 1e-5\n')
+    assert main(["identify", "--tester", str(path), "--out", str(tmp_path / "c.toml"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {path}: ") and "alpha_gearbox" in err[0], err
+    assert not (tmp_path / "c.toml").exists()
+
+
+def test_posterior_draws_must_be_numbers_not_strings_or_booleans(tmp_path) -> None:
+    key = "fmu.mechanics.parameters.alpha_detecting_frame"
+    path = _small_tester(
+        tmp_path, posterior=f'[posterior]\nnames = ["{key}"]\ndraws = [["1.2e-5"], [true]]\n'
+    )
+    with pytest.raises(ConfigError) as info:
+        load_updated(path)  # numpy alone would read them as 1.2e-5 and 1.0
+    assert "posterior.draws" in str(info.value)

@@ -208,12 +208,11 @@ def _posterior(
     if not ok:
         p.add("posterior.draws", f"expected a list of rows of {len(names)} numbers (one per name)")
         return tuple(names), np.empty((0, len(names)))
-    try:
-        array = np.array(draws, dtype=float)
-    except (TypeError, ValueError):
-        array = np.full((1, 1), np.nan)
+    # numbers only: numpy would take "1e-5" and true as numbers
+    numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in draws for x in r)
+    array = np.array(draws, dtype=float) if numbers else np.full((1, 1), np.nan)
     if not np.all(np.isfinite(array)):
-        p.add("posterior.draws", "expected finite numbers")
+        p.add("posterior.draws", "expected finite numbers (no strings, booleans, nan or inf)")
     return tuple(names), array
 
 
