@@ -258,3 +258,14 @@ def test_posterior_draws_must_be_numbers_not_strings_or_booleans(tmp_path) -> No
     with pytest.raises(ConfigError) as info:
         load_updated(path)  # numpy alone would read them as 1.2e-5 and 1.0
     assert "posterior.draws" in str(info.value)
+
+
+def test_a_record_or_scenario_given_as_the_tester_gets_one_line(tmp_path, capsys) -> None:
+    for wrong in (scenarios_dir() / "records" / "li2017.toml", PAPER):
+        assert main(["run", "--tester", str(wrong), "--out", str(tmp_path / "r")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "not an updated tester file" in err[0] and str(wrong) in err[0], err
+    assert main(["update", str(SHIPPED), "--out", str(tmp_path / "u")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a record file" in err[0], err
+    assert not (tmp_path / "r").exists() and not (tmp_path / "u").exists()

@@ -97,6 +97,10 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         if not isinstance(value, int) or value < lo:
             raise ConfigError(f"expected an integer >= {lo}, got {value!r}", source=f"--{key}")
     raw = read_toml(path, str(path))
+    if "record" not in raw and set(raw) - _TOP:
+        # another kind of file (an updated tester file, a scenario): one line, not one per table
+        others = ", ".join(f"[{k}]" for k in sorted(set(raw) - _TOP))
+        raise ConfigError(f"not a record file (no [record]; it has {others})", source=str(path))
     p = Problems(str(path))
     p.unknown_keys(raw, _TOP, "")
     rec, drift, upd = p.table(raw, "record"), p.table(raw, "drift"), p.table(raw, "update")

@@ -149,6 +149,13 @@ def load_updated(path: Path, source: str = "--tester", *, coefficients: bool = T
     if not Path(path).is_file():
         raise ConfigError(f"no such tester file {str(path)!r}", source=source)
     raw = read_toml(Path(path), str(path))
+    if "values" not in raw and set(raw) - _TOP:
+        # another kind of file (a record, a scenario): one line, not one per table
+        others = ", ".join(f"[{k}]" for k in sorted(set(raw) - _TOP))
+        raise ConfigError(
+            f"not an updated tester file (it has {others}; twin update writes one: [tester], [values], [posterior])",
+            source=str(path),
+        )
     p = Problems(str(path))
     p.unknown_keys(raw, _TOP, "")
     tester, values, posterior = p.table(raw, "tester"), p.table(raw, "values"), p.table(raw, "posterior")
