@@ -153,3 +153,19 @@ def test_a_missing_record_or_a_negative_count_is_refused_in_one_line(tmp_path, c
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3 and "none.toml" in lines[0], lines
     assert "--steps" in lines[1] and "--walkers" in lines[2] and ">= 8" in lines[2], lines
+
+
+def test_the_output_folder_is_refused_when_a_link_or_another_command_s(tmp_path, capsys) -> None:
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "link").symlink_to(elsewhere)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text("{}")
+    (run / "summary.json").write_text('{"scenario": "sine-load"}')
+    for out, said in ((tmp_path / "link", "symbolic link"), (run, "another command's outputs")):
+        assert main(["update", "--out", str(out)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and said in lines[0], lines
+    assert list(elsewhere.iterdir()) == []  # nothing written through the link
+    assert (run / "summary.json").read_text() == '{"scenario": "sine-load"}'

@@ -341,6 +341,34 @@ def run_update(
     return summary
 
 
+def check_out(out: Path) -> None:
+    """Refuse (before anything runs) an output folder that is a link, or that holds another
+    command's outputs (a run's run.json, a summary.json that is not an update's): the update's
+    summary.json would replace theirs without a word."""
+    from twin.outputs.guard import refuse_links
+    from twin.outputs.run_folder import RUN_FILE
+
+    if out.is_symlink():
+        refuse_links(out.parent, [out.name])
+    if not out.is_dir():
+        return
+    refuse_links(out, ["samples.parquet", "summary.json", "corner.png", "tester.toml"])
+    found = [RUN_FILE] if (out / RUN_FILE).exists() else []
+    try:
+        own = "measured_drift_mm" in json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        own = True
+    except (OSError, UnicodeDecodeError, ValueError, TypeError):
+        own = False  # unreadable: not known to be an update's, so not replaced
+    if not own:
+        found.append("summary.json")
+    if found:
+        raise ConfigError(
+            f"{out} holds another command's outputs ({', '.join(found)}): name another --out",
+            source="--out",
+        )
+
+
 def twin_rises(scenario: Any, measured: Mapping[str, float]) -> dict[str, Any]:
     """The nominal twin's rises beside the record's (K): what the held thermal network gives."""
     from twin.pipeline.prepare import prepare_scenario
