@@ -243,7 +243,7 @@ def test_dask_start_up_interrupted(tmp_path: Path) -> None:
     rng = random.Random(333)
     out = tmp_path / "run"
     cmd = Command(short_run(out, 6, minutes=2), tmp_path)
-    cmd.wait_for("the Monte Carlo's start", cmd.line(r"^uncertainty: 6 samples of"))
+    cmd.wait_for("the Monte Carlo's start", cmd.line(r"^uncertainty: 6 prior samples"))
     took = cmd.interrupt(signal.SIGINT, rng.uniform(0.0, 0.8))
     line = assert_ended(cmd, signal.SIGINT, took)
     assert summary_status(out) == "interrupted", line

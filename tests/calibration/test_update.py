@@ -117,6 +117,10 @@ def test_the_same_seed_gives_the_same_samples(paper) -> None:
         (("t_plate = 6.3", 't_plate = "warm"'), "rises.t_plate"),
         (("steps = 120000", "steps = 120000\nwalker = 3"), "sampler.walker"),
         (('file = "li2017-updated.toml"', 'file = "../../elsewhere.toml"'), "tester.file"),
+        # the default output folder is runs/update-<name>: a path there would leave runs/
+        (('name = "li2017"', 'name = "../../../escaped"'), "record.name"),
+        # --write replaces the tester file: never the record itself (bad.toml)
+        (('file = "li2017-updated.toml"', 'file = "bad.toml"'), "tester.file"),
     ],
 )
 def test_a_bad_record_gets_one_line_naming_its_key_and_exit_2(edit, word, tmp_path, capsys) -> None:
@@ -131,6 +135,17 @@ def test_a_bad_record_gets_one_line_naming_its_key_and_exit_2(edit, word, tmp_pa
     assert not (tmp_path / "out").exists()
 
 
+def test_write_without_a_tester_file_is_refused_before_the_update_runs(tmp_path, capsys) -> None:
+    text = RECORD.read_text().replace('"../', f'"{RECORD.parent.parent}/')
+    start, end = text.index("[tester]"), text.index("[sampler]")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text[:start] + text[end:])
+    assert main(["update", str(bad), "--write", "--out", str(tmp_path / "out")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "tester.file" in lines[0] and "--write" in lines[0], lines
+    assert not (tmp_path / "out").exists()  # nothing ran: the paper's update takes minutes
+
+
 def test_a_missing_record_or_a_negative_count_is_refused_in_one_line(tmp_path, capsys) -> None:
     assert main(["update", str(tmp_path / "none.toml")]) == 2
     assert main(["update", "--steps", "-1"]) == 2
@@ -138,3 +153,19 @@ def test_a_missing_record_or_a_negative_count_is_refused_in_one_line(tmp_path, c
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3 and "none.toml" in lines[0], lines
     assert "--steps" in lines[1] and "--walkers" in lines[2] and ">= 8" in lines[2], lines
+
+
+def test_the_output_folder_is_refused_when_a_link_or_another_command_s(tmp_path, capsys) -> None:
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "link").symlink_to(elsewhere)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text("{}")
+    (run / "summary.json").write_text('{"scenario": "sine-load"}')
+    for out, said in ((tmp_path / "link", "symbolic link"), (run, "another command's outputs")):
+        assert main(["update", "--out", str(out)]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and said in lines[0], lines
+    assert list(elsewhere.iterdir()) == []  # nothing written through the link
+    assert (run / "summary.json").read_text() == '{"scenario": "sine-load"}'

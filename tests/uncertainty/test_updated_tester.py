@@ -167,3 +167,105 @@ def test_compensate_and_identify_refuse_what_a_tester_cannot_give(tmp_path, caps
     assert main(["identify", "--tester", str(bare), "--records", str(tmp_path), "--config", str(csv)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--tester" in err[0], err
+
+
+@pytest.mark.parametrize(
+    ("values", "posterior", "said"),
+    [
+        # a value the mechanics refuses: said of the tester file, not of the shipped scenario
+        (
+            '"fmu.mechanics.parameters.alpha_base" = 1e300\n',
+            "",
+            'values."fmu.mechanics.parameters.alpha_base"',
+        ),
+        # a posterior draw the mechanics refuses: else every updated sample fails, exit 0
+        (
+            "",
+            '[posterior]\nnames = ["fmu.mechanics.parameters.alpha_detecting_frame"]\n'
+            "draws = [[1.2e-5], [1e300]]\n",
+            "posterior.draws",
+        ),
+    ],
+)
+def test_a_tester_value_or_draw_out_of_range_is_refused_of_the_tester_file(
+    values, posterior, said, tmp_path, capsys
+) -> None:
+    path = _small_tester(tmp_path, values=values, posterior=posterior)
+    assert main(["run", "--tester", str(path), "--uncertainty", "2", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {path}: {said}") and "physical range" in err[0], err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_tester_with_nothing_the_scenario_has_is_refused(tmp_path, capsys) -> None:
+    # a tester of instances the scenario lacks (a misspelt instance, one FMU run alone under its
+    # own name) would run the nominal twin as if it were the tester
+    path = tmp_path / "tester.toml"
+    path.write_text('[tester]\nname = "t"\n[values]\n"fmu.mechanic.parameters.alpha_base" = 1.2e-5\n')
+    assert main(["run", "--tester", str(path), "--uncertainty", "0", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{path}: values: none is of an FMU instance" in err[0], err
+    assert not (tmp_path / "r").exists()
+
+
+def test_the_prior_predictive_stays_when_every_updated_sample_failed() -> None:
+    from twin.pipeline import montecarlo
+
+    ok = {"status": "ok", "error": "", "room_shape": "ramp"}
+    rows = [
+        {**ok, "sample": 0, "predictive": "prior", "drift_mm.probe": 0.010, "drift_mm.predicted": 0.010},
+        {**ok, "sample": 1, "predictive": "prior", "drift_mm.probe": 0.012, "drift_mm.predicted": 0.012},
+        {"sample": 0, "predictive": "updated", "room_shape": "", "status": "failed", "error": "refused"},
+    ]
+    mc = {"rows": rows, "groups": {}, "inputs": [], "wall_s": 1.0, "workers": 1, "tester": "t.toml"}
+    summary = montecarlo.add_to_summary({"drift_mm": {"probe": -0.018}}, mc)
+    drift = summary["drift_mm"]
+    assert drift["prior"]["samples"] == 2 and "updated" not in drift
+    assert drift["uncertainty"] == {"samples": 0, "failed": 1}  # one failed, not all three rows
+    said = montecarlo.line(summary)
+    assert said is not None and "no sample of the run's own twin ran (1 failed" in said, said
+    assert "prior predictive" in said, said
+
+
+def test_fewer_posterior_draws_than_samples_are_counted_per_predictive() -> None:
+    from twin.pipeline import montecarlo
+
+    ok = {"status": "ok", "error": "", "room_shape": "ramp"}
+    rows = [
+        {**ok, "sample": i, "predictive": which, "drift_mm.probe": x, "drift_mm.predicted": x}
+        for i, which, x in ((0, "prior", 0.010), (1, "prior", 0.012), (0, "updated", -0.02))
+    ]
+    mc = {"rows": rows, "groups": {}, "inputs": [], "wall_s": 1.0, "workers": 1, "tester": "t.toml"}
+    said = montecarlo.line(montecarlo.add_to_summary({"drift_mm": {"probe": -0.018}}, mc))
+    # the tester had one draw for two samples: not "1 samples per predictive"
+    assert said is not None and "(2 prior and 1 updated samples," in said, said
+
+
+def test_identify_says_a_bad_tester_value_of_the_tester_file(tmp_path, capsys) -> None:
+    # not of the first calibration experiment it would fail in
+    path = _small_tester(tmp_path, values='"fmu.mechanics.parameters.alpha_gearbox" = 1e-5\n')
+    assert main(["identify", "--tester", str(path), "--out", str(tmp_path / "c.toml"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"twin: {path}: ") and "alpha_gearbox" in err[0], err
+    assert not (tmp_path / "c.toml").exists()
+
+
+def test_posterior_draws_must_be_numbers_not_strings_or_booleans(tmp_path) -> None:
+    key = "fmu.mechanics.parameters.alpha_detecting_frame"
+    path = _small_tester(
+        tmp_path, posterior=f'[posterior]\nnames = ["{key}"]\ndraws = [["1.2e-5"], [true]]\n'
+    )
+    with pytest.raises(ConfigError) as info:
+        load_updated(path)  # numpy alone would read them as 1.2e-5 and 1.0
+    assert "posterior.draws" in str(info.value)
+
+
+def test_a_record_or_scenario_given_as_the_tester_gets_one_line(tmp_path, capsys) -> None:
+    for wrong in (scenarios_dir() / "records" / "li2017.toml", PAPER):
+        assert main(["run", "--tester", str(wrong), "--out", str(tmp_path / "r")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "not an updated tester file" in err[0] and str(wrong) in err[0], err
+    assert main(["update", str(SHIPPED), "--out", str(tmp_path / "u")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a record file" in err[0], err
+    assert not (tmp_path / "r").exists() and not (tmp_path / "u").exists()

@@ -35,7 +35,7 @@ import numpy as np
 
 from twin.calibration.design import next_experiment, report_line
 from twin.calibration.emulator import Emulator, derive, twin_drift, verify
-from twin.config.reader import Problems, read_toml
+from twin.config.reader import Problems, read_toml, unsafe_name
 from twin.errors import ConfigError, RunError
 from twin.files import write_atomic
 from twin.seeds import Key, generator
@@ -97,6 +97,10 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         if not isinstance(value, int) or value < lo:
             raise ConfigError(f"expected an integer >= {lo}, got {value!r}", source=f"--{key}")
     raw = read_toml(path, str(path))
+    if "record" not in raw and set(raw) - _TOP:
+        # another kind of file (an updated tester file, a scenario): one line, not one per table
+        others = ", ".join(f"[{k}]" for k in sorted(set(raw) - _TOP))
+        raise ConfigError(f"not a record file (no [record]; it has {others})", source=str(path))
     p = Problems(str(path))
     p.unknown_keys(raw, _TOP, "")
     rec, drift, upd = p.table(raw, "record"), p.table(raw, "drift"), p.table(raw, "update")
@@ -117,6 +121,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         files[key] = (folder / str(value)).resolve() if isinstance(value, str) else None
         if files[key] is None or not files[key].is_file():
             p.add(f"record.{key}", f"no such file {value!r}")
+    name = _where_it_writes(p, rec.get("name", path.stem), tester_file)
     measured = p.number(drift, "measured_mm", "drift.")
     sigma = p.number(drift, "sigma_mm", "drift.", lo=1e-9)
     groups = upd.get("groups")
@@ -137,7 +142,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     p.check()
     return Record(
         path,
-        str(rec.get("name", path.stem)),
+        str(name),
         files["scenario"],
         files["prior"],
         float(measured),
@@ -171,6 +176,34 @@ def _tester(p: Problems, raw: Mapping[str, Any], folder: Path) -> tuple[Path | N
         p.add("tester.file", "expected a file name in the record's own folder, no path")
         return None, None
     return (folder / name if name else None), tester.get("coefficients")
+
+
+def _where_it_writes(p: Problems, name: Any, tester_file: Path | None) -> Any:
+    """The record's name, which names the default output folder (runs/update-<name>): no path
+    in it, or the update would write wherever the record says; and its ``[tester] file``, which
+    ``--write`` replaces: never the record itself, its scenario, its prior or anyone's file."""
+    if (why := unsafe_name(name)) is not None:
+        p.add("record.name", why)
+    if tester_file is not None and _not_a_tester(tester_file):
+        p.add(
+            "tester.file",
+            f"{tester_file.name} exists and is not an updated tester file: --write would replace it",
+        )
+    return name
+
+
+def _not_a_tester(path: Path) -> bool:
+    """Whether ``path`` is a file other than an updated tester file (which ``--write`` may
+    replace): anything else there is someone's data."""
+    if path.is_symlink() or not path.exists():
+        return False  # a link there is replaced, never followed (twin.files)
+    if not path.is_file():
+        return True
+    try:
+        raw = read_toml(path, str(path))
+    except ConfigError:
+        return True
+    return "tester" not in raw or not set(raw) <= {"tester", "values", "posterior"}
 
 
 def _sampler(p: Problems, samp: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
@@ -261,6 +294,11 @@ def run_update(
     from twin.config.load import load_scenario
 
     start = time.perf_counter()
+    if write and record.tester_file is None:
+        # refused before the update runs (the paper's takes minutes), not after it
+        raise ConfigError(
+            "names no [tester] file for --write to write", source=str(record.path), key="tester.file"
+        )
     scenario = load_scenario(record.scenario)
     prior, roles = sampled_rows(record, scenario)
     dims = len(prior.rows) + 1
@@ -297,12 +335,38 @@ def run_update(
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
     values = write_outputs(out, summary, prior, emulator, chains)
     write_tester(out / "tester.toml", record, summary, (prior.names, values), coefficients=False)
-    if write:
-        if record.tester_file is None:
-            raise ConfigError("the record names no [tester] file to write", source=str(record.path))
+    if write and record.tester_file is not None:
         write_tester(record.tester_file, record, summary, (prior.names, values), coefficients=True)
         echo(f"update: the updated tester written to {record.tester_file}")
     return summary
+
+
+def check_out(out: Path) -> None:
+    """Refuse (before anything runs) an output folder that is a link, or that holds another
+    command's outputs (a run's run.json, a summary.json that is not an update's): the update's
+    summary.json would replace theirs without a word."""
+    from twin.outputs.guard import refuse_links
+    from twin.outputs.run_folder import RUN_FILE
+
+    if out.is_symlink():
+        refuse_links(out.parent, [out.name])
+    if not out.is_dir():
+        return
+    refuse_links(out, ["samples.parquet", "summary.json", "corner.png", "tester.toml"])
+    found = [RUN_FILE] if (out / RUN_FILE).exists() else []
+    try:
+        own = "measured_drift_mm" in json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        own = True
+    except (OSError, UnicodeDecodeError, ValueError, TypeError):
+        own = False  # unreadable: not known to be an update's, so not replaced
+    if not own:
+        found.append("summary.json")
+    if found:
+        raise ConfigError(
+            f"{out} holds another command's outputs ({', '.join(found)}): name another --out",
+            source="--out",
+        )
 
 
 def twin_rises(scenario: Any, measured: Mapping[str, float]) -> dict[str, Any]:

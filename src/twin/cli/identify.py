@@ -70,9 +70,13 @@ def command(args: argparse.Namespace) -> int:
         records = lab_records(Path(args.records), Path(args.config))
     overrides = list(args.set or [])
     if args.tester is not None:
+        from twin.config.load import load_scenario, scenarios_dir
         from twin.uncertainty.updated import load_updated
 
         tester = load_updated(Path(args.tester), coefficients=False)  # what this writes
+        # its values checked against the whole tester the calibration experiments are parts of:
+        # a problem is said of the tester file, not of the experiment it would first fail in
+        tester.check_against(load_scenario(scenarios_dir() / "base" / "tester-system.toml"))
         overrides = [*tester.overrides(coefficients=False), *overrides]
     coefficients = identify(overrides, priors=priors, records=records)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -34,7 +34,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     """Run the update; exit code 0 (a goal missed is a figure, not an error)."""
-    from twin.calibration.update import load_record, report_lines, run_update
+    from twin.calibration.update import check_out, load_record, report_lines, run_update
     from twin.config.load import scenarios_dir
     from twin.outputs.run_folder import check_output_folder
 
@@ -49,6 +49,7 @@ def command(args: argparse.Namespace) -> int:
     record = load_record(path, seed=args.seed, sampler=overrides)
     out = Path(args.out) if args.out is not None else Path("runs") / f"update-{record.name}"
     check_output_folder(out, "--out")
+    check_out(out)
     echo = (lambda _: None) if args.quiet else print
     summary = run_update(record, out, echo, write=args.write)
     for line in report_lines(summary):

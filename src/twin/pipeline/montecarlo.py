@@ -235,12 +235,13 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
     rows = own_rows(mc["rows"])
     probe = column(rows, "drift_mm.probe")
     drift = summary.setdefault("drift_mm", {})
-    if len(probe) == 0:
-        drift["uncertainty"] = {"samples": 0, "failed": len(mc["rows"])}
-        return summary
-    s = stats(probe)
-    drift.update(interval_90=s["interval_90"], sigma=s["sigma"], samples=len(probe))
+    failed = sum(r["status"] != "ok" for r in mc["rows"])
+    if len(probe):
+        s = stats(probe)
+        drift.update(interval_90=s["interval_90"], sigma=s["sigma"], samples=len(probe))
     groups = mc.get("groups", {})
+    # each predictive that ran, even when the other's samples all failed (an updated tester's
+    # draws the FMUs refuse leave the prior predictive as it was)
     prior = _predictive(predictive_rows(mc["rows"], PRIOR), groups)
     if prior is not None:
         drift["prior"] = {
@@ -254,6 +255,9 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
             "tester": mc.get("tester"),
             **updated,
         }
+    if len(probe) == 0:
+        drift["uncertainty"] = {"samples": 0, "failed": failed}
+        return summary
     shapes = sorted({r["room_shape"] for r in rows})
     by_shape = {k: column([r for r in rows if r["room_shape"] == k], "drift_mm.probe") for k in shapes}
     drift["uncertainty"] = {
@@ -262,7 +266,7 @@ def add_to_summary(summary: dict[str, Any], mc: Mapping[str, Any]) -> dict[str, 
         "nominal": drift.get("probe"),
         **s,
         "samples": len(probe),
-        "failed": sum(r["status"] != "ok" for r in mc["rows"]),
+        "failed": failed,
         "predicted": stats(column(rows, "drift_mm.predicted")),
         "median_by_room_shape": {k: float(np.median(v)) for k, v in by_shape.items() if len(v)},
         "inputs": [*mc["inputs"], "room curve shape", "room drift", "sensor noise seed"],
@@ -305,16 +309,27 @@ def line(summary: Mapping[str, Any]) -> str | None:
     where a measured drift falls in each, which is calibration and which validation), and the
     input groups' shares of the prior's variance."""
     d = summary.get("drift_mm", {})
-    if "interval_90" not in d:
+    failed = d.get("uncertainty", {}).get("failed", 0)
+    if "interval_90" not in d and not failed:
         return None
     wall = d.get("uncertainty", {}).get("wall_s", math.nan)
     measured = d.get("paper_measured")
     updated = d.get("updated")
     who = "updated twin" if updated is not None else "nominal twin"
-    out = f"drift (probe), {who} {d['probe']:+.4f} mm" + (
-        f"; the paper measured {measured:+.4f} mm" if measured is not None else ""
-    )
-    out += f" ({d['samples']} samples per predictive, {wall:.1f} s)"
+    counts = [e["samples"] for e in (d.get("prior"), updated) if e is not None]
+    if "interval_90" not in d:  # no sample of the run's own twin ran: said, not left out
+        out = f"uncertainty: no sample of the run's own twin ran ({failed} failed: uncertainty.csv says why)"
+    else:
+        out = f"drift (probe), {who} {d['probe']:+.4f} mm" + (
+            f"; the paper measured {measured:+.4f} mm" if measured is not None else ""
+        )
+        # fewer posterior draws than samples: as many updated samples as draws
+        each = (
+            f"{d['samples']} samples per predictive"
+            if len(set(counts)) < 2
+            else f"{counts[0]} prior and {counts[1]} updated samples"
+        )
+        out += f" ({each}, {wall:.1f} s)"
     for label, entry, role in (
         ("prior predictive  ", d.get("prior"), "the twin before any record: validated by the measurement"),
         ("updated prediction", updated, "calibrated on the measurement: no validation of it"),

@@ -101,16 +101,40 @@ class UpdatedTester:
         return out
 
     def check_against(self, scenario: Scenario) -> None:
-        """Refuse (one line each, at once) a key of an instance ``scenario`` has but whose
-        parameter it does not: a tester file of another twin. Keys of instances the scenario
-        lacks are left out when applied (the probe's bench has no frame)."""
+        """Refuse (one line each, at once, said of this file) a key of an instance ``scenario``
+        has but whose parameter it does not (a tester file of another twin), a value or a
+        posterior draw outside its parameter's physical range (else every updated sample would
+        fail), and a tester none of whose values ``scenario`` has (it would run the nominal
+        twin as if it were the tester). Keys of instances the scenario lacks are left out when
+        applied (the probe's bench has no frame)."""
         p = Problems(str(self.path))
         instances = {f.name for f in scenario.fmus}
         for where, keys in (("values", self.values), ("posterior.names", self.names)):
             for key in keys:
                 if instance_of(key) in instances and scenario.nominal(key) is None:
                     p.add(f'{where}."{key}"', f"{scenario.name} has no such parameter")
+        if self.values and not any(instance_of(k) in instances for k in self.values):
+            p.add("values", f"none is of an FMU instance of {scenario.name} ({', '.join(sorted(instances))})")
         p.check()
+        for key, value in self.values.items():
+            _in_range(p, scenario, f'values."{key}"', key, value)
+        for k, key in enumerate(self.names):
+            column = self.draws[:, k]
+            if len(column):  # its extremes: the range is an interval
+                _in_range(p, scenario, f'posterior.draws (column "{key}")', key, column.min(), column.max())
+        p.check()
+
+
+def _in_range(p: Problems, scenario: Scenario, where: str, key: str, *values: float) -> None:
+    """Whether ``scenario`` takes ``values`` of ``key`` (a key of an instance it lacks: left out)."""
+    if instance_of(key) not in {f.name for f in scenario.fmus}:
+        return
+    for value in values:
+        try:
+            scenario.with_value(key, float(value))
+        except ConfigError as exc:
+            p.add(where, exc.message or str(exc))
+            return
 
 
 def file_sha256(path: Path) -> str:
@@ -125,6 +149,13 @@ def load_updated(path: Path, source: str = "--tester", *, coefficients: bool = T
     if not Path(path).is_file():
         raise ConfigError(f"no such tester file {str(path)!r}", source=source)
     raw = read_toml(Path(path), str(path))
+    if "values" not in raw and set(raw) - _TOP:
+        # another kind of file (a record, a scenario): one line, not one per table
+        others = ", ".join(f"[{k}]" for k in sorted(set(raw) - _TOP))
+        raise ConfigError(
+            f"not an updated tester file (it has {others}; twin update writes one: [tester], [values], [posterior])",
+            source=str(path),
+        )
     p = Problems(str(path))
     p.unknown_keys(raw, _TOP, "")
     tester, values, posterior = p.table(raw, "tester"), p.table(raw, "values"), p.table(raw, "posterior")
@@ -184,12 +215,11 @@ def _posterior(
     if not ok:
         p.add("posterior.draws", f"expected a list of rows of {len(names)} numbers (one per name)")
         return tuple(names), np.empty((0, len(names)))
-    try:
-        array = np.array(draws, dtype=float)
-    except (TypeError, ValueError):
-        array = np.full((1, 1), np.nan)
+    # numbers only: numpy would take "1e-5" and true as numbers
+    numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in draws for x in r)
+    array = np.array(draws, dtype=float) if numbers else np.full((1, 1), np.nan)
     if not np.all(np.isfinite(array)):
-        p.add("posterior.draws", "expected finite numbers")
+        p.add("posterior.draws", "expected finite numbers (no strings, booleans, nan or inf)")
     return tuple(names), array
 
 
