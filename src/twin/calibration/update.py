@@ -573,6 +573,18 @@ def write_outputs(
     return values
 
 
+def _spread_draws(walkers: int, total: int) -> np.ndarray:
+    """Which of the posterior's samples (walker by walker, ``total`` of them) a tester file
+    keeps: draw ``j`` from walker ``j mod walkers``, at one of ``count`` steps spread evenly over
+    the chain, taken in a shuffled order (a multiplier prime to ``count``), so that any first
+    ``n`` draws (a run's ``n`` samples) come from every walker and the whole chain."""
+    steps = total // walkers
+    count = min(TESTER_DRAWS, total)
+    j = np.arange(count)
+    stride = next(m for m in (7919, 7907, 7901) if np.gcd(m, count) == 1)
+    return (j % walkers) * steps + ((j * stride) % count) * steps // count
+
+
 def write_tester(
     path: Path,
     record: Record,
@@ -593,7 +605,7 @@ def write_tester(
     names, values = posterior
     params = summary["parameters"]
     means = {n: params[n]["posterior"]["mean"] for n in names}
-    rows = values[np.linspace(0, len(values) - 1, min(TESTER_DRAWS, len(values))).astype(int), : len(names)]
+    rows = values[_spread_draws(record.walkers, len(values)), : len(names)]
     g, d = summary["diagnostics"], summary["drift_mm"]["updated"]
     folder = path.resolve().parent
     head: dict[str, Any] = {
