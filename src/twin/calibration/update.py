@@ -15,7 +15,10 @@ prior groups the update samples and the discrepancy's scale. The update:
    discrepancy, the prior and posterior predictive of the drift, R-hat and ESS from arviz,
    the emulator's check) and ``corner.png`` into the output folder.
 
-Likelihood: ``measured ~ N(drift(theta) + delta, sigma_measured)``, ``delta ~ N(0, scale)``.
+Likelihood: ``measured ~ N(drift(theta) + delta, sigma_measured)``, ``delta ~ N(0, scale)``,
+and for each calibration record (``[[calibration]]``: the probe heated alone on its bench,
+:mod:`twin.calibration.bench`) ``identified ~ N(theta_k, standard error)`` of the parameters it
+measures.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.calibration.bench import Bench, identified_links, lab_bench_records, links_summary, read_benches
 from twin.calibration.emulator import Emulator, derive, twin_drift, verify
 from twin.config.reader import Problems, read_toml
 from twin.errors import ConfigError, RunError
@@ -53,7 +57,7 @@ PRIOR_DRAWS = 4000
 DELTA = "discrepancy_mm"
 #: the least of each sampler setting (a command line's override is refused below it)
 _LEAST = {"walkers": 8, "steps": 10, "burn": 0, "thin": 1}
-_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler"}
+_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler", "calibration"}
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,7 @@ class Record:
     burn: int
     thin: int
     seed: int
+    calibration: tuple[Bench, ...] = ()
 
 
 def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] | None = None) -> Record:
@@ -121,6 +126,12 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     hold = upd.get("hold", [])
     if not isinstance(hold, list) or not all(isinstance(h, str) for h in hold):
         p.add("update.hold", "expected a list of the prior file's keys")
+    benches = read_benches(p, raw.get("calibration"), folder)
+    if benches and isinstance(groups, list) and "probe drift" not in groups:
+        p.add(
+            "calibration",
+            'a probe-heating record measures the "probe drift" group: update.groups must sample it',
+        )
     p.check()
     return Record(
         path,
@@ -138,6 +149,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         int(burn),
         int(thin),
         int(own_seed if seed is None else seed),
+        benches,
     )
 
 
@@ -243,9 +255,12 @@ def run_update(
     echo(
         f"update: discrepancy scale {held['sigma_mm'] * 1e3:.2f} um (the drift's spread over {held['runs']} held draws)"
     )
-    chains, wall = sample(record, prior, emulator, held["sigma_mm"])
+    links = identified_links(lab_bench_records(record.calibration))
+    chains, wall = sample(record, prior, emulator, held["sigma_mm"], links)
     echo(f"update: {record.walkers} walkers x {record.steps} steps in {wall:.1f} s")
     summary = summarise(record, prior, emulator, chains, held)
+    if links:
+        summary["calibration"] = links_summary(links, record.calibration)
     summary["emulator"] = check | {"terms": emulator.describe()}
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
@@ -289,23 +304,47 @@ def held_spread(
 
 
 def log_posterior(
-    record: Record, prior: PriorMap, emulator: Emulator, scale: float
+    record: Record,
+    prior: PriorMap,
+    emulator: Emulator,
+    scale: float,
+    links: Mapping[str, tuple[float, float]] | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The log posterior of standard normal coordinates (rows: walkers), the last one delta's."""
+    """The log posterior of standard normal coordinates (rows: walkers), the last one delta's;
+    ``links``: a sampled parameter -> (its value identified by a calibration record, standard
+    error), each one more Gaussian term (:mod:`twin.calibration.bench`)."""
     order = [emulator.names.index(n) for n in prior.names]
+    missing = sorted(set(links or {}) - set(prior.names))
+    if missing:
+        raise ConfigError(
+            f"a calibration record measures {', '.join(missing)}, which the update does not sample",
+            source=str(record.path),
+            key="update.groups",
+        )
+    linked = [(prior.names.index(k), v, s) for k, (v, s) in (links or {}).items()]
 
     def logp(u: np.ndarray) -> np.ndarray:
         theta = np.empty((u.shape[0], len(emulator.names)))
-        theta[:, order] = prior.theta(u[:, :-1])
+        sampled = prior.theta(u[:, :-1])
+        theta[:, order] = sampled
         model = emulator.drift(theta) + scale * u[:, -1]
-        return -0.5 * np.sum(u**2, axis=1) - 0.5 * ((model - record.drift_mm) / record.sigma_mm) ** 2
+        out = -0.5 * np.sum(u**2, axis=1) - 0.5 * ((model - record.drift_mm) / record.sigma_mm) ** 2
+        for k, value, se in linked:
+            out -= 0.5 * ((sampled[:, k] - value) / se) ** 2
+        return out
 
     return logp
 
 
-def sample(record: Record, prior: PriorMap, emulator: Emulator, scale: float) -> tuple[np.ndarray, float]:
+def sample(
+    record: Record,
+    prior: PriorMap,
+    emulator: Emulator,
+    scale: float,
+    links: Mapping[str, tuple[float, float]] | None = None,
+) -> tuple[np.ndarray, float]:
     """The posterior's chains in standard normal coordinates, (walkers, steps after burn,
-    parameters + delta), and the sampler's wall time (s)."""
+    parameters + delta), and the sampler's wall time (s); ``links`` as :func:`log_posterior`."""
     import emcee
 
     dims = len(prior.rows) + 1
@@ -315,7 +354,11 @@ def sample(record: Record, prior: PriorMap, emulator: Emulator, scale: float) ->
     # than their prior (the sd of their coordinates 0.87 over 96 walkers x 8000 steps)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.StretchMove(), 0.2)]
     sampler = emcee.EnsembleSampler(
-        record.walkers, dims, log_posterior(record, prior, emulator, scale), moves=moves, vectorize=True
+        record.walkers,
+        dims,
+        log_posterior(record, prior, emulator, scale, links),
+        moves=moves,
+        vectorize=True,
     )
     sampler.random_state = np.random.RandomState(record.seed % 2**32).get_state()
     began = time.perf_counter()
