@@ -51,7 +51,18 @@ from twin.config.load import load_scenario, scenarios_dir
 from twin.errors import RunError
 from twin.seeds import Key, generator, scenario_seed
 
-__all__ = ["PREDICTED", "Predicted", "Settings", "rates", "run_coverage"]
+__all__ = [
+    "PREDICTED",
+    "Machinery",
+    "Predicted",
+    "Settings",
+    "rates",
+    "refit",
+    "run_coverage",
+    "setup",
+    "truth",
+    "update_tester",
+]
 
 #: the paper's readings were given to 1 um (mm)
 READING_MM = 1e-3
@@ -164,6 +175,8 @@ def setup(settings: Settings, echo: Callable[[str], None] = print) -> Machinery:
 def refit(paper: Emulator, run: Callable[[Mapping[str, float]], float], draws: np.ndarray) -> Emulator:
     """The paper emulator's terms, their coefficients refitted to ``run``'s drifts at ``draws``
     (rows of parameters) by least squares, the base its nominal run."""
+    if len(draws) < len(paper.terms):
+        raise RunError(f"refitting {len(paper.terms)} terms takes at least as many runs, got {len(draws)}")
     base = run({})
     values = np.array([run(dict(zip(paper.names, map(float, row), strict=True))) for row in draws])
     x = draws / paper.step
@@ -353,10 +366,13 @@ def rates(rows: Sequence[Mapping[str, Any]], groups: Mapping[str, str]) -> dict[
     }
 
 
-def run_coverage(settings: Settings, echo: Callable[[str], None] = print) -> dict[str, Any]:
-    """Draw, record, update and predict every tester (see the module); the summary."""
+def run_coverage(
+    settings: Settings, echo: Callable[[str], None] = print, machinery: Machinery | None = None
+) -> dict[str, Any]:
+    """Draw, record, update and predict every tester (see the module); the summary. The
+    ``machinery`` set up before (:func:`setup`, of the same settings) is used, not set up again."""
     start = time.perf_counter()
-    m = setup(settings, echo)
+    m = setup(settings, echo) if machinery is None else machinery
     setup_s = time.perf_counter() - start
     rows = []
     truth_s = 0.0
@@ -398,6 +414,12 @@ def run_coverage(settings: Settings, echo: Callable[[str], None] = print) -> dic
                 m.held["cov"] / np.outer(np.sqrt(np.diag(m.held["cov"])), np.sqrt(np.diag(m.held["cov"])))
             ).tolist(),
             "runs": m.held["runs"],
+            # the held draws' mean drift against the nominal tester's (the emulators' base): the
+            # update's delta is zero-mean, so this is what it leaves out
+            "mean_minus_nominal_mm": [
+                float(mean - m.emulators[n].base)
+                for n, mean in zip(m.held["names"], m.held["mean"], strict=True)
+            ],
         },
         "wall_s": {
             "setup": setup_s,
