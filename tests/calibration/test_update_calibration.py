@@ -119,7 +119,9 @@ def test_the_links_pull_the_probe_drifts_to_the_bench_and_nothing_without_them(l
 def test_a_bad_calibration_table_gets_one_line_and_exit_2(
     lab: Path, table: str, words: list[str], capsys
 ) -> None:
-    text = (lab / "record.toml").read_text().split("[[calibration]]")[0] + "[[calibration]]\n" + table + "\n"
+    text = (
+        (lab / "record.toml").read_text().rsplit("[[calibration]]", 1)[0] + "[[calibration]]\n" + table + "\n"
+    )
     bad = lab / "bad.toml"
     bad.write_text(text)
     assert main(["update", str(bad), "--out", str(lab / "never")]) == 2
@@ -127,3 +129,14 @@ def test_a_bad_calibration_table_gets_one_line_and_exit_2(
     assert len(err.splitlines()) == 1 and str(bad) in err, err
     assert all(w in err for w in words), err
     assert not (lab / "never").exists()
+
+
+def test_a_bench_record_without_the_probe_drift_sampled_is_refused(lab: Path, capsys) -> None:
+    text = (lab / "record.toml").read_text()
+    groups = 'groups = ["alphas", "lengths", "point-vs-mean", "probe drift"]'
+    assert groups in text
+    bad = lab / "unsampled.toml"
+    bad.write_text(text.replace(groups, 'groups = ["alphas", "lengths", "point-vs-mean"]'))
+    assert main(["update", str(bad), "--out", str(lab / "never")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "calibration" in err and "probe drift" in err, err
