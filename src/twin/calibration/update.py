@@ -18,7 +18,10 @@ prior groups the update samples and the discrepancy's scale. The update:
    compensate`` and ``twin identify`` take with ``--tester``; ``--write`` also puts it where
    the record's ``[tester] file`` says (the shipped ``scenarios/records/li2017-updated.toml``).
 
-Likelihood: ``measured ~ N(drift(theta) + delta, sigma_measured)``, ``delta ~ N(0, scale)``.
+Likelihood: ``measured ~ N(drift(theta) + delta, sigma_measured)``, ``delta ~ N(0, scale)``,
+and for each calibration record (``[[calibration]]``: the probe heated alone on its bench,
+:mod:`twin.calibration.bench`) ``identified ~ N(theta_k, standard error)`` of the parameters it
+measures.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.calibration.bench import Bench, identified_links, lab_bench_records, links_summary, read_benches
 from twin.calibration.design import next_experiment, report_line
 from twin.calibration.emulator import Emulator, derive, twin_drift, verify
 from twin.config.reader import Problems, read_toml, unsafe_name
@@ -58,7 +62,7 @@ PRIOR_DRAWS = 4000
 DELTA = "discrepancy_mm"
 #: the least of each sampler setting (a command line's override is refused below it)
 _LEAST = {"walkers": 8, "steps": 10, "burn": 0, "thin": 1}
-_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler", "tester"}
+_TOP = {"record", "drift", "rises", "update", "discrepancy", "sampler", "tester", "calibration"}
 #: posterior draws an updated tester file keeps (evenly thinned): an updated prediction of
 #: ``twin run`` takes one per Monte Carlo sample (the paper's: 200)
 TESTER_DRAWS = 400
@@ -87,6 +91,7 @@ class Record:
     #: (identified on the updated tester by ``twin identify --tester``), both or neither
     tester_file: Path | None = None
     tester_coefficients: str | None = None
+    calibration: tuple[Bench, ...] = ()
 
 
 def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] | None = None) -> Record:
@@ -124,9 +129,7 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     name = _where_it_writes(p, rec.get("name", path.stem), tester_file)
     measured = p.number(drift, "measured_mm", "drift.")
     sigma = p.number(drift, "sigma_mm", "drift.", lo=1e-9)
-    groups = upd.get("groups")
-    if not isinstance(groups, list) or not groups or not set(groups) <= set(ROLES):
-        p.add("update.groups", f"expected a list from {sorted(ROLES)}")
+    groups, hold = _groups(p, upd)
     if disc.get("scale") != "held inputs":
         p.add(
             "discrepancy.scale", 'expected "held inputs" (the spread of the drift over what the update holds)'
@@ -136,9 +139,12 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
     own_seed = p.integer(samp, "seed", "sampler.", default=0, lo=0, hi=2**63 - 1)
     table = p.table(raw, "rises")
     rises = {str(k): p.number(table, k, "rises.") for k in table if k not in ("resolution_K", "source")}
-    hold = upd.get("hold", [])
-    if not isinstance(hold, list) or not all(isinstance(h, str) for h in hold):
-        p.add("update.hold", "expected a list of the prior file's keys")
+    benches = read_benches(p, raw.get("calibration"), folder)
+    if benches and isinstance(groups, list) and "probe drift" not in groups:
+        p.add(
+            "calibration",
+            'a probe-heating record measures the "probe drift" group: update.groups must sample it',
+        )
     p.check()
     return Record(
         path,
@@ -158,7 +164,19 @@ def load_record(path: Path, seed: int | None = None, sampler: Mapping[str, int] 
         int(own_seed if seed is None else seed),
         tester_file,
         tester_coefficients,
+        benches,
     )
+
+
+def _groups(p: Problems, upd: Mapping[str, Any]) -> tuple[Any, Any]:
+    """The ``[update]`` table's sampled groups and held keys."""
+    groups = upd.get("groups")
+    if not isinstance(groups, list) or not groups or not set(groups) <= set(ROLES):
+        p.add("update.groups", f"expected a list from {sorted(ROLES)}")
+    hold = upd.get("hold", [])
+    if not isinstance(hold, list) or not all(isinstance(h, str) for h in hold):
+        p.add("update.hold", "expected a list of the prior file's keys")
+    return groups, hold
 
 
 def _tester(p: Problems, raw: Mapping[str, Any], folder: Path) -> tuple[Path | None, str | None]:
@@ -326,9 +344,12 @@ def run_update(
     echo(
         f"update: discrepancy scale {held['sigma_mm'] * 1e3:.2f} um (the drift's spread over {held['runs']} held draws)"
     )
-    chains, wall = sample(record, prior, emulator, held["sigma_mm"])
+    links = identified_links(lab_bench_records(record.calibration))
+    chains, wall = sample(record, prior, emulator, held["sigma_mm"], links)
     echo(f"update: {record.walkers} walkers x {record.steps} steps in {wall:.1f} s")
     summary = summarise(record, prior, emulator, chains, held)
+    if links:
+        summary["calibration"] = links_summary(links, record.calibration)
     summary["emulator"] = check | {"terms": emulator.describe()}
     summary["next_experiment"] = next_experiment(record, prior, emulator, chains, roles)
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
@@ -405,23 +426,47 @@ def held_spread(
 
 
 def log_posterior(
-    record: Record, prior: PriorMap, emulator: Emulator, scale: float
+    record: Record,
+    prior: PriorMap,
+    emulator: Emulator,
+    scale: float,
+    links: Mapping[str, tuple[float, float]] | None = None,
 ) -> Callable[[np.ndarray], np.ndarray]:
-    """The log posterior of standard normal coordinates (rows: walkers), the last one delta's."""
+    """The log posterior of standard normal coordinates (rows: walkers), the last one delta's;
+    ``links``: a sampled parameter -> (its value identified by a calibration record, standard
+    error), each one more Gaussian term (:mod:`twin.calibration.bench`)."""
     order = [emulator.names.index(n) for n in prior.names]
+    missing = sorted(set(links or {}) - set(prior.names))
+    if missing:
+        raise ConfigError(
+            f"a calibration record measures {', '.join(missing)}, which the update does not sample",
+            source=str(record.path),
+            key="update.groups",
+        )
+    linked = [(prior.names.index(k), v, s) for k, (v, s) in (links or {}).items()]
 
     def logp(u: np.ndarray) -> np.ndarray:
         theta = np.empty((u.shape[0], len(emulator.names)))
-        theta[:, order] = prior.theta(u[:, :-1])
+        sampled = prior.theta(u[:, :-1])
+        theta[:, order] = sampled
         model = emulator.drift(theta) + scale * u[:, -1]
-        return -0.5 * np.sum(u**2, axis=1) - 0.5 * ((model - record.drift_mm) / record.sigma_mm) ** 2
+        out = -0.5 * np.sum(u**2, axis=1) - 0.5 * ((model - record.drift_mm) / record.sigma_mm) ** 2
+        for k, value, se in linked:
+            out -= 0.5 * ((sampled[:, k] - value) / se) ** 2
+        return out
 
     return logp
 
 
-def sample(record: Record, prior: PriorMap, emulator: Emulator, scale: float) -> tuple[np.ndarray, float]:
+def sample(
+    record: Record,
+    prior: PriorMap,
+    emulator: Emulator,
+    scale: float,
+    links: Mapping[str, tuple[float, float]] | None = None,
+) -> tuple[np.ndarray, float]:
     """The posterior's chains in standard normal coordinates, (walkers, steps after burn,
-    parameters + delta), and the sampler's wall time (s)."""
+    parameters + delta), and the sampler's wall time (s); ``links`` as :func:`log_posterior`."""
     import emcee
 
     dims = len(prior.rows) + 1
@@ -431,7 +476,11 @@ def sample(record: Record, prior: PriorMap, emulator: Emulator, scale: float) ->
     # than their prior (the sd of their coordinates 0.87 over 96 walkers x 8000 steps)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.StretchMove(), 0.2)]
     sampler = emcee.EnsembleSampler(
-        record.walkers, dims, log_posterior(record, prior, emulator, scale), moves=moves, vectorize=True
+        record.walkers,
+        dims,
+        log_posterior(record, prior, emulator, scale, links),
+        moves=moves,
+        vectorize=True,
     )
     sampler.random_state = np.random.RandomState(record.seed % 2**32).get_state()
     began = time.perf_counter()
