@@ -83,8 +83,9 @@ def test_the_update_moves_the_drift_toward_the_record_and_leaves_what_it_does_no
     assert set(rises["twin"]) == set(rises["measured"]) and rises["largest_difference_K"] < 0.3, rises
     written = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert written["drift_mm"]["updated"]["samples"] == summary["drift_mm"]["updated"]["samples"]
-    for name in ("samples.parquet", "corner.png"):
+    for name in ("samples.parquet", "corner.png", "predictive.png"):
         assert (tmp_path / "out" / name).stat().st_size > 1000
+    assert (tmp_path / "out" / "predictive.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # the updated tester file: the posterior means as its values, its draws from the chains
     tester = load_updated(tmp_path / "out" / "tester.toml")
     for name, value in tester.values.items():

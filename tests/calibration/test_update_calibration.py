@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -140,3 +141,15 @@ def test_a_bench_record_without_the_probe_drift_sampled_is_refused(lab: Path, ca
     assert main(["update", str(bad), "--out", str(lab / "never")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "calibration" in err and "probe drift" in err, err
+
+
+def test_the_update_with_a_bench_record_plots_both_records(lab: Path) -> None:
+    """End to end through the command: the drift and the bench's two terms, each in
+    predictive.png beside its prior, and the bench's terms in summary.json."""
+    out = lab / "out"
+    args = ["update", str(lab / "record.toml"), "--walkers", "72", "--steps", "3000", "--burn", "1000"]
+    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["calibration"]["terms"]) == {ZERO, SPAN}
+    png = (out / "predictive.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000

@@ -13,7 +13,8 @@ prior groups the update samples and the discrepancy's scale. The update:
    ``low + (high - low) Phi(u)``), the discrepancy delta one more coordinate;
 4. writes ``samples.parquet``, ``summary.json`` (each parameter's prior and posterior, the
    discrepancy, the prior and posterior predictive of the drift, R-hat and ESS from arviz,
-   the emulator's check), ``corner.png`` and ``tester.toml`` into the output folder: the
+   the emulator's check), ``corner.png``, ``predictive.png`` (each record against its prior
+   and posterior predictive) and ``tester.toml`` into the output folder: the
    updated tester file (:mod:`twin.uncertainty.updated`) that ``twin run``, ``twin
    compensate`` and ``twin identify`` take with ``--tester``; ``--write`` also puts it where
    the record's ``[tester] file`` says (the shipped ``scenarios/records/li2017-updated.toml``).
@@ -355,6 +356,9 @@ def run_update(
     summary["wall_s"] = {"sampler": wall, "total": time.perf_counter() - start}
     summary["rises_K"] |= twin_rises(scenario, record.rises_K)
     values = write_outputs(out, summary, prior, emulator, chains)
+    write_atomic(
+        out / "predictive.png", lambda tmp: predictive_plot(tmp, record, (prior, emulator), chains, summary)
+    )
     write_tester(out / "tester.toml", record, summary, (prior.names, values), coefficients=False)
     if write and record.tester_file is not None:
         write_tester(record.tester_file, record, summary, (prior.names, values), coefficients=True)
@@ -373,7 +377,7 @@ def check_out(out: Path) -> None:
         refuse_links(out.parent, [out.name])
     if not out.is_dir():
         return
-    refuse_links(out, ["samples.parquet", "summary.json", "corner.png", "tester.toml"])
+    refuse_links(out, ["samples.parquet", "summary.json", "corner.png", "predictive.png", "tester.toml"])
     found = [RUN_FILE] if (out / RUN_FILE).exists() else []
     try:
         own = "measured_drift_mm" in json.loads((out / "summary.json").read_text(encoding="utf-8"))
@@ -689,6 +693,77 @@ def write_tester(
         "[posterior] evenly thinned posterior draws; see twin.uncertainty.updated."
     )
     return write_updated(path, head, means, (names, rows), comment)
+
+
+def predictive_plot(
+    path: Path,
+    record: Record,
+    model: tuple[PriorMap, Emulator],
+    chains: np.ndarray,
+    summary: Mapping[str, Any],
+) -> None:
+    """The posterior predictive of each record beside its prior predictive: the drift (the
+    twin plus the discrepancy, the measured value with its sigma) and each calibration term
+    (the linked parameter, the identified value with its standard error)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    prior, emulator = model
+    scale = summary["discrepancy"]["prior_sigma_mm"]
+    order = [emulator.names.index(n) for n in prior.names]
+    draws = generator(record.seed, Key.UPDATE, 2).standard_normal((PRIOR_DRAWS, len(prior.rows) + 1))
+
+    def physical(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        theta = np.empty((u.shape[0], len(emulator.names)))
+        theta[:, order] = prior.theta(u[:, :-1])
+        return theta, emulator.drift(theta) + scale * u[:, -1]
+
+    flat = chains.reshape(-1, chains.shape[-1])
+    (pri_theta, pri_drift), (post_theta, post_drift) = physical(draws), physical(flat)
+    twin_only = (post_drift - scale * flat[:, -1]) * 1e3  # the updated twin, without the discrepancy
+    terms = summary.get("calibration", {}).get("terms", {})
+    fig, axes = plt.subplots(1, 1 + len(terms), figsize=(5.0 * (1 + len(terms)), 3.4), squeeze=False)
+    panels = [("drift, um", pri_drift * 1e3, post_drift * 1e3, record.drift_mm * 1e3, record.sigma_mm * 1e3)]
+    for name, term in terms.items():
+        k = emulator.names.index(name)  # the prior file's key the bench measures
+        label = f"{name.split('.')[-1]} (bench)"
+        panels.append((label, pri_theta[:, k], post_theta[:, k], term["identified"], term["standard_error"]))
+    for ax, (label, before, after, measured, sigma) in zip(axes[0], panels, strict=True):
+        # fine bins: the posterior is a sliver of the prior's range
+        bins = np.linspace(*np.percentile(np.concatenate([before, after]), [0.5, 99.5]), 150)
+        ax.hist(before, bins=bins, density=True, color="0.75", label="prior predictive")
+        ax.hist(
+            after,
+            bins=bins,
+            density=True,
+            histtype="step",
+            color="tab:blue",
+            lw=1.5,
+            label="posterior predictive",
+        )
+        if ax is axes[0][0]:
+            ax.hist(
+                twin_only,
+                bins=bins,
+                density=True,
+                histtype="step",
+                color="tab:blue",
+                ls="--",
+                label="updated twin",
+            )
+        ax.axvspan(measured - sigma, measured + sigma, color="tab:red", alpha=0.25)
+        ax.axvline(measured, color="tab:red", lw=1.2, label="measured (+- sigma)")
+        ax.set_xlabel(label, fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(
+        f"twin update {record.name}: each record against its prior and posterior predictive", fontsize=9
+    )
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=110)
+    plt.close(fig)
 
 
 def corner_plot(frame: Any, path: Path) -> None:
