@@ -82,6 +82,7 @@ def test_the_update_moves_the_drift_toward_the_record_and_leaves_what_it_does_no
     rises = summary["rises_K"]
     assert set(rises["twin"]) == set(rises["measured"]) and rises["largest_difference_K"] < 0.3, rises
     written = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert written["prior"] == str(paper["record"].prior)
     assert written["drift_mm"]["updated"]["samples"] == summary["drift_mm"]["updated"]["samples"]
     for name in ("samples.parquet", "corner.png", "predictive.png"):
         assert (tmp_path / "out" / name).stat().st_size > 1000
@@ -145,6 +146,13 @@ def test_write_without_a_tester_file_is_refused_before_the_update_runs(tmp_path,
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "tester.file" in lines[0] and "--write" in lines[0], lines
     assert not (tmp_path / "out").exists()  # nothing ran: the paper's update takes minutes
+
+
+def test_a_missing_prior_file_is_refused_in_one_line(tmp_path, capsys) -> None:
+    assert main(["update", "--prior", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--prior" in err[0] and "none.toml" in err[0], err
+    assert not (tmp_path / "o").exists()
 
 
 def test_a_missing_record_or_a_negative_count_is_refused_in_one_line(tmp_path, capsys) -> None:

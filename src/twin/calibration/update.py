@@ -541,6 +541,7 @@ def summarise(
     drift = _predictive(record, prior, emulator, (draws, flat_u), scale)
     return {
         "record": str(record.path),
+        "prior": str(record.prior),
         "name": record.name,
         "measured_drift_mm": record.drift_mm,
         "measured_sigma_mm": record.sigma_mm,

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +19,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(NAME, help="update the twin's uncertain parameters from a record (Bayesian, emcee)")
     optional(p, "record", f"record file (default: scenarios/{DEFAULT_FILE}, the paper's)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: runs/update-<record>)")
+    p.add_argument(
+        "--prior",
+        metavar="TOML",
+        help="the prior file the update starts from (default: the record's [record] prior; the paper's: "
+        "scenarios/base/priors.toml)",
+    )
     p.add_argument("--seed", type=int, metavar="N", help="the sampler's seed (default: the record's)")
     p.add_argument("--walkers", type=int, metavar="N", help="emcee walkers (default: the record's)")
     p.add_argument("--steps", type=int, metavar="N", help="steps per walker (default: the record's)")
@@ -47,6 +54,10 @@ def command(args: argparse.Namespace) -> int:
         raise ConfigError("no such record file", source=str(path))
     overrides = {k: getattr(args, k) for k in ("walkers", "steps", "burn") if getattr(args, k) is not None}
     record = load_record(path, seed=args.seed, sampler=overrides)
+    if args.prior is not None:
+        if not Path(args.prior).is_file():
+            raise ConfigError("no such prior file", source=f"--prior {args.prior}")
+        record = dataclasses.replace(record, prior=Path(args.prior).resolve())
     out = Path(args.out) if args.out is not None else Path("runs") / f"update-{record.name}"
     check_output_folder(out, "--out")
     check_out(out)
