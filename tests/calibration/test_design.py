@@ -12,24 +12,16 @@ import pytest
 
 from twin.calibration import design as D
 from twin.calibration import update as U
-from twin.calibration.emulator import derive, twin_drift
 from twin.config.load import load_scenario, scenarios_dir
 from twin.seeds import generator
 
-RECORD = scenarios_dir() / "records" / "li2017.toml"
-#: a short chain (as tests/calibration/test_update.py): the posterior's centre and spread to ~10 %
-SHORT = {"walkers": 72, "steps": 3000, "burn": 1000, "thin": 5}
-
 
 @pytest.fixture(scope="module")
-def paper() -> dict:
+def paper(paper_emulator: dict) -> dict:
     """The paper's record updated with a short chain, and the next experiment it names."""
-    record = dataclasses.replace(U.load_record(RECORD, sampler=SHORT), held_samples=8)
-    scenario = load_scenario(record.scenario)
-    prior, roles = U.sampled_rows(record, scenario)
-    run = twin_drift(scenario)
-    nominal = {n: float(scenario.nominal(n)) for n in prior.names}
-    emulator = derive(run, nominal, prior.scales(), roles)
+    e = paper_emulator
+    record, scenario, prior, roles = e["record"], e["scenario"], e["prior"], e["roles"]
+    run, nominal, emulator = e["run"], e["nominal"], e["emulator"]
     held = U.held_spread(record, scenario, nominal, run)
     chains, _ = U.sample(record, prior, emulator, held["sigma_mm"])
     found = D.next_experiment(record, prior, emulator, chains, roles)

@@ -10,27 +10,19 @@ import numpy as np
 import pytest
 
 from twin.calibration import update as U
-from twin.calibration.emulator import derive, twin_drift, verify
+from twin.calibration.emulator import verify
 from twin.cli import main
-from twin.config.load import load_scenario, scenarios_dir
+from twin.config.load import scenarios_dir
 from twin.seeds import generator
 from twin.uncertainty.updated import load_updated
 
 RECORD = scenarios_dir() / "records" / "li2017.toml"
-#: a short chain: enough for the posterior's centre and spread to within ~10 %
-SHORT = {"walkers": 72, "steps": 3000, "burn": 1000, "thin": 5}
 
 
 @pytest.fixture(scope="module")
-def paper() -> dict:
-    """The paper's record, its scenario, prior, forward runs and emulator (derived once)."""
-    record = dataclasses.replace(U.load_record(RECORD, sampler=SHORT), held_samples=8)
-    scenario = load_scenario(record.scenario)
-    prior, roles = U.sampled_rows(record, scenario)
-    run = twin_drift(scenario)
-    nominal = {n: float(scenario.nominal(n)) for n in prior.names}
-    emulator = derive(run, nominal, prior.scales(), roles)
-    return {"record": record, "scenario": scenario, "prior": prior, "run": run, "emulator": emulator}
+def paper(paper_emulator: dict) -> dict:
+    """The paper's record, its scenario, prior, forward runs and emulator (tests/calibration/conftest.py)."""
+    return paper_emulator
 
 
 def test_the_emulator_matches_full_twin_runs_at_prior_draws(paper) -> None:
