@@ -341,7 +341,9 @@ def test_monte_carlo_progress_without_a_terminal(tmp_path: Path) -> None:
     assert "\r" not in r.stdout and "\r" not in r.stderr
     told = [PROGRESS.match(line) for line in r.stdout.splitlines()]
     counts = [int(m.group(1)) for m in told if m]
-    assert counts == [2, 4, 6, 8, 10, 12, 14, 16, 18, 20], r.stdout  # a line per tenth, in order
+    # the default run is the updated tester's: 20 prior and 20 updated samples, a line per tenth
+    assert counts == [4, 8, 12, 16, 20, 24, 28, 32, 36, 40], r.stdout
+    assert "failed" not in r.stdout, r.stdout  # a 2 min run's samples run (their room has two points)
     quiet = subprocess.run(
         [*TWIN, *short_run(tmp_path / "b", 2, minutes=2), "--quiet"],
         cwd=tmp_path,

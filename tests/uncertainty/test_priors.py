@@ -154,3 +154,17 @@ def test_the_replay_sweep_draws_the_same_prior() -> None:
     prior = load_prior(PRIORS, spec.scenario)
     assert {r[0] for r in prior.rows} <= set(spec.names)
     assert POLE in spec.names and FRAME in spec.names and "input.thermal.t_room.rise" in spec.names
+
+
+@pytest.mark.parametrize(
+    ("minutes", "first", "last"), [(2, 0.0, 120.0), (4, 0.0, 240.0), (480, 0.0, 28800.0)]
+)
+def test_a_sample_room_spans_the_run_however_short(minutes: int, first: float, last: float) -> None:
+    """The room of a Monte Carlo sample is a table over the run: a run shorter than the table's
+    step kept one point (at its end) and every sample failed, its room driving nothing."""
+    from twin.uncertainty.rooms import ROOM_STEP_S, sample_times
+
+    scenario = load_scenario(REPLAY, [f'scenario.duration="{minutes} min"'])
+    t = sample_times(scenario)
+    assert t[0] == first and t[-1] == last and len(t) >= 2
+    assert np.all(np.diff(t) <= ROOM_STEP_S)

@@ -76,7 +76,9 @@ def sample_times(scenario: Scenario, corners: Sequence[float] = ()) -> np.ndarra
     """Every :data:`ROOM_STEP_S` over the run, and the given corner times within it."""
     end = scenario.duration_ns / NS_PER_S
     grid = np.arange(0.0, end + ROOM_STEP_S / 2, ROOM_STEP_S)
-    grid[-1] = end
+    # the last point is the run's end; a run shorter than half a step keeps its start too (the
+    # grid's one point was moved to the end, and a table of one point drives nothing)
+    grid = np.append(grid[:-1], end) if len(grid) > 1 else np.array([0.0, end])
     return np.unique(np.concatenate([grid, [c for c in corners if 0.0 <= c <= end]]))
 
 
