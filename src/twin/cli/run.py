@@ -109,11 +109,14 @@ def command(args: argparse.Namespace) -> int:
         tester=tester_path(args.tester, default=args.scenario is None),
     )
     with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
-        if args.own_process:
-            process.settle()
         assert prepared.folder is not None
         folder = prepared.folder.path
+        # first thing once the folder exists: a signal from here on leaves it a summary saying
+        # "interrupted" (the process's tuning below took long enough for a Ctrl-C to land in
+        # between and leave the folder without one)
         watch_folder(folder, prepared.uncertainty is not None, prepared.scenario.name)
+        if args.own_process:
+            process.settle()
         if prepared.tester is not None and prepared.tester.coefficients is None:
             print(
                 f"twin: {prepared.tester.path}: names no coefficients: the error model uses the "
