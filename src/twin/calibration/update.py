@@ -635,8 +635,8 @@ def _spread_draws(walkers: int, total: int) -> np.ndarray:
     steps = total // walkers
     count = min(TESTER_DRAWS, total)
     j = np.arange(count)
-    stride = next(m for m in (7919, 7907, 7901) if np.gcd(m, count) == 1)
-    return (j % walkers) * steps + ((j * stride) % count) * steps // count
+    # 7919 is prime and larger than any count kept (TESTER_DRAWS): j -> 7919 j mod count permutes
+    return (j % walkers) * steps + ((j * 7919) % count) * steps // count
 
 
 def write_tester(
