@@ -1,0 +1,257 @@
+"""Runs of one system stepped together by the compiled stepper: a Monte Carlo's samples.
+
+A Monte Carlo's samples are one scenario with other parameter values, seeds and driven
+profiles: the same instances, connections, periods and recorded columns (one
+:func:`structure`). Run one by one, every sample pays the master's Python around its FMU work
+(simpy's clock, a profile matrix and a row buffer per batch of ticks, the recorder) for a few
+milliseconds of stepping. Stepped together, the copies' instances are one array of slots for
+the stepper's one call per batch of ticks: copy ``c``'s instance ``i`` is slot ``c * M + i``,
+its connections read the slots of its own copy and its driven inputs the columns of its own
+copy. The copies share nothing and each one's FMUs are called in the same order with the same
+values as alone, so every copy's rows are bit for bit those of its run alone
+(tests/cosim/test_batch.py).
+
+What a batch does not do, it refuses (:func:`unbatchable`): scenario events, algebraic loops
+(the Python loop's), a resumed run. A copy whose FMUs fail in their set-up or while stepping
+is not run on: the caller runs it alone (:attr:`BatchRuns.alone`), where the master reports
+the failure as it would anyway, with everything recorded up to it.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from twin.config.spec import NS_PER_S
+from twin.cosim.instances import close_slots, initialize, open_slots
+from twin.cosim.layout import Status, TwinColumn, TwinCounters, TwinSlot, entry
+from twin.cosim.master import RunResult
+from twin.cosim.native import NativeLoop, stepper
+from twin.cosim.plan import BATCH_TICKS, InputKind, Plan
+from twin.cosim.state import State, make_state
+from twin.cosim.stepping import final_tick
+from twin.fmu.pool import SlotPool
+from twin.fmu.slot import FMUSlot
+from twin.signals.table import SignalTable
+
+__all__ = ["BatchRuns", "run_batch", "structure", "unbatchable"]
+
+
+def structure(plan: Plan) -> tuple[object, ...]:
+    """What runs stepped together must share: the clock, every instance's model, period,
+    inputs' sources and outputs, the driven columns' count and the recorded columns."""
+    instances = tuple(
+        (i.name, i.model, i.period_ticks, i.outputs, tuple((p.kind, p.src, p.idx) for p in i.inputs))
+        for i in plan.instances
+    )
+    columns = tuple((c.instance, c.kind, c.idx, c.meta.name) for c in plan.columns)
+    sc = plan.scenario
+    return (
+        sc.step_ns,
+        sc.start_ns,
+        sc.duration_ns,
+        sc.output_interval_ns,
+        len(plan.driven),
+        instances,
+        columns,
+    )
+
+
+def unbatchable(plan: Plan) -> str | None:
+    """Why ``plan`` cannot be stepped with others (None: it can)."""
+    if plan.events:
+        return "it has scenario events (applied between batches of ticks, per run)"
+    if plan.loops:
+        return "it has algebraic loops (the Python loop iterates them)"
+    return None
+
+
+@dataclass
+class BatchRuns:
+    """The results of the copies that ran (by their index in the batch) and the indices of
+    those left to run alone (their set-up or a step failed)."""
+
+    results: dict[int, RunResult] = field(default_factory=dict)
+    alone: list[int] = field(default_factory=list)
+
+
+@dataclass
+class _Copy:
+    index: int
+    plan: Plan
+    state: State
+    slots: list[FMUSlot]
+    loop: NativeLoop
+    #: after the run: the rows of every copy and this copy's place among them, and its
+    #: macro steps and FMU steps
+    rows: tuple[_Rows, int] | None = None
+    counters: tuple[int, int] = (0, 0)
+
+
+def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> BatchRuns:
+    """Step the runs of ``plans`` (one :func:`structure`, none :func:`unbatchable`) together;
+    each completed copy's result holds the ``keep`` columns of every row. Instances come from
+    ``pool`` and go back to it (a pool that keeps as many idle instances per FMU as a batch
+    has copies reuses them all)."""
+    if not plans:
+        return BatchRuns()
+    first = structure(plans[0])
+    for plan in plans:
+        why = unbatchable(plan)
+        if why is not None or structure(plan) != first:
+            raise ValueError(
+                f"plan of {plan.scenario.name!r} cannot join the batch: {why or 'another structure'}"
+            )
+    out = BatchRuns()
+    start = time.perf_counter()
+    copies: list[_Copy] = []
+    try:
+        for index, plan in enumerate(plans):
+            copy = _open(index, plan, pool)
+            if copy is None:
+                out.alone.append(index)
+            else:
+                copies.append(copy)
+        setup_s = time.perf_counter() - start
+        kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep]
+        copies = _step_all(copies, kept, pool, out.alone)
+        wall = time.perf_counter() - start
+        for copy in copies:
+            out.results[copy.index] = _result(copy, kept, wall / max(len(copies), 1), setup_s / len(plans))
+    finally:
+        for copy in copies:
+            close_slots(copy.slots, pool)
+    out.alone.sort()
+    return out
+
+
+def _step_all(
+    copies: list[_Copy], kept: Sequence[int], pool: SlotPool | None, alone: list[int]
+) -> list[_Copy]:
+    """Step every copy to the end; a copy whose FMU fails goes to ``alone`` (run alone, the
+    master reports its failure) and the others start again from their beginning without it:
+    a failure is rare, and a copy's instances cannot be rewound to the tick the batch stopped
+    at. Returns the copies that ran to the end."""
+    while copies:
+        failed = _step(copies, kept)
+        if failed is None:
+            return copies
+        alone.append(copies[failed].index)
+        for c in copies:
+            close_slots(c.slots)
+            c.slots = []
+        reopened = []
+        for c in (c for i, c in enumerate(copies) if i != failed):
+            again = _open(c.index, c.plan, pool)
+            if again is None:
+                alone.append(c.index)
+            else:
+                reopened.append(again)
+        copies = reopened
+    return copies
+
+
+def _open(index: int, plan: Plan, pool: SlotPool | None) -> _Copy | None:
+    """Copy ``index``'s instances loaded and initialized (None: an FMU refused)."""
+    try:
+        slots = open_slots(plan, pool)
+    except Exception:
+        return None
+    try:
+        state = make_state(plan)
+        initialize(plan, state, slots)
+        return _Copy(index, plan, state, slots, NativeLoop(plan, state, slots))
+    except Exception:
+        close_slots(slots)
+        return None
+
+
+class _Rows:
+    """Every recorded row of every copy (the kept columns), filled batch by batch."""
+
+    def __init__(self, plan: Plan, n_copies: int, n_cols: int) -> None:
+        k0, n, every = plan.start_tick, plan.n_ticks, plan.out_every
+        self.first = -(-k0 // every)
+        total = max(0, n // every - self.first + 1)  # the end's row included when it is one
+        self.values = np.zeros((total, n_copies * max(n_cols, 1)))
+        self.done = 0
+
+
+def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
+    """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
+    failed, else None (every copy's rows in ``copy.rows``)."""
+    plan = copies[0].plan
+    m, n_driven, n_cols = len(plan.instances), max(len(plan.driven), 1), len(kept)
+    slots = (TwinSlot * (m * len(copies)))()
+    alive = []  # the per-copy source arrays the combined slots point at
+    for c, copy in enumerate(copies):
+        for i, inst in enumerate(plan.instances):
+            slots[c * m + i] = copy.loop.slots[i]  # a copy of the struct: pointers into copy's state
+            s = slots[c * m + i]  # shares the array's memory
+            src = np.array(
+                [p.src + (c * m if p.kind != InputKind.DRIVEN else c * n_driven) for p in inst.inputs] or [0],
+                dtype=np.int32,
+            )
+            alive.append(src)
+            s.in_src = src.ctypes.data
+    cols = (TwinColumn * max(n_cols * len(copies), 1))(
+        *[
+            TwinColumn(c * m + col.instance, col.kind, col.idx, 0)
+            for c in range(len(copies))
+            for col in (plan.columns[j] for j in kept)
+        ]
+    )
+    rows = _Rows(plan, len(copies), n_cols)
+    run = getattr(stepper(), entry()[0])
+    k, end, step = plan.start_tick, plan.n_ticks, plan.step_ns
+    counters = TwinCounters()
+    while k < end:
+        k1 = min(k + BATCH_TICKS, end)
+        driven = np.hstack([copy.state.driven.matrix(k, k1, step)[:, :n_driven] for copy in copies])
+        driven = np.ascontiguousarray(driven)
+        view = rows.values[rows.done :]
+        counters.rows = 0
+        status = run(
+            slots, len(slots), k, k1, step, plan.out_every, driven.ctypes.data, driven.shape[1],
+            view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
+        )  # fmt: skip
+        if status != Status.OK:
+            return int(counters.fail_slot) // m if status == Status.FAILED else 0
+        rows.done += int(counters.rows)
+        k = k1
+    for c, copy in enumerate(copies):
+        copy.counters = (int(counters.macro_steps), int(counters.fmu_steps) // len(copies))
+        copy.rows = (rows, c)
+    return None
+
+
+def _result(copy: _Copy, kept: Sequence[int], cosim_s: float, setup_s: float) -> RunResult:
+    """Copy's run as the master gives it: its kept columns of every row (the end's too)."""
+    plan = copy.plan
+    assert copy.rows is not None
+    rows, c = copy.rows
+    n_cols = len(kept)
+    values = rows.values[: rows.done, c * n_cols : (c + 1) * n_cols]
+    times = (rows.first + np.arange(rows.done, dtype=np.int64)) * plan.scenario.output_interval_ns / NS_PER_S
+    last = final_tick(plan, copy.state)
+    if last is not None:
+        times = np.concatenate([times, last[0]])
+        values = np.vstack([values, last[1][:, list(kept)]])
+    table = SignalTable(times)
+    for j, col in enumerate(kept):
+        table.add(plan.columns[col].meta, np.ascontiguousarray(values[:, j]))
+    macro, fmu = copy.counters
+    return RunResult(
+        table=table,
+        status="completed",
+        cosim_s=cosim_s,
+        setup_s=setup_s,
+        macro_steps=macro,
+        fmu_steps=fmu,
+        end_ns=plan.scenario.start_ns + macro * plan.step_ns,
+        start_ns=plan.scenario.start_ns,
+    )
