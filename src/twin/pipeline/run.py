@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -80,15 +81,14 @@ def run(
 def run_samples(
     prepared: PreparedRun, controls: RunControls, on_stop: Callable[[str], Any] | None = None
 ) -> dict[str, Any]:
-    """The prepared run's Monte Carlo on Dask (a local cluster): per sample its room shape and
-    figures, in sample order. ``controls.stop`` answering a signal's name ends it after the
-    samples done so far (``"interrupted"`` then names it); ``on_stop(name)`` is called then,
-    before the cluster closes (closing it takes seconds the command may not be given)."""
-    # Dask loads here, with the Monte Carlo: a run without one and ``twin compensate`` (which
-    # imports this package) never pay for distributed's import
-    from twin.pipeline.point import point_task
-    from twin.pipeline.shipping import BinariesPlugin, collect
+    """The prepared run's Monte Carlo: per sample its room shape and figures, in sample order.
 
+    Samples run in this process, :data:`IN_PROCESS_BATCH` at a time with their FMUs stepped
+    together (:func:`twin.pipeline.point.batch_tasks`), for as long as the samples left would
+    take less than a local cluster saves: then the rest go to Dask (:func:`_cluster_pays`).
+    ``controls.stop`` answering a signal's name ends it after the samples done so far
+    (``"interrupted"`` then names it); ``on_stop(name)`` is called then, before a cluster
+    closes (closing it takes seconds the command may not be given)."""
     unc = prepared.uncertainty
     assert unc is not None
     # the prior is drawn around the scenario before an updated tester's values were set; the
@@ -119,20 +119,17 @@ def run_samples(
         return {"index": i, "run": prepare_scenario(scenario, evaluation)}
 
     told = f" and {updated} of the updated tester's posterior" if updated else ""
-    controls.echo(f"uncertainty: {unc.samples} prior samples{told} of {prepared.scenario.name} on Dask")
+    controls.echo(f"uncertainty: {unc.samples} prior samples{told} of {prepared.scenario.name}")
     start = time.perf_counter()
+    progress = montecarlo.Progress(total, controls.echo, start)
     records: dict[int, dict[str, Any]] = {}
-    with bounded_logs(), open_client(None, None) as client:
-        client.register_plugin(BinariesPlugin(collect()))
-        threads = max(1, sum(client.nthreads().values()))
-        progress = montecarlo.Progress(total, controls.echo, start)
-        for record in execute(client, range(total), payload, point_task, controls.stop):
-            records[record["index"]] = record
-            progress.done(len(records))
-            if controls.stopped() is not None:
-                break
-        if (caught := controls.stopped()) is not None and on_stop is not None:
-            on_stop(caught)  # the client closes the cluster on the way out
+    left = _in_process(range(total), payload, controls, records, progress)
+    threads = 1
+    if left and controls.stopped() is None:
+        controls.echo(f"uncertainty: the other {len(left)} samples on Dask (a local cluster)")
+        threads = _on_dask(left, payload, controls, records, progress, on_stop)
+    elif (caught := controls.stopped()) is not None and on_stop is not None:
+        on_stop(caught)
     rows = [
         {"sample": which(i)[1], "predictive": which(i)[0], "room_shape": shapes.get(i, ""),
          "status": records[i]["status"], "error": records[i]["error"], **records[i]["figures"],
@@ -148,6 +145,82 @@ def run_samples(
         "interrupted": controls.stopped(),
         "tester": str(tester.path) if tester is not None else None,
     }
+
+
+#: samples a batch in process holds: their FMUs stepped together, the progress told and a
+#: signal heeded between two batches (a batch of the paper replay takes a few tenths of a second)
+IN_PROCESS_BATCH = 20
+#: what a local cluster costs before its first sample, s: its worker processes start and
+#: import the twin (about a second and a half of both cores on the developers' 2-core machine),
+#: with a margin for its scheduler and the samples' shipping
+CLUSTER_START_S = 3.0
+
+
+def _cluster_pays(left: int, per_sample_s: float, cores: int | None = None) -> bool:
+    """Whether ``left`` samples of ``per_sample_s`` each (in this process) finish sooner on a
+    local cluster of one worker per core: its workers save all but one core's share of the
+    time, and must save more than the cluster's start."""
+    n = cores if cores is not None else (os.cpu_count() or 1)
+    return n > 1 and left * per_sample_s * (1.0 - 1.0 / n) > CLUSTER_START_S
+
+
+def _in_process(
+    indices: range,
+    payload: Callable[[int], dict[str, Any]],
+    controls: RunControls,
+    records: dict[int, dict[str, Any]],
+    progress: montecarlo.Progress,
+) -> list[int]:
+    """Run the samples in this process, batch by batch, into ``records``, until none is left,
+    a signal stops it or a cluster pays for the rest (:func:`_cluster_pays`); returns the
+    samples left."""
+    from twin.fmu.pool import SlotPool
+    from twin.pipeline.point import batch_tasks
+
+    pool = SlotPool(per_key=IN_PROCESS_BATCH)
+    left = list(indices)
+    try:
+        while left and controls.stopped() is None:
+            t0 = time.perf_counter()
+            batch, left = left[:IN_PROCESS_BATCH], left[IN_PROCESS_BATCH:]
+            items = [payload(i) for i in batch]
+            for record in [
+                *(r for r in items if "status" in r),
+                *batch_tasks([p for p in items if "status" not in p], pool),
+            ]:
+                records[record["index"]] = record
+            progress.done(len(records))
+            if _cluster_pays(len(left), (time.perf_counter() - t0) / len(batch)):
+                break
+    finally:
+        pool.clear()
+    return left
+
+
+def _on_dask(
+    indices: list[int],
+    payload: Callable[[int], dict[str, Any]],
+    controls: RunControls,
+    records: dict[int, dict[str, Any]],
+    progress: montecarlo.Progress,
+    on_stop: Callable[[str], Any] | None,
+) -> int:
+    """Run the samples on a local cluster into ``records``; returns its worker threads."""
+    # Dask loads here: a Monte Carlo that stays in process never pays for distributed's import
+    from twin.pipeline.point import point_task
+    from twin.pipeline.shipping import BinariesPlugin, collect
+
+    with bounded_logs(), open_client(None, None) as client:
+        client.register_plugin(BinariesPlugin(collect()))
+        threads = max(1, sum(client.nthreads().values()))
+        for record in execute(client, indices, payload, point_task, controls.stop):
+            records[record["index"]] = record
+            progress.done(len(records))
+            if controls.stopped() is not None:
+                break
+        if (caught := controls.stopped()) is not None and on_stop is not None:
+            on_stop(caught)  # the client closes the cluster on the way out
+    return threads
 
 
 #: why a run without a Monte Carlo whose outputs are complete is "interrupted"
