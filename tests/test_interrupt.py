@@ -239,7 +239,7 @@ def test_first_use_compile_interrupted_by_sigterm_to_the_command_alone(tmp_path:
     assert not [*cache.glob(f"{toolchain.SCRATCH}*"), *private.glob("pid-*")]
 
 
-def test_dask_start_up_interrupted(tmp_path: Path) -> None:
+def test_monte_carlo_start_interrupted(tmp_path: Path) -> None:
     rng = random.Random(333)
     out = tmp_path / "run"
     cmd = Command(short_run(out, 6, minutes=2), tmp_path)
@@ -257,8 +257,8 @@ def test_monte_carlo_interrupted_and_a_second_signal_changes_nothing(
 ) -> None:
     rng = random.Random(334 + sig)
     out = tmp_path / "run"
-    # 64 samples of 4 h: about 5 s of Monte Carlo on two free cores (2 min samples all finish
-    # within half a second of the first)
+    # 64 samples of 4 h: a second or two of Monte Carlo in process (2 min samples all finish
+    # within a tenth of a second of the first)
     cmd = Command(short_run(out, 64, minutes=240), tmp_path)
     cmd.wait_for("the Monte Carlo's progress", cmd.line(PROGRESS.pattern))
     delay = rng.uniform(0.0, 1.0)
@@ -332,7 +332,7 @@ def test_heldout_interrupted(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- the progress
 
 
-@pytest.mark.slow  # two runs, each with its Dask cluster: about 10 s, twice that on a busy machine
+@pytest.mark.slow  # two runs with their Monte Carlo: a few seconds, twice that on a busy machine
 def test_monte_carlo_progress_without_a_terminal(tmp_path: Path) -> None:
     r = subprocess.run(
         [*TWIN, *short_run(tmp_path / "a", 20, minutes=2)], cwd=tmp_path, capture_output=True, text=True

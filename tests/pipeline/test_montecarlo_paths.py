@@ -27,12 +27,12 @@ def test_in_process_and_on_dask_the_samples_are_the_same(
 ) -> None:
     assert main([*ARGS, "--out", str(tmp_path / "here")]) == 0
     # a cluster that costs nothing to start pays at once: after the first batch in process
-    # (20 samples), the other 10 go to Dask
+    # (3 samples: a tenth), the other 27 go to Dask
     monkeypatch.setattr(run_module, "CLUSTER_START_S", 0.0)
     capfd.readouterr()
     assert main([*ARGS, "--out", str(tmp_path / "dask")]) == 0
     said = capfd.readouterr()
-    assert "uncertainty: the other 10 samples on Dask" in said.out + said.err
+    assert "uncertainty: the other 27 samples on Dask" in said.out + said.err
     here = (tmp_path / "here" / "uncertainty.csv").read_bytes()
     dask = (tmp_path / "dask" / "uncertainty.csv").read_bytes()
     assert here.count(b"\n") == 1 + 30

@@ -147,8 +147,8 @@ def run_samples(
     }
 
 
-#: samples a batch in process holds: their FMUs stepped together, the progress told and a
-#: signal heeded between two batches (a batch of the paper replay takes a few tenths of a second)
+#: samples a batch in process holds at most: their FMUs stepped together, the progress told and
+#: a signal heeded between two batches (a batch of the paper replay takes a few tenths of a second)
 IN_PROCESS_BATCH = 20
 #: what a local cluster costs before its first sample, s: its worker processes start and
 #: import the twin (about a second and a half of both cores on the developers' 2-core machine),
@@ -177,12 +177,14 @@ def _in_process(
     from twin.fmu.pool import SlotPool
     from twin.pipeline.point import batch_tasks
 
-    pool = SlotPool(per_key=IN_PROCESS_BATCH)
+    # a batch no larger than a tenth of the samples: the progress is told every tenth
+    size = max(1, min(IN_PROCESS_BATCH, len(indices) // 10))
+    pool = SlotPool(per_key=size)
     left = list(indices)
     try:
         while left and controls.stopped() is None:
             t0 = time.perf_counter()
-            batch, left = left[:IN_PROCESS_BATCH], left[IN_PROCESS_BATCH:]
+            batch, left = left[:size], left[size:]
             items = [payload(i) for i in batch]
             for record in [
                 *(r for r in items if "status" in r),
