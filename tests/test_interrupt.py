@@ -257,9 +257,9 @@ def test_monte_carlo_interrupted_and_a_second_signal_changes_nothing(
 ) -> None:
     rng = random.Random(334 + sig)
     out = tmp_path / "run"
-    # 64 samples of 4 h: a second or two of Monte Carlo in process (2 min samples all finish
-    # within a tenth of a second of the first)
-    cmd = Command(short_run(out, 64, minutes=240), tmp_path)
+    # 64 prior and 64 updated samples of 40 h: seconds of Monte Carlo in process (2 min samples
+    # all finish within a tenth of a second of the first)
+    cmd = Command(short_run(out, 64, minutes=2400), tmp_path)
     cmd.wait_for("the Monte Carlo's progress", cmd.line(PROGRESS.pattern))
     delay = rng.uniform(0.0, 1.0)
     second = threading.Timer(delay + rng.uniform(0.05, 0.5), lambda: _signal_group(cmd, sig))
