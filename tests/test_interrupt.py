@@ -242,8 +242,10 @@ def test_first_use_compile_interrupted_by_sigterm_to_the_command_alone(tmp_path:
 def test_monte_carlo_start_interrupted(tmp_path: Path) -> None:
     rng = random.Random(333)
     out = tmp_path / "run"
-    cmd = Command(short_run(out, 6, minutes=2), tmp_path)
-    cmd.wait_for("the Monte Carlo's start", cmd.line(r"^uncertainty: 6 prior samples"))
+    # 60 prior and 60 updated samples of 40 h: seconds of Monte Carlo, a signal within 0.8 s of
+    # its first line finds it running
+    cmd = Command(short_run(out, 60, minutes=2400), tmp_path)
+    cmd.wait_for("the Monte Carlo's start", cmd.line(r"^uncertainty: 60 prior samples"))
     took = cmd.interrupt(signal.SIGINT, rng.uniform(0.0, 0.8))
     line = assert_ended(cmd, signal.SIGINT, took)
     assert summary_status(out) == "interrupted", line
