@@ -152,16 +152,19 @@ def run_samples(
 IN_PROCESS_BATCH = 20
 #: what a local cluster costs before its first sample, s: its worker processes start and
 #: import the twin (about a second and a half of both cores on the developers' 2-core machine),
-#: with a margin for its scheduler and the samples' shipping
+#: with a margin for its scheduler
 CLUSTER_START_S = 3.0
+#: what a sample costs on a worker, in CPU, over its cost in a batch in process: there the master
+#: runs it alone, its task is made and shipped from this process (measured on the paper replay)
+ON_DASK = 1.3
 
 
 def _cluster_pays(left: int, per_sample_s: float, cores: int | None = None) -> bool:
-    """Whether ``left`` samples of ``per_sample_s`` each (in this process) finish sooner on a
-    local cluster of one worker per core: its workers save all but one core's share of the
-    time, and must save more than the cluster's start."""
+    """Whether ``left`` samples of ``per_sample_s`` CPU seconds each (in process) finish sooner
+    on a local cluster of one worker per core, each sample :data:`ON_DASK` times dearer there:
+    what its workers save must exceed the cluster's start."""
     n = cores if cores is not None else (os.cpu_count() or 1)
-    return n > 1 and left * per_sample_s * (1.0 - 1.0 / n) > CLUSTER_START_S
+    return left * per_sample_s * (1.0 - ON_DASK / n) > CLUSTER_START_S
 
 
 def _in_process(
@@ -181,6 +184,7 @@ def _in_process(
     size = max(1, min(IN_PROCESS_BATCH, len(indices) // 10))
     pool = SlotPool(per_key=size)
     left = list(indices)
+    batches = 0
     try:
         while left and controls.stopped() is None:
             # the batch's CPU time, not its wall time: a machine busy with other work makes
@@ -194,7 +198,9 @@ def _in_process(
             ]:
                 records[record["index"]] = record
             progress.done(len(records))
-            if _cluster_pays(len(left), (time.process_time() - t0) / len(batch)):
+            # judged from the second batch on: the first also made the pool's instances
+            batches += 1
+            if batches > 1 and _cluster_pays(len(left), (time.process_time() - t0) / len(batch)):
                 break
     finally:
         pool.clear()
