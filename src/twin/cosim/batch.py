@@ -38,7 +38,7 @@ from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 from twin.signals.table import SignalTable
 
-__all__ = ["BatchRuns", "run_batch", "structure", "unbatchable"]
+__all__ = ["Batch", "BatchRuns", "run_batch", "structure", "unbatchable"]
 
 
 def structure(plan: Plan) -> tuple[object, ...]:
@@ -92,67 +92,104 @@ class _Copy:
     counters: tuple[int, int] = (0, 0)
 
 
-def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> BatchRuns:
-    """Step the runs of ``plans`` (one :func:`structure`, none :func:`unbatchable`) together;
-    each completed copy's result holds the ``keep`` columns of every row. Instances come from
-    ``pool`` and go back to it (a pool that keeps as many idle instances per FMU as a batch
-    has copies reuses them all)."""
-    if not plans:
-        return BatchRuns()
-    first = structure(plans[0])
-    for plan in plans:
-        why = unbatchable(plan)
-        if why is not None or structure(plan) != first:
-            raise ValueError(
-                f"plan of {plan.scenario.name!r} cannot join the batch: {why or 'another structure'}"
-            )
-    out = BatchRuns()
-    start = time.perf_counter()
-    copies: list[_Copy] = []
-    try:
-        for index, plan in enumerate(plans):
-            copy = _open(index, plan, pool)
+class Batch:
+    """Runs of ``plans`` (one :func:`structure`, none :func:`unbatchable`) stepped together, in
+    three parts so that a caller may step one batch while it works on another:
+    :meth:`open` loads and initializes every copy (Python), :meth:`step` runs every tick (the
+    compiled stepper: the interpreter's lock is released while it runs), :meth:`results` gives
+    each completed copy's result with the ``keep`` columns of every row. :meth:`close` gives
+    the instances back to ``pool`` (a pool that keeps as many idle instances per FMU as a batch
+    has copies reuses them all); a batch is a context manager that closes."""
+
+    def __init__(self, plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> None:
+        if plans:
+            first = structure(plans[0])
+            for plan in plans:
+                why = unbatchable(plan)
+                if why is not None or structure(plan) != first:
+                    raise ValueError(
+                        f"plan of {plan.scenario.name!r} cannot join the batch: {why or 'another structure'}"
+                    )
+        self.plans, self.pool = list(plans), pool
+        self.kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep] if plans else []
+        self.copies: list[_Copy] = []
+        self.alone: list[int] = []
+        self.setup_s = self.step_s = 0.0
+        self._attempted = False
+        self._failed: int | None = None  # the copy whose FMU failed in the last attempt
+
+    def open(self) -> Batch:
+        """Load and initialize every copy; a copy an FMU refuses goes to :attr:`alone`."""
+        start = time.perf_counter()
+        for index, plan in enumerate(self.plans):
+            copy = _open(index, plan, self.pool)
             if copy is None:
-                out.alone.append(index)
+                self.alone.append(index)
             else:
-                copies.append(copy)
-        setup_s = time.perf_counter() - start
-        kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep]
-        copies = _step_all(copies, kept, pool, out.alone)
-        wall = time.perf_counter() - start
-        for copy in copies:
-            out.results[copy.index] = _result(copy, kept, wall / max(len(copies), 1), setup_s / len(plans))
-    finally:
-        for copy in copies:
-            close_slots(copy.slots, pool)
-    out.alone.sort()
-    return out
+                self.copies.append(copy)
+        self.setup_s = time.perf_counter() - start
+        return self
+
+    def step(self) -> None:
+        """Every tick of every copy: one attempt (:meth:`attempt`, the part another thread may
+        run), then, while a copy's FMU failed, that copy goes to :attr:`alone` and the others
+        start again without it (its instances cannot be rewound to the tick the batch stopped
+        at; a failure is rare). The retries open instances: in the thread that owns the pool."""
+        if not self._attempted:
+            self.attempt()
+        while self._failed is not None:
+            failed, self._failed = self._failed, None
+            self.alone.append(self.copies[failed].index)
+            for c in self.copies:
+                close_slots(c.slots)
+                c.slots = []
+            reopened = []
+            for c in (c for i, c in enumerate(self.copies) if i != failed):
+                again = _open(c.index, c.plan, self.pool)
+                if again is None:
+                    self.alone.append(c.index)
+                else:
+                    reopened.append(again)
+            self.copies = reopened
+            self.attempt()
+
+    def attempt(self) -> None:
+        """Step every copy to the end once, the compiled stepper's ticks and nothing of the
+        pool's (so a thread of its own may run it); a copy whose FMU failed is noted for
+        :meth:`step`."""
+        start = time.perf_counter()
+        self._attempted = True
+        self._failed = _step(self.copies, self.kept) if self.copies else None
+        self.step_s += time.perf_counter() - start
+
+    def results(self) -> BatchRuns:
+        """The completed copies' results and the copies left to run alone (after :meth:`step`)."""
+        n = max(len(self.plans), 1)
+        out = BatchRuns(alone=sorted(self.alone))
+        for copy in self.copies:
+            out.results[copy.index] = _result(
+                copy, self.kept, (self.setup_s + self.step_s) / n, self.setup_s / n
+            )
+        return out
+
+    def close(self) -> None:
+        """Give every copy's instances back to the pool (idempotent)."""
+        for copy in self.copies:
+            close_slots(copy.slots, self.pool)
+            copy.slots = []
+
+    def __enter__(self) -> Batch:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
-def _step_all(
-    copies: list[_Copy], kept: Sequence[int], pool: SlotPool | None, alone: list[int]
-) -> list[_Copy]:
-    """Step every copy to the end; a copy whose FMU fails goes to ``alone`` (run alone, the
-    master reports its failure) and the others start again from their beginning without it:
-    a failure is rare, and a copy's instances cannot be rewound to the tick the batch stopped
-    at. Returns the copies that ran to the end."""
-    while copies:
-        failed = _step(copies, kept)
-        if failed is None:
-            return copies
-        alone.append(copies[failed].index)
-        for c in copies:
-            close_slots(c.slots)
-            c.slots = []
-        reopened = []
-        for c in (c for i, c in enumerate(copies) if i != failed):
-            again = _open(c.index, c.plan, pool)
-            if again is None:
-                alone.append(c.index)
-            else:
-                reopened.append(again)
-        copies = reopened
-    return copies
+def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> BatchRuns:
+    """Step the runs of ``plans`` together (:class:`Batch`: open, step, results, close)."""
+    with Batch(plans, keep, pool) as batch:
+        batch.open().step()
+        return batch.results()
 
 
 def _open(index: int, plan: Plan, pool: SlotPool | None) -> _Copy | None:

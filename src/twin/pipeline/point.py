@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from twin.cosim.batch import run_batch, structure, unbatchable
+from twin.cosim.batch import Batch, structure, unbatchable
 from twin.errors import RunError
 from twin.fmu.pool import SlotPool, sweep_pool
 from twin.pipeline.cluster import Payload, Record, one_line, peak_rss_mb
@@ -25,7 +27,7 @@ from twin.pipeline.run_summary import RunSummary
 from twin.pipeline.shipping import check_worker
 from twin.pipeline.stages import Simulation, evaluate_run, run_into_folder, run_point, summarize
 
-__all__ = ["batch_tasks", "figures", "point_task"]
+__all__ = ["Tasks", "abandon", "batch_tasks", "figures", "finish_tasks", "point_task", "start_tasks"]
 
 
 def figures(summary: RunSummary) -> dict[str, float]:
@@ -86,41 +88,93 @@ def point_task(payload: Payload) -> Record:
     return record
 
 
-def batch_tasks(payloads: list[Payload], pool: SlotPool) -> list[Record]:
-    """The records of in-memory points (``payloads`` as :func:`point_task` takes them), run in
-    this process: the points of one structure (a Monte Carlo's samples) stepped together
-    (:func:`twin.cosim.batch.run_batch`: each point's rows bit for bit its own run's), then
-    each evaluated as :func:`point_task` evaluates it; a point that cannot join a batch, or
-    whose FMUs fail in it, runs alone through :func:`point_task`. ``pool`` keeps the FMU
-    instances for the next batch (as many per FMU as a batch has points)."""
-    start = time.perf_counter()
-    records: dict[int, Record] = {}
+@dataclass
+class Tasks:
+    """Points on their way (:func:`start_tasks`): the records of those that ran alone, and
+    each batch of the others with its points and the thread stepping it."""
+
+    payloads: list[Payload]
+    records: dict[int, Record] = field(default_factory=dict)
+    batches: list[tuple[Batch, list[Payload], threading.Thread]] = field(default_factory=list)
+    errors: list[BaseException] = field(default_factory=list)
+    start: float = field(default_factory=time.perf_counter)
+
+
+def start_tasks(payloads: list[Payload], pool: SlotPool) -> Tasks:
+    """Start in-memory points (``payloads`` as :func:`point_task` takes them) in this process:
+    the points of one structure (a Monte Carlo's samples) are loaded as one batch
+    (:class:`twin.cosim.batch.Batch`: each point's rows bit for bit its own run's) whose ticks
+    run in a thread of their own, while the caller goes on (evaluating the batch before: the
+    compiled stepper releases the interpreter's lock); a point that cannot join a batch runs
+    alone through :func:`point_task`, now. :func:`finish_tasks` gives the records."""
+    tasks = Tasks(payloads)
     groups: dict[tuple[object, ...], list[Payload]] = {}
     for payload in payloads:
         plan = payload["run"].plan
         if payload.get("folders") or unbatchable(plan) is not None:
-            records[payload["index"]] = point_task(payload)
+            tasks.records[payload["index"]] = point_task(payload)
         else:
             groups.setdefault(structure(plan), []).append(payload)
     for group in groups.values():
         runs: list[PreparedRun] = [p["run"] for p in group]
         keep = set().union(*(run.keep() for run in runs))
-        batch = run_batch([run.plan for run in runs], keep, pool)
-        each = (time.perf_counter() - start) / max(len(payloads), 1)
-        for j, payload in enumerate(group):
-            result = batch.results.get(j)
-            if result is None:  # alone: the master says how it failed
-                records[payload["index"]] = point_task(payload)
-                continue
-            record = _record(payload["index"])
-            try:
-                simulation = Simulation(runs[j], result, result.table)
-                record["figures"] = figures(summarize(simulation, evaluate_run(simulation)))
-            except Exception as exc:
-                record.update(status="failed", error=one_line(exc))
-            record["point_s"] = each
-            records[payload["index"]] = record
-    return [records[p["index"]] for p in payloads]
+        batch = Batch([run.plan for run in runs], keep, pool)
+        tasks.batches.append((batch, group, threading.Thread(target=_attempt, args=(batch, tasks.errors))))
+        batch.open()
+        tasks.batches[-1][2].start()
+    return tasks
+
+
+def _attempt(batch: Batch, errors: list[BaseException]) -> None:
+    try:
+        batch.attempt()
+    except BaseException as exc:  # handed to finish_tasks, raised in the caller's thread
+        errors.append(exc)
+
+
+def finish_tasks(tasks: Tasks) -> list[Record]:
+    """The records of started points, in their order: each batch's points evaluated as
+    :func:`point_task` evaluates one; a point whose FMUs failed in its batch runs alone
+    through :func:`point_task` (the master says how it fails)."""
+    try:
+        for batch, group, thread in tasks.batches:
+            thread.join()
+            if tasks.errors:
+                raise tasks.errors[0]
+            batch.step()  # a copy that failed: the others again without it
+            done = batch.results()
+            each = (time.perf_counter() - tasks.start) / max(len(tasks.payloads), 1)
+            for j, payload in enumerate(group):
+                result = done.results.get(j)
+                if result is None:
+                    tasks.records[payload["index"]] = point_task(payload)
+                    continue
+                record = _record(payload["index"])
+                try:
+                    simulation = Simulation(payload["run"], result, result.table)
+                    record["figures"] = figures(summarize(simulation, evaluate_run(simulation)))
+                except Exception as exc:
+                    record.update(status="failed", error=one_line(exc))
+                record["point_s"] = each
+                tasks.records[payload["index"]] = record
+    finally:
+        abandon(tasks)
+    return [tasks.records[p["index"]] for p in tasks.payloads]
+
+
+def abandon(tasks: Tasks) -> None:
+    """Wait for every batch's thread (its ticks cannot be cut short: a batch takes tenths of a
+    second) and give its instances back (idempotent)."""
+    for batch, _, thread in tasks.batches:
+        if thread.ident is not None:
+            thread.join()
+        batch.close()
+
+
+def batch_tasks(payloads: list[Payload], pool: SlotPool) -> list[Record]:
+    """The records of in-memory points run in this process: :func:`start_tasks`, then
+    :func:`finish_tasks`."""
+    return finish_tasks(start_tasks(payloads, pool))
 
 
 def _record(index: int) -> Record:

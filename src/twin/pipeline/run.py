@@ -176,33 +176,45 @@ def _in_process(
 ) -> list[int]:
     """Run the samples in this process, batch by batch, into ``records``, until none is left,
     a signal stops it or a cluster pays for the rest (:func:`_cluster_pays`); returns the
-    samples left."""
+    samples left. A batch's ticks run (in a thread of their own) while the batch before is
+    evaluated: the FMUs' stepping and the error model's Python share the two cores."""
     from twin.fmu.pool import SlotPool
-    from twin.pipeline.point import batch_tasks
+    from twin.pipeline.point import Tasks, abandon, finish_tasks, start_tasks
 
     # a batch no larger than a tenth of the samples: the progress is told every tenth
     size = max(1, min(IN_PROCESS_BATCH, len(indices) // 10))
-    pool = SlotPool(per_key=size)
+    pool = SlotPool(per_key=2 * size)  # two batches' instances at once
     left = list(indices)
     batches = 0
+    pending: Tasks | None = None
+
+    def finish(tasks: Tasks) -> None:
+        for record in finish_tasks(tasks):
+            records[record["index"]] = record
+        progress.done(len(records))
+
     try:
         while left and controls.stopped() is None:
-            # the batch's CPU time, not its wall time: a machine busy with other work makes
-            # the samples slower in process and on a cluster alike
+            # the batches' CPU time (every thread's), not their wall time: a machine busy with
+            # other work makes the samples slower in process and on a cluster alike
             t0 = time.process_time()
             batch, left = left[:size], left[size:]
             items = [payload(i) for i in batch]
-            for record in [
-                *(r for r in items if "status" in r),
-                *batch_tasks([p for p in items if "status" not in p], pool),
-            ]:
-                records[record["index"]] = record
-            progress.done(len(records))
+            records.update({r["index"]: r for r in items if "status" in r})
+            started = start_tasks([p for p in items if "status" not in p], pool)
+            if pending is not None:
+                finish(pending)
+            pending = started
             # judged from the second batch on: the first also made the pool's instances
             batches += 1
             if batches > 1 and _cluster_pays(len(left), (time.process_time() - t0) / len(batch)):
                 break
+        if pending is not None and controls.stopped() is None:
+            finish(pending)
+            pending = None
     finally:
+        if pending is not None:
+            abandon(pending)
         pool.clear()
     return left
 
