@@ -4,6 +4,7 @@ copy whose FMU fails is left to run alone and the others are not changed by it."
 from __future__ import annotations
 
 import dataclasses
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 from twin.config.load import load_scenario, scenarios_dir
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim import make_plan
-from twin.cosim.batch import run_batch, structure, unbatchable
+from twin.cosim.batch import Batch, run_batch, structure, unbatchable
 from twin.cosim.master import Master
 from twin.errors import FMUError
 from twin.fmu.pool import SlotPool
@@ -112,6 +113,17 @@ def test_a_copy_that_fails_runs_alone_and_the_others_are_unchanged(tmp_path: Pat
         refused()
     for i in (0, 2):
         _same(Master(plans[i]).run(), batch.results[i])
+    # the same with the first attempt in a thread of its own (the Monte Carlo's way), the
+    # retry without the failed copy in the pool's thread
+    with Batch(plans, {c.meta.name for c in plans[0].columns}, SlotPool(per_key=4)) as threaded:
+        thread = threading.Thread(target=threaded.open().attempt)
+        thread.start()
+        thread.join()
+        threaded.step()
+        again = threaded.results()
+    assert again.alone == [1, 3] and sorted(again.results) == [0, 2]
+    for i in (0, 2):
+        _same(batch.results[i], again.results[i])
     failed = Master(plans[1]).run()  # what its run alone says
     assert failed.status == "failed" and "fmi2SetReal" in str(failed.error), failed.error
     assert 0 < failed.macro_steps < 720  # mid-run: after the set-up, before the end
