@@ -12,7 +12,7 @@ values as alone, so every copy's rows are bit for bit those of its run alone
 (tests/cosim/test_batch.py).
 
 What a batch does not do, it refuses (:func:`unbatchable`): scenario events, algebraic loops
-(the Python loop's), a resumed run. A copy whose FMUs fail in their set-up or while stepping
+(the Python loop's). A copy whose FMUs fail in their set-up or while stepping
 is not run on: the caller runs it alone (:attr:`BatchRuns.alone`), where the master reports
 the failure as it would anyway, with everything recorded up to it.
 """
@@ -34,6 +34,7 @@ from twin.cosim.native import NativeLoop, stepper
 from twin.cosim.plan import BATCH_TICKS, InputKind, Plan
 from twin.cosim.state import State, make_state
 from twin.cosim.stepping import final_tick
+from twin.errors import RunError
 from twin.fmu.pool import SlotPool
 from twin.fmu.slot import FMUSlot
 from twin.signals.table import SignalTable
@@ -194,15 +195,16 @@ def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | Non
 
 def _open(index: int, plan: Plan, pool: SlotPool | None) -> _Copy | None:
     """Copy ``index``'s instances loaded and initialized (None: an FMU refused)."""
+    # what an FMU's refusal raises; anything else is a bug and goes up
     try:
         slots = open_slots(plan, pool)
-    except Exception:
+    except RunError:
         return None
     try:
         state = make_state(plan)
         initialize(plan, state, slots)
         return _Copy(index, plan, state, slots, NativeLoop(plan, state, slots))
-    except Exception:
+    except RunError:
         close_slots(slots)
         return None
 
@@ -256,8 +258,10 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
             slots, len(slots), k, k1, step, plan.out_every, driven.ctypes.data, driven.shape[1],
             view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
         )  # fmt: skip
+        if status == Status.OVERFLOW:
+            raise RunError("the stepper's row buffer was too small (a bug in the batch)")
         if status != Status.OK:
-            return int(counters.fail_slot) // m if status == Status.FAILED else 0
+            return int(counters.fail_slot) // m
         rows.done += int(counters.rows)
         k = k1
     for c, copy in enumerate(copies):
