@@ -74,6 +74,7 @@ def test_the_shipped_tester_is_current_and_converged() -> None:
     # made from the record, the prior file and the FMUs as they are now (else: twin update --write)
     record = (SHIPPED.parent / stamps["record"]).resolve()
     assert stamps["record_sha256"] == file_sha256(record)
+    assert stamps["scenario_sha256"] == file_sha256(PAPER)  # the record's experiment
     prior = scenarios_dir() / "base" / "priors.toml"
     assert stamps["prior_sha256"] == file_sha256(prior)
     assert stamps["fmu_sources"] == {m: source_hash(m) for m in model_names()}

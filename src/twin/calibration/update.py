@@ -669,6 +669,8 @@ def write_tester(
         if not (rel := os.path.relpath(record.path.resolve(), folder)).startswith("../..")
         else str(record.path.resolve()),
         "record_sha256": file_sha256(record.path),
+        # the experiment's scenario file: its rates or parameters changed, the update is stale
+        "scenario_sha256": file_sha256(record.scenario),
         "prior_sha256": file_sha256(record.prior),
         "fmu_sources": {m: source_hash(m) for m in model_names()},
         "source": (

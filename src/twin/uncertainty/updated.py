@@ -10,9 +10,10 @@ a posterior. The tester file keeps what the other commands need of it:
     [tester]
     name = "li2017-updated"
     record = "li2017.toml"                   # the record it was updated from
-    record_sha256 = "..."                    # that record, the prior file and the FMU
-    prior_sha256 = "..."                     #   sources as they were: a changed one makes
-    fmu_sources = { ThermalNetwork = "..." } #   the file stale (twin update --write renews it)
+    record_sha256 = "..."                    # that record, its scenario file, the prior file
+    scenario_sha256 = "..."                  #   and the FMU sources as they were: a changed
+    prior_sha256 = "..."                     #   one makes the file stale (twin update --write
+    fmu_sources = { ThermalNetwork = "..." } #   renews it)
     coefficients = "../calibration/identified-li2017-updated.toml"  # optional: the error
                                              #   model's, identified on the updated tester
     source = "twin update ..."
@@ -58,6 +59,7 @@ _TESTER = {
     "name",
     "record",
     "record_sha256",
+    "scenario_sha256",
     "prior_sha256",
     "fmu_sources",
     "coefficients",
@@ -182,7 +184,7 @@ def load_updated(path: Path, source: str = "--tester", *, coefficients: bool = T
     p.check()
     stamps = {
         k: tester[k]
-        for k in ("record", "record_sha256", "prior_sha256", "fmu_sources", "diagnostics")
+        for k in ("record", "record_sha256", "scenario_sha256", "prior_sha256", "fmu_sources", "diagnostics")
         if k in tester
     }
     return UpdatedTester(Path(path), str(name), checked, names, draws, named, stamps)
