@@ -226,6 +226,7 @@ CASES = [
         "fmu.thermal.period",
         "scenario.start",
         both(setv("scenario.start", "5 s"), setv("scenario.output_interval", "1 s")),
+        lines=3,  # every FMU of the paper's exchanges every 10 s: each one's period is named
     ),
     Case(
         "missing-profile-parameter",
@@ -289,7 +290,8 @@ CASES = [
         setv("scenario.duration", "28800.5 s"),
         lines=4,
     ),
-    Case("duration-too-short", "scenario.duration", "too short", setv("scenario.duration", "1 s"), lines=2),
+    # and each of the three 10 s periods that does not divide it
+    Case("duration-too-short", "scenario.duration", "too short", setv("scenario.duration", "1 s"), lines=4),
     Case("duration-absurdly-long", "scenario.duration", "absurdly", setv("scenario.duration", "367 d")),
     Case("duration-absurdly-long-seconds", "scenario.duration", "absurdly", setv("scenario.duration", 1e12)),
     Case("drift-window-zero", "scenario.drift_window", "positive", setv("scenario.drift_window", "0 min")),
@@ -576,7 +578,8 @@ def seed_text(literal: str) -> Callable[[], str]:
 
 
 def param_text(literal: str) -> Callable[[], str]:
-    return lambda: paper_text() + f"\n[fmu.thermal.parameters]\nc_base = {literal}\n"
+    # into the paper's own [fmu.thermal.parameters] (a second table of that name is a TOML error)
+    return lambda: text("[fmu.thermal.parameters]\n", f"[fmu.thermal.parameters]\nc_base = {literal}\n")()
 
 
 C_BASE = "fmu.thermal.parameters.c_base"

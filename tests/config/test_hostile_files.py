@@ -74,7 +74,9 @@ def _with(line: str) -> Callable[[Path], Path]:
 
 
 def _thermal_parameter(value: str) -> Callable[[Path], Path]:
-    return lambda d: _scenario(d, paper_text() + f"\n[fmu.thermal.parameters]\nc_base = {value}\n")
+    # into the paper's own [fmu.thermal.parameters] (a second table of that name is a TOML error)
+    table = "[fmu.thermal.parameters]\n"
+    return lambda d: _scenario(d, paper_text().replace(table, f"{table}c_base = {value}\n", 1))
 
 
 def _errormodel(extra: str) -> Callable[[Path], Path]:

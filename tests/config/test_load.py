@@ -170,7 +170,7 @@ def test_overrides_read_values_as_toml_else_as_text() -> None:
     sc = data["scenario"]
     assert (sc["seed"], sc["duration"], sc["step"], sc["description"]) == (7, "30 min", "0.5 s", "a=b")
     assert sc["output_interval"] == 20
-    assert data["fmu"]["thermal"]["parameters"] == {"start_at_room": True}
+    assert data["fmu"]["thermal"]["parameters"]["start_at_room"] is True
     assert data["fmu"]["thermal"]["parameter_files"] == []
     assert data["fmu"]["mechanics"]["parameters"]["l_clamp"] == {"value": 0.05, "source": "drawing"}
 
@@ -256,7 +256,11 @@ def test_paper_fmus(paper, raw) -> None:
     merged: dict = {}
     for f in raw["fmu"]["thermal"]["parameter_files"]:
         merged.update(tomllib.loads((default_scenario_path().parent / f).read_text())["parameters"])
+    # and the scenario's own (inline: the solver's step at the period)
+    for name, p in raw["fmu"]["thermal"].get("parameters", {}).items():
+        merged[name] = p
     assert set(thermal.parameters) == set(merged)
+    assert thermal.parameters["solver_step"].value * 1e9 == thermal.period_ns
     for name, p in thermal.parameters.items():
         assert p.value == merged[name]["value"]
         assert p.source == merged[name]["source"]
