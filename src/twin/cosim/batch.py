@@ -20,6 +20,7 @@ the failure as it would anyway, with everything recorded up to it.
 from __future__ import annotations
 
 import ctypes
+import math
 import time
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
@@ -248,10 +249,10 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
     run = getattr(stepper(), entry()[0])
     k, end, step = plan.start_tick, plan.n_ticks, plan.step_ns
     counters = TwinCounters()
+    every = _driven_every(plan)
     while k < end:
         k1 = min(k + BATCH_TICKS, end)
-        driven = np.hstack([copy.state.driven.matrix(k, k1, step)[:, :n_driven] for copy in copies])
-        driven = np.ascontiguousarray(driven)
+        driven = _driven(copies, k, k1, every, n_driven)
         view = rows.values[rows.done :]
         counters.rows = 0
         status = run(
@@ -268,6 +269,30 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
         copy.counters = (int(counters.macro_steps), int(counters.fmu_steps) // len(copies))
         copy.rows = (rows, c)
     return None
+
+
+def _driven_every(plan: Plan) -> int:
+    """The ticks between two that read the driven columns: the stepper reads a tick's row only
+    for the instances due then, and only their driven inputs (the greatest common divisor of
+    the periods of the instances with one; 0: none has)."""
+    periods = [i.period_ticks for i in plan.instances if any(p.kind == InputKind.DRIVEN for p in i.inputs)]
+    return math.gcd(*periods) if periods else 0
+
+
+def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int) -> np.ndarray:
+    """Every copy's driven columns side by side, one row per tick from ``k0`` to ``k1 - 1``,
+    evaluated at the ticks that read them (:func:`_driven_every`; the paper replay's FMUs
+    exchange every tenth tick) and zero at the others, which nothing reads."""
+    out = np.zeros((k1 - k0, n_driven * len(copies)))
+    if not every:
+        return out
+    ticks = np.arange(-(-k0 // every) * every, k1, every, dtype=np.int64)
+    t = ticks * copies[0].plan.step_ns / NS_PER_S
+    rows = ticks - k0
+    for c, copy in enumerate(copies):
+        for d, fn in enumerate(copy.state.driven.functions[:n_driven]):
+            out[rows, c * n_driven + d] = fn(t)
+    return out
 
 
 def _result(copy: _Copy, kept: Sequence[int], cosim_s: float, setup_s: float) -> RunResult:
