@@ -115,13 +115,18 @@ def start_tasks(payloads: list[Payload], pool: SlotPool) -> Tasks:
             tasks.records[payload["index"]] = point_task(payload)
         else:
             groups.setdefault(structure(plan), []).append(payload)
-    for group in groups.values():
-        runs: list[PreparedRun] = [p["run"] for p in group]
-        keep = set().union(*(run.keep() for run in runs))
-        batch = Batch([run.plan for run in runs], keep, pool)
-        tasks.batches.append((batch, group, threading.Thread(target=_attempt, args=(batch, tasks.errors))))
-        batch.open()
-        tasks.batches[-1][2].start()
+    try:
+        for group in groups.values():
+            runs: list[PreparedRun] = [p["run"] for p in group]
+            keep = set().union(*(run.keep() for run in runs))
+            batch = Batch([run.plan for run in runs], keep, pool)
+            thread = threading.Thread(target=_attempt, args=(batch, tasks.errors))
+            tasks.batches.append((batch, group, thread))
+            batch.open()
+            thread.start()
+    except BaseException:  # a signal while loading: what was started is given back
+        abandon(tasks)
+        raise
     return tasks
 
 
