@@ -157,7 +157,10 @@ class BeforeTree:
     tree: Tree = field(init=False)
 
     def open(self) -> Tree:
-        commit = _git("rev-parse", "--verify", "--quiet", f"{self.rev}^{{commit}}")
+        try:
+            commit = _git("rev-parse", "--verify", "--quiet", f"{self.rev}^{{commit}}")
+        except SystemExit:
+            raise SystemExit(f"bench.py: --before {self.rev}: not a commit of {ROOT}") from None
         short = _git("rev-parse", "--short", commit)
         self.scratch = Path(tempfile.mkdtemp(prefix=f"twin-before-{short}-"))
         root = self.scratch / "tree"
@@ -514,6 +517,9 @@ def footnotes(plan: Plan, got: dict[str, dict[str, list[Any]]]) -> str:
         "Medians of the repetitions (n); both trees measured in each repetition, one right after the other "
         "(the order flipped every other repetition). after/before < 1: the after tree is faster "
         "(figure 5: > 1, libcosimpy's time over the twin's grows).",
+        "- figure 2: the largest sum of the resident memory of the run's processes (the run, its plot helper, "
+        "the Monte Carlo's Dask workers), sampled every 20 ms (benchmarks/treemem.py); a page two processes "
+        "share counts in each.",
     ]
     if "4" in plan.figures:
         for label in ("before", "after"):

@@ -22,6 +22,15 @@ to docs/performance/bench.md (under the command and the machine line), which the
     python benchmarks/bench.py --quick    # a fast check: few reps, short runs, no endurance
     python benchmarks/bench.py --quick --write-docs   # ... and its table into the docs
 
+With ``--before REV`` it measures instead issue 32's six figures (the default ``twin run`` and its
+peak memory, the MIL endurance run, its cost per simulated hour, the tester system against
+libcosimpy, ``twin heldout``) for the tree at REV and for this one, side by side, alternating in
+every repetition (benchmarks/before.py; ``--write-docs``: docs/performance/bench_before.md)::
+
+    python benchmarks/bench.py --before e3eb90e                  # all six (about 20 min)
+    python benchmarks/bench.py --before e3eb90e --only 1235 --reps 3
+    python benchmarks/bench.py --before HEAD~5 --quick           # one repetition, 2 held-out testers
+
 Since issue 28 the master takes a plan (:func:`twin.cosim.make_plan`) instead of a scenario:
 the plan, made inside the master's set-up before, is made here just before the master and its
 time counted in the twin's set-up (and so in set-up + stepping), so sections (a) and (b) mean
