@@ -58,6 +58,9 @@ ENDURANCE_SHORT = "10 h"  # the short run of the cost per simulated hour
 TESTER_DURATION, TESTER_STEP = "10 min", "0.1 s"
 HELDOUT_TESTERS, HELDOUT_WORKERS = 50, 2
 QUICK_HELDOUT_TESTERS = 2
+#: figure 5's repetitions per --reps: a pair of its runs takes a second or two, and libcosimpy's
+#: worker threads make its time swing by a factor of two when the machine's other jobs take a core
+TESTER_REPS_PER_REP = 3
 
 
 @dataclass(frozen=True)
@@ -373,6 +376,7 @@ class Plan:
     reps: int
     heldout_reps: int
     quick: bool
+    load: tuple[float, float] = (0.0, 0.0)  # the machine's load average at the start and the end
 
     @property
     def heldout_testers(self) -> int:
@@ -461,7 +465,7 @@ class Measurements:
         steps = [
             ("12", "default twin run", self.default, self.plan.reps),
             ("34", "MIL endurance", self.endurance, self.plan.reps),
-            ("5", "tester vs libcosimpy", self.tester, self.plan.reps),
+            ("5", "tester vs libcosimpy", self.tester, self.plan.reps * TESTER_REPS_PER_REP),
             ("6", "twin heldout", self.heldout, self.plan.heldout_reps),
         ]
         for figures, name, step, reps in steps:
@@ -487,7 +491,6 @@ def rows_of(plan: Plan, got: dict[str, dict[str, list[Any]]]) -> list[tuple[Figu
             ", ".join(sorted(set(got[label].get(key, [])))) for label in ("before", "after")
         )
 
-    n = f"n={plan.reps}"
     table: dict[str, tuple[str, str]] = {
         "1": ("default_s", "samples"),
         "2": ("default_mb", ""),
@@ -499,14 +502,13 @@ def rows_of(plan: Plan, got: dict[str, dict[str, list[Any]]]) -> list[tuple[Figu
     rows = []
     for key in plan.figures:
         quantity, note_key = table[key]
-        nb, na = notes(note_key) if note_key else ("", "")
-        if key == "6":
-            extra = f"n={plan.heldout_reps}" + (f", {plan.heldout_testers} testers" if plan.quick else "")
-        else:
-            extra = n
-        nb = ", ".join(x for x in (nb, extra) if x)
-        na = ", ".join(x for x in (na, extra) if x)
-        rows.append((FIGURES[key], med("before", quantity), med("after", quantity), nb, na))
+        cells = []
+        for label, note in zip(("before", "after"), notes(note_key) if note_key else ("", ""), strict=True):
+            extra = f"n={len(got[label].get(quantity, []))}"
+            if key == "6" and plan.quick:
+                extra += f", {plan.heldout_testers} testers"
+            cells.append(", ".join(x for x in (note, extra) if x))
+        rows.append((FIGURES[key], med("before", quantity), med("after", quantity), *cells))
     return rows
 
 
@@ -516,11 +518,16 @@ def footnotes(plan: Plan, got: dict[str, dict[str, list[Any]]]) -> str:
         "",
         "Medians of the repetitions (n); both trees measured in each repetition, one right after the other "
         "(the order flipped every other repetition). after/before < 1: the after tree is faster "
-        "(figure 5: > 1, libcosimpy's time over the twin's grows).",
-        "- figure 2: the largest sum of the resident memory of the run's processes (the run, its plot helper, "
-        "the Monte Carlo's Dask workers), sampled every 20 ms (benchmarks/treemem.py); a page two processes "
-        "share counts in each.",
+        "(figure 5: > 1, libcosimpy's time over the twin's grows). Load average (1 min) at the start "
+        f"and the end: {plan.load[0]:.1f}, {plan.load[1]:.1f} on {os.cpu_count()} cores (the machine's "
+        "other jobs make every figure slower and noisier).",
     ]
+    if "2" in plan.figures:
+        lines.append(
+            "- figure 2: the largest sum of the resident memory of the run's processes (the run, its plot helper, "
+            "the Monte Carlo's Dask workers), sampled every 20 ms (benchmarks/treemem.py); a page two processes "
+            "share counts in each."
+        )
     if "4" in plan.figures:
         for label in ("before", "after"):
             short, long = got[label].get("short_s"), got[label].get("long_s")
@@ -556,8 +563,9 @@ def compare(
         for t in trees:
             print(f"   {t.label:6s} {t.rev}: {t.root} ({t.python})")
         with tempfile.TemporaryDirectory(prefix="twin-bench-before-") as tmp:
-            t0 = time.perf_counter()
+            t0, load = time.perf_counter(), os.getloadavg()[0]
             got = Measurements(plan, trees, Path(tmp)).run()
+            plan.load = (load, os.getloadavg()[0])
             print(f"\n(measuring took {time.perf_counter() - t0:.0f} s)")
     finally:
         before.close()
