@@ -21,7 +21,7 @@ shared machine hits both alike; the table gives medians:
 5. the tester system against libcosimpy, 10 min, set-up + stepping (section (b)): each tree's
    ratio, both run by this script's workers (so the same harness times both) in that tree's
    environment, with that tree's scenario file, FMUs and master, and libcosimpy on that tree's
-   FMUs;
+   FMUs; measured :data:`TESTER_REPS_PER_REP` times per repetition (cheap, and noisy);
 6. ``twin heldout`` with 50 testers on 2 workers, whole process (``--heldout-reps``: it is long).
 
 It imports neither numpy nor the twin: every figure is a child process of one tree or the other.
