@@ -22,6 +22,15 @@ to docs/performance/bench.md (under the command and the machine line), which the
     python benchmarks/bench.py --quick    # a fast check: few reps, short runs, no endurance
     python benchmarks/bench.py --quick --write-docs   # ... and its table into the docs
 
+With ``--before REV`` it measures instead issue 32's six figures (the default ``twin run`` and its
+peak memory, the MIL endurance run, its cost per simulated hour, the tester system against
+libcosimpy, ``twin heldout``) for the tree at REV and for this one, side by side, alternating in
+every repetition (benchmarks/before.py; ``--write-docs``: docs/performance/bench_before.md)::
+
+    python benchmarks/bench.py --before e3eb90e                  # all six (about 20 min)
+    python benchmarks/bench.py --before e3eb90e --only 1235 --reps 3
+    python benchmarks/bench.py --before HEAD~5 --quick           # one repetition, 2 held-out testers
+
 Since issue 28 the master takes a plan (:func:`twin.cosim.make_plan`) instead of a scenario:
 the plan, made inside the master's set-up before, is made here just before the master and its
 time counted in the twin's set-up (and so in set-up + stepping), so sections (a) and (b) mean
@@ -46,7 +55,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from machine import machine, machine_line, print_machine, write_docs
+from machine import commit, machine, machine_line, print_machine, write_docs
 from treemem import wait_with_tree_peak
 
 from twin.config.durations import NS_PER_S, parse_duration
@@ -379,12 +388,13 @@ def bench_overhead(n_steps: int, reps: int) -> None:
 # ----------------------------------------------------------------------------- (b) vs libcosimpy
 
 
-def tester_scenario(duration: str, step: str) -> tuple[Scenario, list[str]]:
+def tester_scenario(duration: str, step: str, tester: Path = TESTER) -> tuple[Scenario, list[str]]:
+    """The tester system with every FMU at ``step`` (``tester``: another tree's file, for --before)."""
     overrides = [f'fmu.{n}.period="{step}"' for n in TESTER_FMUS]
     # the thermal network's solver step (1 s in its calibration) must divide its period
     overrides += [f"fmu.thermal.parameters.solver_step={_seconds(step)!r}"]
     overrides += [f'scenario.duration="{duration}"', f'scenario.step="{step}"']
-    return load_scenario(TESTER, overrides), overrides
+    return load_scenario(tester, overrides), overrides
 
 
 def _seconds(text: str) -> float:
@@ -554,7 +564,7 @@ def libcosim_worker() -> int:
 
     log_output_level(CosimLogLevel.WARNING)
     spec = json.loads(sys.stdin.read())
-    scenario, _ = tester_scenario(spec["duration"], spec["step"])
+    scenario, _ = tester_scenario(spec["duration"], spec["step"], Path(spec.get("tester", TESTER)))
     result = libcosim_run(scenario, spec["init_outputs"], spec["mode"])
     print(json.dumps(result))
     sys.stdout.flush()
@@ -572,11 +582,12 @@ def twin_child(spec: dict[str, Any]) -> dict[str, Any]:
 
 def twin_worker() -> int:
     spec = json.loads(sys.stdin.read())
-    scenario, _ = tester_scenario(spec["duration"], spec["step"])
+    scenario, _ = tester_scenario(spec["duration"], spec["step"], Path(spec.get("tester", TESTER)))
     r = run_master(scenario, spec["loop"])
     table = r["result"].table
     last = {name: float(table[name][-1]) for name in table.names()}
-    print(json.dumps({"total_s": r["cosim_s"], "loop_s": r["loop_s"], "last": last}))
+    first = {name: float(table[name][0]) for name in table.names()}  # libcosim's initial values (--before)
+    print(json.dumps({"total_s": r["cosim_s"], "loop_s": r["loop_s"], "last": last, "first": first}))
     sys.stdout.flush()
     os._exit(0)  # as libcosim's worker: the teardown is not measured
 
@@ -992,7 +1003,33 @@ def markdown_table(args: argparse.Namespace) -> str:
 # ----------------------------------------------------------------------------- main
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main_before(args: argparse.Namespace, argv: Sequence[str] | None) -> int:
+    """``--before REV``: issue 32's figures for REV's tree and this one (benchmarks/before.py)."""
+    import before
+
+    figures = args.only or "123456"
+    if not figures or set(figures) - set(before.FIGURES):
+        print(f"bench.py: --only {figures}: with --before, pick figures among 123456", file=sys.stderr)
+        return 2
+    plan = before.Plan(
+        figures="".join(k for k in before.FIGURES if k in figures),
+        reps=args.reps or (1 if args.quick else 5),
+        heldout_reps=args.heldout_reps or (1 if args.quick else 3),
+        quick=args.quick,
+    )
+    print("twin benchmark, before and after" + (" (--quick)" if args.quick else ""))
+    info = print_machine(machine())
+    table, complete = before.compare(
+        args.before, args.before_venv, plan, commit() or "this tree", machine_line(info)
+    )
+    if args.write_docs and not complete:
+        print("\nnot written to the docs: a figure failed")
+    elif args.write_docs:
+        write_docs(__file__, table, info, argv, name="bench_before")
+    return 0 if complete else 1
+
+
+def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -1007,19 +1044,54 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--skip-endurance", action="store_true", help="skip the MIL endurance run (the long one)")
     p.add_argument("--steps", type=int, help="FMU steps of section (a) (default 100000; 20000 with --quick)")
-    p.add_argument("--only", default="abcde", help="sections to run, e.g. --only ab (default: abcde)")
+    p.add_argument(
+        "--only",
+        help="sections to run, e.g. --only ab (default: abcde); with --before the figures, e.g. --only 125 "
+        "(default: 123456)",
+    )
+    p.add_argument(
+        "--before",
+        metavar="REV",
+        help="issue 32's figures for the tree at REV (a git worktree with its own environment) and this "
+        "one, side by side, alternating in every repetition (sections a-e are not run)",
+    )
+    p.add_argument(
+        "--before-venv",
+        metavar="DIR",
+        type=Path,
+        help="with --before: the older tree's virtual environment, kept there for the next run (made if "
+        "missing; the tree is installed into it each run); default: a temporary one",
+    )
+    p.add_argument(
+        "--heldout-reps",
+        type=int,
+        help="with --before: repetitions of figure 6, twin heldout (default 3; 1 with --quick)",
+    )
     p.add_argument(
         "--write-docs",
         action="store_true",
-        help="write the table to docs/performance/bench.md (when every section ran)",
+        help="write the table to docs/performance/bench.md (with --before: bench_before.md) unless a "
+        "section failed",
     )
     p.add_argument("--libcosim-worker", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--twin-worker", action="store_true", help=argparse.SUPPRESS)
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parser().parse_args(argv)
     if args.libcosim_worker:
         return libcosim_worker()
     if args.twin_worker:
         return twin_worker()
+    if args.before:
+        return main_before(args, argv)
+    return main_sections(args, argv)
+
+
+def main_sections(args: argparse.Namespace, argv: Sequence[str] | None) -> int:
+    """Sections (a)-(e) of this tree alone."""
+    args.only = args.only or "abcde"
     if args.quick:
         args.skip_endurance = True
     args.reps = args.reps or (3 if args.quick else 5)

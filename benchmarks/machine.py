@@ -48,7 +48,7 @@ def _first(path: str, key: str) -> str:
 CODE = ("src", "fmus", "scenarios", "benchmarks", "pyproject.toml")
 
 
-def _commit() -> str:
+def commit() -> str:
     """The checkout's commit, ``-dirty`` when the code measured differs from it, or ''."""
     with contextlib.suppress(OSError, subprocess.SubprocessError):
         git = ["git", "-C", str(ROOT)]
@@ -67,7 +67,7 @@ def machine() -> dict[str, str]:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
         usable = os.cpu_count() or 0
-    commit = _commit()
+    commit_ = commit()
     twin = _version("twin")
     return {
         "cpu": _first("/proc/cpuinfo", "model name") or platform.processor() or "unknown",
@@ -76,7 +76,7 @@ def machine() -> dict[str, str]:
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
         **{lib: _version(lib) for lib in LIBRARIES},
-        "twin": f"{twin} ({commit})" if commit else twin,
+        "twin": f"{twin} ({commit_})" if commit_ else twin,
     }
 
 
@@ -107,13 +107,16 @@ def command(argv: Sequence[str] | None = None) -> str:
     return shlex.join(["python", script.as_posix(), *args])
 
 
-def write_docs(script: str, table: str, info: dict[str, str], argv: Sequence[str] | None = None) -> Path:
-    """``table`` (Markdown) into ``docs/performance/<script>.md`` under a one-line header: which
-    command wrote it, on what machine, when. Written atomically (the docs' build reads it)."""
+def write_docs(
+    script: str, table: str, info: dict[str, str], argv: Sequence[str] | None = None, name: str | None = None
+) -> Path:
+    """``table`` (Markdown) into ``docs/performance/<script>.md`` (``<name>.md`` if given: a
+    script that writes two tables) under a one-line header: which command wrote it, on what
+    machine, when. Written atomically (the docs' build reads it)."""
     from twin.files import write_text_atomic
 
     header = f"Written by `{command(argv)}` on {time.strftime('%Y-%m-%d')}; machine: {machine_line(info)}."
-    path = DOCS / f"{Path(script).stem}.md"
+    path = DOCS / f"{name or Path(script).stem}.md"
     write_text_atomic(path, f"{header}\n\n{table.rstrip()}\n")
     print(f"\nwrote {path.relative_to(ROOT)}")
     return path
