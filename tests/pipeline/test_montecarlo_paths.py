@@ -26,9 +26,10 @@ def test_in_process_and_on_dask_the_samples_are_the_same(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
 ) -> None:
     assert main([*ARGS, "--out", str(tmp_path / "here")]) == 0
-    # a cluster that costs nothing to start pays at once: after the second batch in process
+    # a cluster that costs nothing to start pays at once (its samples free too): after the second batch in process
     # (3 samples each: a tenth), the other 24 go to Dask
     monkeypatch.setattr(run_module, "CLUSTER_START_S", 0.0)
+    monkeypatch.setattr(run_module, "ON_DASK", 0.0)  # and whose samples cost nothing there
     capfd.readouterr()
     assert main([*ARGS, "--out", str(tmp_path / "dask")]) == 0
     said = capfd.readouterr()
@@ -42,8 +43,12 @@ def test_in_process_and_on_dask_the_samples_are_the_same(
 
 def test_a_cluster_pays_when_its_workers_save_more_than_its_start() -> None:
     pays = run_module._cluster_pays
-    start = run_module.CLUSTER_START_S
-    assert not pays(100, 0.01, cores=2)  # 1 s in process: 0.35 s to save
-    assert pays(1000, 4 * start / 1000, cores=2)  # 4x the start in process: 1.4x it saved
-    assert not pays(1000, 2 * start / 1000, cores=2)  # 2x: 0.7x it saved
-    assert not pays(10_000, 1.0, cores=1)  # one core: nothing to share out
+    start, on_dask = run_module.CLUSTER_START_S, run_module.ON_DASK
+    # two cores, in process already two threads (the ticks beside the evaluation): 9 ms a
+    # sample in 13 ms of CPU; on two workers 13 x 1.3 / 2 = 8.5 ms: nothing worth a cluster
+    assert not pays(100_000 // 100, 0.009, 0.013, cores=2)
+    # in process without the overlap (wall = CPU): 1000 samples save 1000 x 13 x (1 - 0.65) ms
+    assert pays(1000, 0.013, 0.013, cores=2) == (1000 * 0.013 * (1 - on_dask / 2) > start)
+    # sixteen cores: the cluster pays from a few hundred samples of that size
+    assert pays(400, 0.009, 0.013, cores=16) and not pays(100, 0.009, 0.013, cores=16)
+    assert not pays(10_000, 1.0, 1.0, cores=1)  # one core: on a worker it only costs more

@@ -159,12 +159,14 @@ CLUSTER_START_S = 3.0
 ON_DASK = 1.3
 
 
-def _cluster_pays(left: int, per_sample_s: float, cores: int | None = None) -> bool:
-    """Whether ``left`` samples of ``per_sample_s`` CPU seconds each (in process) finish sooner
-    on a local cluster of one worker per core, each sample :data:`ON_DASK` times dearer there:
-    what its workers save must exceed the cluster's start."""
+def _cluster_pays(left: int, wall_s: float, cpu_s: float, cores: int | None = None) -> bool:
+    """Whether ``left`` samples finish sooner on a local cluster of one worker per core than
+    in process, where a sample took ``wall_s`` (its batch's ticks already run beside the batch
+    before: two threads) and ``cpu_s`` CPU seconds: on the cluster each costs :data:`ON_DASK`
+    times that CPU, shared out over the workers, and what that saves must exceed the
+    cluster's start."""
     n = cores if cores is not None else (os.cpu_count() or 1)
-    return left * per_sample_s * (1.0 - ON_DASK / n) > CLUSTER_START_S
+    return left * (wall_s - cpu_s * ON_DASK / n) > CLUSTER_START_S
 
 
 def _in_process(
@@ -195,9 +197,9 @@ def _in_process(
 
     try:
         while left and controls.stopped() is None:
-            # the batches' CPU time (every thread's), not their wall time: a machine busy with
-            # other work makes the samples slower in process and on a cluster alike
-            t0 = time.process_time()
+            # its wall time and its CPU time (every thread's): a machine busy with other work
+            # makes a sample slower in process and on a cluster alike
+            t0, w0 = time.process_time(), time.perf_counter()
             batch, left = left[:size], left[size:]
             items = [payload(i) for i in batch]
             records.update({r["index"]: r for r in items if "status" in r})
@@ -207,7 +209,8 @@ def _in_process(
             pending = started
             # judged from the second batch on: the first also made the pool's instances
             batches += 1
-            if batches > 1 and _cluster_pays(len(left), (time.process_time() - t0) / len(batch)):
+            cpu, wall = (time.process_time() - t0) / len(batch), (time.perf_counter() - w0) / len(batch)
+            if batches > 1 and _cluster_pays(len(left), wall, cpu):
                 break
         if pending is not None and controls.stopped() is None:
             finish(pending)
