@@ -26,7 +26,7 @@ def test_in_process_and_on_dask_the_samples_are_the_same(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
 ) -> None:
     assert main([*ARGS, "--out", str(tmp_path / "here")]) == 0
-    # a cluster that costs nothing to start pays at once (its samples free too): after the second batch in process
+    # a cluster that costs nothing to start pays at once: after the second batch in process
     # (3 samples each: a tenth), the other 24 go to Dask
     monkeypatch.setattr(run_module, "CLUSTER_START_S", 0.0)
     monkeypatch.setattr(run_module, "ON_DASK", 0.0)  # and whose samples cost nothing there
