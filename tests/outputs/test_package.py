@@ -67,14 +67,40 @@ def test_twin_run_settles_its_own_process_and_leaves_a_callers_alone(
     ]
     code = (
         f"import gc, sys; sys.argv = {args!r}; {call}; import pyarrow; "
-        "print(rc, pyarrow.default_memory_pool().backend_name, gc.get_freeze_count() > 0)"
+        "print(rc, pyarrow.default_memory_pool().backend_name, gc.get_freeze_count() > 0, "
+        "'pandas' in sys.modules)"
     )
     env = {
         k: v for k, v in os.environ.items() if k not in ("ARROW_DEFAULT_MEMORY_POOL", "MIMALLOC_PURGE_DELAY")
     }
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
-    rc, pool, frozen = done.stdout.split()
+    rc, pool, frozen, pandas = done.stdout.split()
     assert rc == "0"
     assert (pool, frozen) == (("system", "True") if settled else ("mimalloc", "False"))
+    assert pandas == "False"  # the recording's conversions to Arrow did not load it (pandas_free)
     assert (tmp_path / "r" / "recording.rrd").stat().st_size > 0
+
+
+def test_a_recording_leaves_pyarrow_working_with_pandas_once_pandas_loads() -> None:
+    """While a recording is written pyarrow does not import pandas (it takes it for missing);
+    once pandas is imported, pyarrow converts pandas' objects as pandas' again: a categorical
+    stays a dictionary, a time zone stays (twin.outputs.pandas_free)."""
+    code = (
+        "import sys, pyarrow as pa, numpy as np\n"
+        "from twin.outputs.pandas_free import without_pandas\n"
+        "with without_pandas():\n"
+        "    pa.array(['a', 'b']); pa.array(np.arange(3.0))\n"
+        "print('pandas' in sys.modules)\n"
+        "import pandas as pd\n"
+        "print(pa.array(pd.Categorical(['a', 'b', 'a'])).type)\n"
+        "print(pa.array(pd.Series(pd.to_datetime(['2020-01-01', None]).tz_localize('UTC'))).type)\n"
+        "print(type(pd.__spec__.loader).__name__)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.splitlines() == [
+        "False",
+        "dictionary<values=large_string, indices=int8, ordered=0>",
+        "timestamp[us, tz=UTC]",
+        "SourceFileLoader",
+    ]

@@ -87,6 +87,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     from twin.cli import interrupt, process
+
+    if args.own_process:
+        process.before_numpy()
     from twin.pipeline import RunControls, RunOptions, prepare, run
     from twin.validation import reports
 
