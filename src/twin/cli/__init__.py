@@ -65,10 +65,12 @@ def _leave(code: int) -> None:
     processes ended; the interpreter's teardown would only free every module (rerun, pyarrow,
     numpy), a tenth of a second or more after a short run. The exit handlers still run first
     (temporary folders, a Dask cluster left open, coverage's data), then the streams are
-    flushed."""
+    flushed. Under a profiler or a debugger the interpreter ends as usual."""
     main_thread = threading.main_thread()
     if any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not main_thread):
         return
+    if sys.getprofile() is not None or sys.gettrace() is not None:
+        return  # a profiler or debugger (python -m cProfile) writes what it found at the end
     atexit._run_exitfuncs()
     _flush()
     os._exit(code)
