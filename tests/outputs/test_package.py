@@ -110,3 +110,27 @@ def test_a_recording_leaves_pyarrow_working_with_pandas_once_pandas_loads() -> N
         "timestamp[us, tz=UTC]",
         "SourceFileLoader",
     ]
+
+
+def test_a_long_runs_recording_loads_rerun_beside_the_co_simulation(tmp_path: Path) -> None:
+    """A long run's sink (preload) begins importing rerun in a thread when the run opens its
+    outputs, before any rows: the import goes on while the co-simulation steps. Its rows
+    then wait for that import and are written as any."""
+    code = (
+        "import sys, time, numpy as np, pathlib\n"
+        "from twin.outputs.recording_sink import RecordingSink\n"
+        "from twin.signals.table import Block, Signal\n"
+        f"sink = RecordingSink(pathlib.Path({str(tmp_path / 'r.rrd')!r}), recording_name='r')\n"
+        "sink.preload = True\n"
+        "sink.open([Signal('probe.reading', 'm', 'probe')])\n"
+        "deadline = time.monotonic() + 120\n"
+        "while 'twin.outputs.rerun_rec' not in sys.modules and time.monotonic() < deadline:\n"
+        "    time.sleep(0.01)\n"
+        "print('twin.outputs.rerun_rec' in sys.modules)\n"
+        "sink.write(Block(np.arange(3.0), {'probe.reading': np.zeros(3)}))\n"
+        "sink.fail(RuntimeError('done'))\n"
+        "from twin.outputs.rerun_rec import read_recording\n"
+        f"print(len(read_recording({str(tmp_path / 'r.rrd')!r})['/probe/reading'][0]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["True", "3"]
