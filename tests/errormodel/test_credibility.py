@@ -86,3 +86,29 @@ def test_a_summary_without_the_credibility_indexes_keeps_every_other_figure() ->
     lean = compensation_summary(t, 1800.0, raw, comp, wear, credibility=False)
     assert "credibility" in full and "credibility" not in lean
     assert lean == {k: v for k, v in full.items() if k != "credibility"}
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(1, 40),
+    m=st.integers(1, 40),
+    dims=st.integers(1, 3),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_frechet_is_the_same_double_with_its_distances_at_once_or_per_diagonal(
+    n: int, m: int, dims: int, seed: int
+) -> None:
+    """The distances computed for all pairs at once (short curves) or one anti-diagonal at a
+    time (long ones) are the same sums of squares, and the recursion only takes minima and
+    maxima of them: the two give the same double, not just a close one."""
+    from twin.errormodel import credibility
+
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(n, dims)) * 10 ** rng.uniform(-6, 6)
+    q = rng.normal(size=(m, dims)) * 10 ** rng.uniform(-6, 6)
+    at_once = discrete_frechet(p, q)
+    cells, credibility.MATRIX_CELLS = credibility.MATRIX_CELLS, 0
+    try:
+        assert discrete_frechet(p, q) == at_once
+    finally:
+        credibility.MATRIX_CELLS = cells

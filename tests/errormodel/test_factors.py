@@ -293,3 +293,22 @@ def test_the_default_columns_are_the_twins() -> None:
     assert cfg.names("temperatures") == tuple(DEFAULT_TEMPERATURES.values())
     assert cfg.names("true_wear") == ("mechanics.wear_depth_true",)
     assert replace(cfg, true_wear=None).names("true_wear") == ()
+
+
+def test_the_drift_lines_are_polyfits_intercepts_to_the_bit() -> None:
+    """EndLines prepares polyfit's scaled matrix once per time axis for every stream's drift:
+    the same steps, so the same doubles as np.polyfit on each stream (the summary's numbers
+    stay bit for bit what they were)."""
+    from twin.errormodel.factors import EndLines
+
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.5, 1.5, 500))
+    lines = EndLines(t, 40.0)
+    for _ in range(20):
+        y = rng.normal(size=t.size).cumsum() * 10 ** rng.uniform(-9, 3)
+        start, end = (t <= t[0] + 40.0), (t >= t[-1] - 40.0)
+        expected = (
+            float(np.polyfit(t[start] - t[0], y[start], 1)[1]),
+            float(np.polyfit(t[end] - t[-1], y[end], 1)[1]),
+        )
+        assert lines.values(y) == expected

@@ -3,6 +3,10 @@
 process is tuned for speed. Each is measured with ``python benchmarks/bench_phases.py``; the
 run's outputs do not change.
 
+* OpenBLAS (numpy's and scipy's) on one thread (``OPENBLAS_NUM_THREADS=1``, set by
+  :func:`before_numpy` before numpy loads): a run multiplies small arrays only, where a second
+  BLAS thread has nothing to share, yet it spins after each call on the core the plot helper
+  draws on. The plot helper inherits it; a Monte Carlo's Dask workers are set so by Dask.
 * pyarrow's buffers from the system allocator (``ARROW_DEFAULT_MEMORY_POOL=system``), and
   mimalloc, which rerun allocates with, handing freed memory back at once
   (``MIMALLOC_PURGE_DELAY=0``): both allocators otherwise keep the blocks a flush of rows freed
@@ -17,7 +21,12 @@ from __future__ import annotations
 import gc
 import os
 
-__all__ = ["settle"]
+__all__ = ["before_numpy", "settle"]
+
+
+def before_numpy() -> None:
+    """Tune this process's threads (see the module); made before numpy loads."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def settle() -> None:

@@ -87,28 +87,26 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def command(args: argparse.Namespace) -> int:
     from twin.cli import interrupt, process
-    from twin.pipeline import RunControls, RunOptions, prepare, run
-    from twin.validation import reports
 
+    if args.own_process:
+        process.before_numpy()
     started = args.process_start or time.perf_counter()
-    # from here a Ctrl-C asks the command to stop; the run folder, once made, then holds
-    # everything recorded and a summary saying "interrupted"
-    stop = stop_on_signals()
-    options = RunOptions(
-        folder=True,
-        out=Path(args.out) if args.out is not None else None,
-        force=args.force,
-        checkpoint_every=args.checkpoint_every,
-        samples=args.uncertainty,
-        reports=reports,
-        started=started,
-        experiment=experiment(args),
-        record=tuple(args.record) if args.record is not None else None,
-        formats=tuple(dict.fromkeys(args.format or ())),
-        fmi_logging=args.fmi_logging,
-        tester=tester_path(args.tester, default=args.scenario is None),
-    )
-    with prepare(args.scenario, args.set or [], options, RunControls(stop=stop)) as prepared:
+    # the plot helper first: its imports (matplotlib) overlap this process's own from here
+    plots = _plot_helper()
+    try:
+        from twin.pipeline import RunControls, prepare, run
+        from twin.validation import reports
+
+        # from here a Ctrl-C asks the command to stop; the run folder, once made, then holds
+        # everything recorded and a summary saying "interrupted"
+        stop = stop_on_signals()
+        options = _options(args, reports, started)
+    except BaseException:
+        if plots is not None:
+            plots.close()
+        raise
+    # prepare owns the helper from here (closes it on a failure; the prepared run, after)
+    with prepare(args.scenario, args.set or [], options, RunControls(stop=stop), plots) as prepared:
         assert prepared.folder is not None
         folder = prepared.folder.path
         # first thing once the folder exists: a signal from here on leaves it a summary saying
@@ -126,6 +124,34 @@ def command(args: argparse.Namespace) -> int:
         with interrupt.cooperative(), progress_bar(args.quiet) as update:
             summary = run(prepared, RunControls(stop=stop, progress=update, echo=_echo(args.quiet)))
             return finish(summary, folder, args.quiet, stop())
+
+
+def _plot_helper() -> Any:
+    """The run's plot helper, started (:class:`twin.outputs.plot_process.PlotProcess`), or None
+    where the machine has one core; imported without numpy, which the helper loads itself."""
+    from twin.outputs.plot_process import PlotProcess
+
+    return PlotProcess.started()
+
+
+def _options(args: argparse.Namespace, reports: Any, started: float) -> Any:
+    """The run's options (:class:`twin.pipeline.RunOptions`) from the command line."""
+    from twin.pipeline import RunOptions
+
+    return RunOptions(
+        folder=True,
+        out=Path(args.out) if args.out is not None else None,
+        force=args.force,
+        checkpoint_every=args.checkpoint_every,
+        samples=args.uncertainty,
+        reports=reports,
+        started=started,
+        experiment=experiment(args),
+        record=tuple(args.record) if args.record is not None else None,
+        formats=tuple(dict.fromkeys(args.format or ())),
+        fmi_logging=args.fmi_logging,
+        tester=tester_path(args.tester, default=args.scenario is None),
+    )
 
 
 def watch_folder(folder: Path, monte_carlo: bool, scenario: str) -> None:

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
+#: curves of up to this many pairs of points have their distances computed at once (below it
+#: the n x m matrix is a few tens of MB at most); longer ones one anti-diagonal at a time
+MATRIX_CELLS = 2_000_000
+
 
 def discrete_frechet(p: np.ndarray, q: np.ndarray) -> float:
     """Discrete Frechet distance between polygonal curves ``p`` (n, d) and ``q`` (m, d).
@@ -16,7 +20,12 @@ def discrete_frechet(p: np.ndarray, q: np.ndarray) -> float:
     Eiter and Mannila's recursion ca(i, j) = max(d(p_i, q_j), min(ca(i-1, j), ca(i-1, j-1),
     ca(i, j-1))), evaluated one anti-diagonal at a time: every cell of an anti-diagonal depends
     only on the two before it, so each is one vectorised numpy step (O(n m) work, O(n + m)
-    Python steps, O(n + m) memory).
+    Python steps, O(n + m) memory beyond the distances).
+
+    The distances d(p_i, q_j) are computed for all pairs at once (up to :data:`MATRIX_CELLS`
+    of them, else per anti-diagonal), each as the same sum of squares; the recursion only
+    takes minima and maxima of them, which are exact, so the result is the same double
+    either way.
     """
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -27,22 +36,39 @@ def discrete_frechet(p: np.ndarray, q: np.ndarray) -> float:
     n, m = len(p), len(q)
     if n == 0 or m == 0:
         raise ValueError("both curves need at least one point")
-    q_rev = q[::-1]  # cell (i, k - i) of diagonal k pairs p[i] with q_rev[m - 1 - k + i]
+    if n * m <= MATRIX_CELLS:
+        # cell (i, j) at i * m + j: the anti-diagonal i + j = k is every (m - 1)-th of them
+        flat = np.sqrt(np.sum((p[:, None, :] - q[None, :, :]) ** 2, axis=2)).ravel()
+
+        def distances(k: int, lo: int, hi: int) -> np.ndarray:
+            first = lo * (m - 1) + k
+            return flat[first : first + (hi - lo - 1) * (m - 1) + 1 : max(m - 1, 1)]
+
+    else:
+        q_rev = q[::-1]  # cell (i, k - i) of diagonal k pairs p[i] with q_rev[m - 1 - k + i]
+
+        def distances(k: int, lo: int, hi: int) -> np.ndarray:
+            diff = p[lo:hi] - q_rev[m - 1 - k + lo : m - 1 - k + hi]
+            return np.sqrt(np.sum(diff**2, axis=1))
+
     # diagonal k is stored by i at index i + 1 of an array of n + 1, the rest inf: index 0 is
-    # the row before the first, and a cell outside the grid reads inf from its neighbours
-    prev2 = np.full(n + 1, np.inf)  # diagonal k-2
-    prev1 = np.full(n + 1, np.inf)  # diagonal k-1
+    # the row before the first, and a cell outside the grid reads inf from its neighbours. Three
+    # arrays take turns (k, k-1, k-2): a diagonal's rows only move up with k, so what an
+    # array held three diagonals before lies where the next reads find inf or is overwritten
+    cur, prev1, prev2 = (np.full(n + 1, np.inf) for _ in range(3))
+    reach = np.empty(n)
     for k in range(n + m - 1):
         lo, hi = max(0, k - m + 1), min(n, k + 1)  # the diagonal's rows i
-        d = np.sqrt(np.sum((p[lo:hi] - q_rev[m - 1 - k + lo : m - 1 - k + hi]) ** 2, axis=1))
-        cur = np.full(n + 1, np.inf)
+        d = distances(k, lo, hi)
         if k == 0:
             cur[1] = d[0]
         else:
             # (i-1, j): prev1 at i-1; (i, j-1): prev1 at i; (i-1, j-1): prev2 at i-1
-            reach = np.minimum(np.minimum(prev1[lo:hi], prev1[lo + 1 : hi + 1]), prev2[lo:hi])
-            cur[lo + 1 : hi + 1] = np.maximum(d, reach)
-        prev2, prev1 = prev1, cur
+            r = reach[: hi - lo]
+            np.minimum(prev1[lo:hi], prev1[lo + 1 : hi + 1], out=r)
+            np.minimum(r, prev2[lo:hi], out=r)
+            np.maximum(d, r, out=cur[lo + 1 : hi + 1])
+        cur, prev1, prev2 = prev2, cur, prev1
     return float(prev1[n])
 
 

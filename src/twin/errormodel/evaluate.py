@@ -218,7 +218,9 @@ def _absmax(x: np.ndarray) -> float:
 def _frechet_um(t: np.ndarray, online: np.ndarray, true: np.ndarray) -> float:
     """Frechet distance between the curves (t in hours, z in um), decimated evenly."""
     step = max(1, int(np.ceil(len(t) / FRECHET_POINTS)))
-    idx = np.unique(np.r_[np.arange(0, len(t), step), len(t) - 1])
+    idx = np.arange(0, len(t), step)
+    if idx[-1] != len(t) - 1:  # and the last row (np.unique of the two would load numpy.ma)
+        idx = np.append(idx, len(t) - 1)
     th = t[idx] / 3600.0
     p = np.column_stack([th, online[idx] * 1e6])
     q = np.column_stack([th, true[idx] * 1e6])

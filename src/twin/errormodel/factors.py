@@ -21,7 +21,9 @@ list; the order is part of the numbers (a floating-point sum), so keep it.
 
 from __future__ import annotations
 
+import functools
 import keyword
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -85,14 +87,46 @@ def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, flo
     A least-squares line evaluated at the first (last) time averages the sensors' noise out
     of a slow drift without the lag of a plain mean.
     """
+    return EndLines(t, window_s).values(y)
 
-    def fit(mask: np.ndarray, at: float) -> float:
-        if mask.sum() < 2:
-            return float(y[mask][0]) if mask.any() else float("nan")
-        _slope, icpt = np.polyfit(t[mask] - at, y[mask], 1)
-        return float(icpt)
 
-    return fit(t <= t[0] + window_s, float(t[0])), fit(t >= t[-1] - window_s, float(t[-1]))
+class EndLines:
+    """The lines of :func:`endpoints` for one time axis ``t``, for any number of streams:
+    which rows each line goes through, and its design matrix, are worked out once."""
+
+    def __init__(self, t: np.ndarray, window_s: float) -> None:
+        self.start = _LineAt(t, t <= t[0] + window_s, float(t[0]))
+        self.end = _LineAt(t, t >= t[-1] - window_s, float(t[-1]))
+
+    def values(self, y: np.ndarray) -> tuple[float, float]:
+        """Start and end value of ``y`` (one value per time)."""
+        return self.start.value(y), self.end.value(y)
+
+
+class _LineAt:
+    """The least-squares line through the rows ``mask`` of ``(t, y)``, evaluated at ``at``:
+    ``np.polyfit(t[mask] - at, y[mask], 1)``'s intercept, made as polyfit makes it (the same
+    scaled Vandermonde matrix, rcond and solver: the same doubles), with the matrix made once."""
+
+    def __init__(self, t: np.ndarray, mask: np.ndarray, at: float) -> None:
+        self.mask = mask
+        self.count = int(mask.sum())
+        if self.count < 2:
+            return
+        x = np.asarray(t[mask] - at) + 0.0
+        self.rcond = len(x) * np.finfo(x.dtype).eps
+        lhs = np.vander(x, 2)
+        self.scale = np.sqrt((lhs * lhs).sum(axis=0))
+        lhs /= self.scale
+        self.lhs = lhs
+
+    def value(self, y: np.ndarray) -> float:
+        if self.count < 2:
+            return float(y[self.mask][0]) if self.count else float("nan")
+        c, _resids, rank, _s = np.linalg.lstsq(self.lhs, np.asarray(y[self.mask]) + 0.0, self.rcond)
+        if rank != 2:
+            warnings.warn("Polyfit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=3)
+        return float(c[1] / self.scale[1])
 
 
 @dataclass(frozen=True)
@@ -168,8 +202,13 @@ class Measured:
 
     def drift(self, y: np.ndarray) -> float:
         """End minus start value of ``y`` over the run (see :func:`endpoints`)."""
-        start, end = endpoints(self.table.time, y, self.cfg.window_s)
+        start, end = self._ends.values(y)
         return end - start
+
+    @functools.cached_property
+    def _ends(self) -> EndLines:
+        """The lines of :meth:`drift`, worked out once for every stream it is asked for."""
+        return EndLines(self.table.time, self.cfg.window_s)
 
     def change(self, name: str) -> np.ndarray | None:
         """:meth:`sensor` relative to its first sample."""

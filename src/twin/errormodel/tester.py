@@ -286,8 +286,16 @@ def load_tester_spec(path: str | Path | None = None) -> TesterSpec:
 
 
 def tester_model(path: str | Path | None = None) -> ErrorModel:
-    """The tester's ready :class:`ErrorModel` (bodies named as in the data file, motion ``angle``)."""
+    """The tester's ready :class:`ErrorModel` (bodies named as in the data file, motion ``angle``);
+    the packaged tester's is made once per process and shared (a model is not changed by use)."""
+    if path is None:
+        return _packaged_model()
     return load_tester_spec(path).model()
+
+
+@cache
+def _packaged_model() -> ErrorModel:
+    return _packaged_spec().model()
 
 
 # pytest collects module-level callables named test*; "tester_model" imported into a test module would

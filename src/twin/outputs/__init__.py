@@ -4,9 +4,10 @@ Every output is a :class:`~twin.outputs.sink.Sink` (open / write block / close w
 run's outcome / fail), one module per file format; :mod:`twin.outputs.run_folder` names the
 files of a run folder and makes its sinks.
 
-The CSV and JSON writers are imported eagerly; the rerun recording and the plot are loaded
-on first use (PEP 562 ``__getattr__``) because importing rerun and matplotlib takes about a
-second each, which commands that never write them should not pay.
+Every name is loaded on first use (PEP 562 ``__getattr__``): importing rerun and matplotlib
+takes a noticeable time, which commands that never write them should not pay, and the plot
+helper (:mod:`twin.outputs.plot_process`, started before the run imports numpy) needs none
+of the writers.
 """
 
 from __future__ import annotations
@@ -14,14 +15,13 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from twin.outputs.csv import SignalsCsvWriter, read_signals_csv, units_sidecar_path, write_signals_csv
-from twin.outputs.run_folder import RunFolder
-from twin.outputs.sink import Outcome, Sink
-from twin.outputs.summary import to_jsonable, write_summary
-
 if TYPE_CHECKING:
+    from twin.outputs.csv import SignalsCsvWriter, read_signals_csv, units_sidecar_path, write_signals_csv
     from twin.outputs.plots import error_budget_png
     from twin.outputs.rerun_rec import RecordingWriter, read_recording, write_recording
+    from twin.outputs.run_folder import RunFolder
+    from twin.outputs.sink import Outcome, Sink
+    from twin.outputs.summary import to_jsonable, write_summary
 
 __all__ = [
     "Outcome",
@@ -40,6 +40,15 @@ __all__ = [
 ]
 
 _LAZY = {
+    "SignalsCsvWriter": "twin.outputs.csv",
+    "read_signals_csv": "twin.outputs.csv",
+    "units_sidecar_path": "twin.outputs.csv",
+    "write_signals_csv": "twin.outputs.csv",
+    "RunFolder": "twin.outputs.run_folder",
+    "Outcome": "twin.outputs.sink",
+    "Sink": "twin.outputs.sink",
+    "to_jsonable": "twin.outputs.summary",
+    "write_summary": "twin.outputs.summary",
     "RecordingWriter": "twin.outputs.rerun_rec",
     "read_recording": "twin.outputs.rerun_rec",
     "write_recording": "twin.outputs.rerun_rec",

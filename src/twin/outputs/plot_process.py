@@ -36,13 +36,16 @@ import threading
 from collections.abc import Mapping
 from dataclasses import asdict
 from pathlib import Path
-from typing import IO, Any
-
-import numpy as np
+from typing import IO, TYPE_CHECKING, Any
 
 from twin.errors import RunError
-from twin.outputs import plots
-from twin.signals.table import Signal, SignalTable
+
+if TYPE_CHECKING:
+    from twin.signals.table import SignalTable
+
+# numpy, the plots and the table are imported where used: ``twin run`` starts the helper
+# (:meth:`PlotProcess.started`) before it imports numpy, so that the helper's own imports
+# overlap the run's
 
 __all__ = ["PlotProcess", "main", "thinned"]
 
@@ -55,6 +58,11 @@ def thinned(table: SignalTable, names: list[str]) -> SignalTable:
     (:func:`twin.outputs.plots.drawn_rows`: every bucket's extremes). Picking again from these
     rows gives these rows, so the plot of the thinned table draws exactly the samples it would
     draw from the whole table."""
+    import numpy as np
+
+    from twin.outputs import plots
+    from twin.signals.table import Signal, SignalTable
+
     rows = plots.drawn_rows(table, names)
     out = SignalTable(np.ascontiguousarray(table.time[rows]))
     for name in names:
@@ -125,6 +133,8 @@ class PlotProcess:
         proc = self._proc
         if self._pending or proc is None or proc.stdin is None or not self.running:
             return False
+        import numpy as np
+
         names = list(table.columns)
         header = {"kind": kind, "path": str(path), "title": title, "columns": dict(columns)}
         header |= {"n": len(table.time), "names": names}
@@ -243,6 +253,11 @@ def _read_exact(stream: IO[bytes], size: int) -> bytes:
 def _read_job(line: bytes, stream: IO[bytes]) -> tuple[dict[str, Any], SignalTable]:
     """One job's header and samples. Raises ValueError (or EOFError) on anything else: the
     stream is then out of step, and the helper ends."""
+    import numpy as np
+
+    from twin.outputs import plots
+    from twin.signals.table import Signal, SignalTable
+
     header = json.loads(line)
     if not isinstance(header, dict) or header.get("kind") not in plots.KINDS:
         raise ValueError("a job is a JSON object with kind 'budget' or 'wear'")
@@ -262,6 +277,8 @@ def _read_job(line: bytes, stream: IO[bytes]) -> tuple[dict[str, Any], SignalTab
 
 
 def _draw(header: Mapping[str, Any], table: SignalTable) -> None:
+    from twin.outputs import plots
+
     columns = plots.BudgetColumns(**header["columns"])
     plots.draw(str(header["kind"]), table, columns, str(header["title"]), Path(str(header["path"])))
 
@@ -273,6 +290,8 @@ def main() -> int:
     # helper's input; a helper that died of it would leave its plot to the run's process
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    from twin.outputs import plots
+
     plots.warm_up()
     stdin, stdout = sys.stdin.buffer, sys.stdout
     while line := stdin.readline():

@@ -1,15 +1,22 @@
 """``recording.rrd`` as a run's sink; the file is written by :mod:`twin.outputs.rerun_rec`.
 
-Importing rerun (its hundreds of modules) takes a noticeable part of a short run. This module does not import it: :class:`RecordingSink` loads
-:mod:`twin.outputs.rerun_rec`, and with it rerun, when the first rows reach it (or the run
-ends without any). ``twin run`` hands a short run's rows on only after the error model has
-run and the plots are sent (:func:`twin.pipeline.stages.simulate`'s ``hold_last_rows``), so
-rerun loads while the plots' own process draws (:mod:`twin.outputs.plot_process`), not
-before; a long run's first rows come while it runs, and rerun loads then, as before.
+Importing rerun (its hundreds of modules) takes a noticeable part of a short run. This module
+does not import it: :class:`RecordingSink` loads :mod:`twin.outputs.rerun_rec`, and with it
+rerun, when the first rows reach it (or the run ends without any). ``twin run`` hands a short
+run's rows on only after the error model has run and the plots are sent
+(:func:`twin.pipeline.stages.simulate`'s ``hold_last_rows``), so rerun loads while the plots'
+own process draws (:mod:`twin.outputs.plot_process`), not before. A long run's first rows come
+while it runs: its sink (``preload``) begins the import in a thread of its own when the run
+opens its outputs (after its checks and the FMUs' set-up: a run that fails those never pays
+it), so that it goes on while the co-simulation steps (the native stepper leaves Python's lock
+free) instead of holding up the first rows.
 """
 
 from __future__ import annotations
 
+import contextlib
+import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -27,10 +34,23 @@ __all__ = ["RecordingSink"]
 
 
 def _rerun_rec() -> ModuleType:
-    """:mod:`twin.outputs.rerun_rec`, imported (rerun and pyarrow with it) on the first call."""
+    """:mod:`twin.outputs.rerun_rec`, imported (rerun and pyarrow with it) on the first call;
+    a call while :func:`_load_rerun`'s thread imports it waits for that import."""
     from twin.outputs import rerun_rec
 
     return rerun_rec
+
+
+def _load_rerun() -> None:
+    """Begin importing :mod:`twin.outputs.rerun_rec` in a thread of its own (see the module); an
+    import that fails there fails again, and is reported, where the recording is written."""
+
+    def load() -> None:
+        with contextlib.suppress(Exception):
+            _rerun_rec()
+
+    if "twin.outputs.rerun_rec" not in sys.modules:
+        threading.Thread(target=load, name="load rerun", daemon=True).start()
 
 
 class RecordingSink(Sink):
@@ -43,7 +63,9 @@ class RecordingSink(Sink):
     is created; ``budget_columns`` go to the error-budget view. ``replay`` (a resumed run's
     signals.csv, already cut back to its checkpoint) is sent first, at :meth:`open`: a killed
     run never wrote its recording's footer, so the recording is written anew from the rows the
-    CSV kept (a resumed run loads rerun when it opens its outputs).
+    CSV kept (a resumed run loads rerun when it opens its outputs). With :attr:`preload` set the
+    import of rerun begins, in a thread, when the run opens its outputs (a long run: see the
+    module).
     """
 
     def __init__(
@@ -58,6 +80,8 @@ class RecordingSink(Sink):
     ) -> None:
         self.path = path
         self.scene = scene
+        #: a long run's sink: rerun's import begins when the run opens its outputs (the module)
+        self.preload = False
         self.recording_name = recording_name
         self.late_signals = list(late_signals)
         self.budget_columns = budget_columns
@@ -72,6 +96,8 @@ class RecordingSink(Sink):
         if unknown:  # checked now, not when the first rows come
             raise ValueError(f"budget columns {unknown} are not among the signals")
         self._signals = list(signals)
+        if self.preload:
+            _load_rerun()
         if self.replay is not None:
             # now, while signals.csv holds just the rows up to the checkpoint: the CSV's sink
             # comes first and would have added the first new block by the first write

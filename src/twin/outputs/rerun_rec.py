@@ -48,6 +48,7 @@ os.environ.setdefault("RUST_LOG", "warn,re_log_encoding::rrd=off,re_sdk::recordi
 import rerun as rr  # after RUST_LOG is set
 import rerun.blueprint as rrb
 
+from twin.outputs.pandas_free import without_pandas
 from twin.outputs.sink import ClosesOnExit
 from twin.signals.table import Signal, SignalTable
 
@@ -238,6 +239,13 @@ class RecordingWriter(ClosesOnExit):
         #: the recording closes, keeps series of different magnitudes apart
         self.peaks = {name: 0.0 for name in self.paths}
         self._rec.save(self.path)
+        # rerun's conversions to Arrow, here and in append and close, without pandas
+        with without_pandas():
+            self._describe(recording_name)
+
+    def _describe(self, recording_name: str | None) -> None:
+        """The recording's name, and each entity's legend and description (static)."""
+        assert self._rec is not None
         name = recording_name or self.path.resolve().parent.name or self.path.stem
         self._rec.send_recording_name(name)
         for s in self.signals:
@@ -276,6 +284,12 @@ class RecordingWriter(ClosesOnExit):
         arrays = self._checked(t, columns_chunk, partial)
         if t.size == 0:
             return
+        with without_pandas():
+            self._send(t, arrays)
+
+    def _send(self, t: np.ndarray, arrays: Mapping[str, np.ndarray]) -> None:
+        """The checked chunk to rerun, in slices (see :meth:`append`)."""
+        assert self._rec is not None
         for name, values in arrays.items():
             finite = np.abs(values[np.isfinite(values)])
             if finite.size:
@@ -320,6 +334,12 @@ class RecordingWriter(ClosesOnExit):
     def close(self) -> None:
         """Flush and finalize the file (idempotent). A write that failed (a full disk) raises
         :class:`OSError` naming the file; what rerun wrote before it stays."""
+        if self._rec is not None:
+            with without_pandas():
+                self._finish()
+
+    def _finish(self) -> None:
+        """The scene and the blueprint sent, everything written, the file's footer."""
         if self._rec is not None:
             rec, self._rec = self._rec, None
             if self.scene is not None:

@@ -181,6 +181,9 @@ class RunOutputs:
     signals: tuple[str, ...] | None = None
     #: signals.mat beside signals.csv (``--format mat``)
     mat: bool = False
+    #: rows reach the recording while the run steps (a long run): rerun is loaded beside the
+    #: co-simulation, not when the first rows come (:mod:`twin.outputs.recording_sink`)
+    long: bool = False
 
 
 @dataclass(frozen=True)
@@ -452,17 +455,19 @@ class RunFolder:
         from twin.outputs.mat import SignalsMatSink
 
         mat = [SignalsMatSink(self.file(SIGNALS_MAT), csv_path)] if outputs.mat else []
+        recording = RecordingSink(
+            self.file(RECORDING),
+            recording_name=outputs.name,
+            late_signals=outputs.late_signals,
+            budget_columns=outputs.budget_view,
+            replay=csv_path if resume is not None else None,
+            scene=outputs.scene,
+        )
+        recording.preload = outputs.long
         return [
             SignalsCsvSink(csv_path, resume_at=position, columns=outputs.signals),
             *mat,
-            RecordingSink(
-                self.file(RECORDING),
-                recording_name=outputs.name,
-                late_signals=outputs.late_signals,
-                budget_columns=outputs.budget_view,
-                replay=csv_path if resume is not None else None,
-                scene=outputs.scene,
-            ),
+            recording,
             *self.result_sinks(name=outputs.name, plot=outputs.plot, plot_process=plot_process),
         ]
 

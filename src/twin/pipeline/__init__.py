@@ -19,8 +19,9 @@
   measurements, a lab's or a run's.
 """
 
+from typing import Any
+
 from twin.cosim.controls import RunControls
-from twin.pipeline.compensation import compensate
 from twin.pipeline.prepare import PreparedRun, RunOptions, prepare, prepare_resume, prepare_scenario
 from twin.pipeline.run import run
 from twin.pipeline.run_summary import RunSummary, Timing
@@ -55,3 +56,13 @@ __all__ = [
     "summarize",
     "write_outputs",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """:func:`compensate`, imported when first asked for: ``twin run`` does not load what only
+    ``twin compensate`` uses (its streaming reader and evaluation)."""
+    if name == "compensate":
+        from twin.pipeline.compensation import compensate
+
+        return compensate
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

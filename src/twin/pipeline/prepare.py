@@ -163,13 +163,19 @@ def prepare(
     overrides: Sequence[str] = (),
     options: RunOptions = RunOptions(),
     controls: RunControls = RunControls(),  # noqa: B008
+    plots: PlotProcess | None = None,
 ) -> PreparedRun:
     """Turn ``source`` (a scenario file, an SSP archive, a shipped scenario's name, None for
     the paper's experiment, or a scenario value) and ``overrides`` (``--set KEY=VALUE``) into
     a checked run (see the module). ``controls.stop`` is asked after the FMUs' build: a signal
-    during it ends the command as interrupted, with nothing written."""
+    during it ends the command as interrupted, with nothing written.
+
+    A run with a folder draws its plots by a helper process, started here (it imports
+    matplotlib meanwhile), or ``plots``, one the caller started earlier (``twin run`` starts it
+    before it imports the twin): the prepared run owns it from here, and closes it."""
     started = options.started if options.started is not None else time.perf_counter()
-    plots = PlotProcess.started() if options.folder else None  # imports matplotlib meanwhile
+    if plots is None and options.folder:
+        plots = PlotProcess.started()  # imports matplotlib meanwhile
     try:
         prepared = _prepare(source, overrides, options, controls, plots)
     except BaseException as exc:

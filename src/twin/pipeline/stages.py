@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from twin.config.spec import NS_PER_S
+from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.controls import RunControls
 from twin.cosim.master import Master, RunResult
 from twin.errormodel.evaluate import evaluate, evaluation_signals
@@ -52,7 +52,7 @@ from twin.outputs.sink import Outcome, Sink
 from twin.outputs.summary import write_summary
 from twin.pipeline.prepare import PreparedRun
 from twin.pipeline.run_summary import RunSummary, Timing
-from twin.signals.recorder import TeeRecorder
+from twin.signals.recorder import FLUSH_ROWS, TeeRecorder
 from twin.signals.table import SignalTable
 
 __all__ = [
@@ -299,7 +299,13 @@ def run_outputs(prepared: PreparedRun) -> RunOutputs:
         scene=tester_scene(prepared.plan.roles(SCENE_ROLES)),
         signals=prepared.record,
         mat="mat" in prepared.options.formats,
+        long=_rows(prepared.scenario) > FLUSH_ROWS,
     )
+
+
+def _rows(scenario: Scenario) -> int:
+    """About how many rows the scenario records (its duration over its output interval)."""
+    return (scenario.duration_ns - scenario.start_ns) // max(1, scenario.output_interval_ns) + 1
 
 
 def run_into_folder(
