@@ -232,11 +232,24 @@ fmi2Status fmi2Reset(fmi2Component c) {
     ModelInstance *comp = (ModelInstance *)c;
     if (!allowed(comp, "fmi2Reset", ALL_LIVE_STATES)) return fmi2Error;
     set_start_values(comp);
+    comp->outputs_stale = 0;
     comp->state = ST_INSTANTIATED;
     return fmi2OK;
 }
 
 /* ------------------------------------------------------------------ get / set */
+
+/* The outputs as the current states and inputs give them: a set of an input in the state
+ * 'step complete' only marks them stale, and whatever reads a value or the instance's state
+ * (get, get FMU state) computes them first. model_outputs is a function of the states,
+ * parameters and inputs alone, so computing it later gives the bits computing it at the set
+ * gave; a step recomputes them after its last internal step, and no model_step reads an output
+ * (each model's model_step reads its parameters, inputs and ModelState only). */
+static void fresh_outputs(ModelInstance *comp) {
+    if (!comp->outputs_stale) return;
+    comp->outputs_stale = 0;
+    model_outputs(comp);
+}
 
 #define GET_STATES (ST_INIT_MODE | ST_STEP_COMPLETE | ST_STEP_FAILED | ST_TERMINATED | ST_ERROR)
 #define SET_STATES (ST_INSTANTIATED | ST_INIT_MODE | ST_STEP_COMPLETE)
@@ -336,9 +349,10 @@ static int check_set_args(ModelInstance *comp, BaseType type, const fmi2ValueRef
  * parameters and inputs (importers such as libcosim exchange them before the first step).
  * model_initialize only sets states from parameters and inputs, so repeating it is harmless. */
 static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
-    char msg[MSG_SIZE] = "";
+    char msg[MSG_SIZE];
     double h = comp->v.r[INTERNAL_STEP_VR];
-    if (comp->state != ST_INIT_MODE) return fmi2OK;
+    if (comp->state != ST_INIT_MODE) return fmi2OK; /* every get after a step: before any work */
+    msg[0] = '\0';
     if (!(h > 0.0) || !isfinite(h) || model_check(comp, msg, sizeof msg) != 0) {
         log_error(comp, "outputs cannot be computed in initialization mode: invalid parameters%s%s", msg[0] ? ": " : "",
                   msg);
@@ -355,6 +369,7 @@ static fmi2Status get_values(fmi2Component c, BaseType type, const fmi2ValueRefe
     ModelInstance *comp = (ModelInstance *)c;
     size_t k;
     if (!check_get_args(comp, BASE_TYPES[type].get_fn, vr, nvr, value, BASE_TYPES[type].n_vars)) return fmi2Error;
+    fresh_outputs(comp);
     if (type == T_REAL) {
         /* the outputs are Reals: only they need computing in initialization mode */
         if (outputs_in_init_mode(comp) != fmi2OK) return fmi2Error;
@@ -396,8 +411,10 @@ static fmi2Status set_values(fmi2Component c, BaseType type, const fmi2ValueRefe
         /* Booleans were checked to be fmi2True (1) or fmi2False (0) */
         for (k = 0; k < nvr; k++) array[vr[k]] = ((const int *)value)[k];
     }
-    /* outputs with direct feedthrough follow their inputs at once */
-    if (nvr && comp->state == ST_STEP_COMPLETE) model_outputs(comp);
+    /* outputs with direct feedthrough follow their inputs: computed when they are next read
+     * (fresh_outputs), not here, since a master sets the inputs and then steps, and the step
+     * computes them anyway (no model_step reads an output) */
+    if (nvr && comp->state == ST_STEP_COMPLETE) comp->outputs_stale = 1;
     return fmi2OK;
 }
 
@@ -645,6 +662,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
         return fmi2Error;
     }
     if (!(s = state_slot(comp, "fmi2GetFMUstate", FMUstate))) return fmi2Error;
+    fresh_outputs(comp); /* a state's outputs are what its states give (bad_model checks it) */
     make_header(&s->header);
     memcpy(&s->v, &comp->v, sizeof s->v);
     s->v.state = comp->state;
@@ -660,6 +678,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     if (!state_accepted(comp, "fmi2SetFMUstate", s)) return fmi2Error;
     memcpy(&comp->v, &s->v, sizeof comp->v);
     comp->state = s->v.state;
+    comp->outputs_stale = 0; /* the state's outputs were checked against its states */
     return fmi2OK;
 }
 
@@ -833,6 +852,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         comp->v.steps_taken++;
     }
     model_outputs(comp);
+    comp->outputs_stale = 0;
     if (!outputs_finite(comp)) {
         comp->state = ST_ERROR;
         return fmi2Error;

@@ -95,6 +95,10 @@ typedef struct ModelInstance {
      * communication step, whose values the host reads; a model may skip computing what only
      * an earlier step's outputs would show (not part of the FMU state) */
     int last_substep;
+    /* 1 after a set in the state 'step complete' until the outputs are computed again: the
+     * wrapper defers model_outputs to the next read of a value or of the state (not part of the
+     * FMU state; see fmi2_wrapper.c, fresh_outputs) */
+    int outputs_stale;
     ModelValues v;
 } ModelInstance;
 

@@ -58,7 +58,16 @@ __all__ = [
 ]
 
 #: bump when the generator or the FMU layout changes, so cached FMUs are rebuilt
-BUILD_FORMAT = "2"
+BUILD_FORMAT = "3"
+
+#: how the twin builds its FMUs beyond fmpy's Release settings: the wrapper, the model and the
+#: shared code (rng.c, linalg.c) are separate files, and the calls between them (model_outputs,
+#: model_step, the noise draws) are made on every internal step; link-time optimization inlines
+#: them, and hidden visibility keeps every symbol but the FMI functions (FMI2_Export: default
+#: visibility) out of the library's interface, so no call goes through the PLT. Neither changes
+#: an operation's order or its rounding (no -ffast-math, no FMA contraction on baseline x86-64):
+#: the outputs keep their bits (tests/fmus/test_build_flags.py)
+OPTIMIZE = {"CMAKE_INTERPROCEDURAL_OPTIMIZATION": "ON", "CMAKE_C_VISIBILITY_PRESET": "hidden"}
 
 #: the sources folder (kept under its old name: tests and benchmarks use it)
 fmu_sources_dir = sources_dir
@@ -177,8 +186,13 @@ def _lay_out(tree: Path, m: Model, files: Mapping[str, bytes]) -> None:
     (tree / "sources" / "model_vars.h").write_text(generate_vars_header(m.description, str(m.folder)))
 
 
-def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug: bool = False) -> Path:
+def build_fmu(
+    model_name: str, out_dir: Path, *, src: Path | None = None, debug: bool = False, optimize: bool = True
+) -> Path:
     """Build one model into ``out_dir/<model>.fmu`` and return its path.
+
+    ``optimize=False`` builds with fmpy's settings alone (no :data:`OPTIMIZE`): the test that
+    the optimized build keeps every output's bits compares against it.
 
     Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
     (with the tail of the compiler output) when compilation fails.
@@ -201,7 +215,12 @@ def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug:
         create_cmake_settings(
             tree, build_dir, configuration="Debug" if debug else "Release", all_warnings=True
         )
-        run_cmake(Path(fmpy.__file__).parent / "c-code", build_dir, f"FMU '{model_name}'")
+        run_cmake(
+            Path(fmpy.__file__).parent / "c-code",
+            build_dir,
+            f"FMU '{model_name}'",
+            OPTIMIZE if optimize else None,
+        )
         fmu_path = out_dir / f"{model_name}.fmu"
         _zip_tree(tree, fmu_path)
     return fmu_path
