@@ -99,6 +99,12 @@ typedef struct ModelInstance {
      * wrapper defers model_outputs to the next read of a value or of the state (not part of the
      * FMU state; see fmi2_wrapper.c, fresh_outputs) */
     int outputs_stale;
+#ifdef MODEL_DEFERS_OUTPUTS
+    /* a model whose config.h defines MODEL_DEFERS_OUTPUTS leaves the end of a step's outputs to
+     * model_outputs, from what it kept here (not part of the FMU state: a state is taken with
+     * the outputs computed, and a state handed back has none pending) */
+    ModelDeferred deferred;
+#endif
     ModelValues v;
 } ModelInstance;
 

@@ -66,7 +66,7 @@ BUILD_FORMAT = "3"
 #: them, and hidden visibility keeps every symbol but the FMI functions (FMI2_Export: default
 #: visibility) out of the library's interface, so no call goes through the PLT. Neither changes
 #: an operation's order or its rounding (no -ffast-math, no FMA contraction on baseline x86-64):
-#: the outputs keep their bits (tests/fmus/test_build_flags.py)
+#: the outputs keep their bits (tests/fmus/test_cost_not_values.py)
 OPTIMIZE = {"CMAKE_INTERPROCEDURAL_OPTIMIZATION": "ON", "CMAKE_C_VISIBILITY_PRESET": "hidden"}
 
 #: the sources folder (kept under its old name: tests and benchmarks use it)
@@ -154,6 +154,10 @@ def generate_vars_header(description: Description, where: str = "modelDescriptio
         lines.extend(f"#define VR_{v.name} {v.value_reference}" for v in vs)
         rows = [_c_row(v) for v in vs] or ['    {"", CAUS_LOCAL, VAR_CONSTANT, 0.0, 0.0, 0.0},']
         tables.append(f"static const VarInfo {table}[] = {{\n" + "\n".join(rows) + "\n};")
+        if kind == "Real":  # the outputs the wrapper checks after every step, without a search
+            outs = [str(v.value_reference) for v in vs if v.causality == "output"]
+            lines.append(f"#define N_OUTPUT_REALS {len(outs)}")
+            tables.append(f"static const int OUTPUT_REALS[] = {{{', '.join(outs) or '0'}}};")
     lines += ['#include "config.h"', "#endif", "#ifdef MODEL_VARS_TABLES", *tables, "#endif"]
     return "\n".join(lines) + "\n"
 

@@ -71,3 +71,47 @@ def test_a_state_taken_right_after_a_set_is_accepted_back(fmu_paths: dict[str, P
     a.slave.freeFMUstate(state)
     a.close()
     b.close()
+
+
+def _daq(fmu: Path, name: str) -> Driver:
+    return Driver.started(fmu, parameters={"seed": 7, "spike_rate": 2.0}, name=name)
+
+
+def test_a_daq_sample_read_late_is_the_sample_read_at_once(fmu_paths: dict[str, Path]) -> None:
+    """SensorsDAQ takes a step's last sample when its outputs are read: read after every step or
+    only after the last one, the same inputs give the same outputs, bit for bit."""
+    fmu = fmu_paths["SensorsDAQ"]
+    every, last = _daq(fmu, "every"), _daq(fmu, "last")
+    names = every.outputs()
+    seen = []
+    for k in range(50):
+        inputs = {"probe_true": 0.004 + 1e-6 * k, "t_bearing": 293.15 + 0.1 * k, "load_true": 1e3 * k}
+        for d in (every, last):
+            d.set(inputs)
+            d.step(0.1)
+        seen.append(every.get(names))
+    assert np.array_equal(last.get(names), seen[-1])
+    assert len({tuple(s) for s in seen}) == 50  # every sample differs: the noise is on
+    for d in (every, last):
+        d.close()
+
+
+def test_a_daq_state_taken_before_its_sample_is_read(fmu_paths: dict[str, Path]) -> None:
+    """A state taken right after a step (its sample not read yet) holds that sample: another
+    instance given it shows the same outputs and continues with the same draws."""
+    fmu = fmu_paths["SensorsDAQ"]
+    a, b = _daq(fmu, "a"), _daq(fmu, "b")
+    a.set({"probe_true": 0.0045})
+    a.step(0.1)
+    state = a.slave.getFMUstate()
+    b.step(0.1)
+    b.slave.setFMUstate(state)
+    names = a.outputs()
+    assert np.array_equal(b.get(names), a.get(names))
+    b.time = a.time
+    for d in (a, b):
+        d.step(0.3)
+    assert np.array_equal(b.get(names), a.get(names))
+    a.slave.freeFMUstate(state)
+    for d in (a, b):
+        d.close()
