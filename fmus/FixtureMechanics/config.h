@@ -14,4 +14,9 @@ typedef struct {
 
 #define INTERNAL_STEP_VR VR_solver_step
 
+/* trigonometry of angles that change with the temperatures or not at all (the block's tilt,
+ * the probe's tilt, the runout's phase), asked for at every output (model.h, Memo) */
+enum { MEMO_TILT_COS, MEMO_TILT_SIN, MEMO_RUNOUT_PHASE, MEMO_PROBE_TILT, FM_MEMOS };
+#define MODEL_MEMOS FM_MEMOS
+
 #endif

@@ -105,8 +105,15 @@ fmi2Status model_step(ModelInstance *comp, double h) {
 
 /* The paper's characteristic matrices are 4x4 homogeneous transforms (row-major here). A body's
  * small rotation A about X (the paper's A axis) about a pivot p: T = Trans(p) Rot_x(A) Trans(-p). */
-static void rotation_about_x(double a, const double pivot[3], double t[16]) {
-    double c = cos(a), s = sin(a);
+static void rotation_about_x(Memo *memo, double a, const double pivot[3], double t[16]) {
+    double c, s;
+    if (memo_hit(&memo[MEMO_TILT_COS], a, 0.0) && memo_hit(&memo[MEMO_TILT_SIN], a, 0.0)) {
+        c = memo[MEMO_TILT_COS].value;
+        s = memo[MEMO_TILT_SIN].value;
+    } else {
+        c = memo_keep(&memo[MEMO_TILT_COS], a, 0.0, cos(a));
+        s = memo_keep(&memo[MEMO_TILT_SIN], a, 0.0, sin(a));
+    }
     double rot[16] = {1, 0, 0, 0, 0, c, -s, 0, 0, s, c, 0, 0, 0, 0, 1};
     int i;
     memcpy(t, rot, sizeof rot);
@@ -125,14 +132,14 @@ static void transform_point(const double t[16], const double p[3], double out[3]
  * right-handed frame (Y toward the T-plate, Z down). The pivot is the block's foot centre; the
  * test bearing sits at the overhang along +Y, on the spindle's axis h above the foot. Its Z
  * through the block's homogeneous matrix, less where it was, is the tilt's part of z_t_plate. */
-static void bearing_block_tilt(double *r, const double *dt, double alpha_block) {
+static void bearing_block_tilt(Memo *memo, double *r, const double *dt, double alpha_block) {
     double h = r[VR_h_bearing_block], foot[3] = {0.0, 0.0, 0.0}, bearing[3], moved[3], t[16];
     r[VR_bearing_block_gradient] = dt[BBLOCK] - dt[BBLOCK_REAR];
     r[VR_bearing_block_tilt] = -alpha_block * h * r[VR_bearing_block_gradient] / r[VR_d_bearing_block_halves];
     bearing[0] = 0.0;
     bearing[1] = r[VR_l_overhang];
     bearing[2] = -h;
-    rotation_about_x(r[VR_bearing_block_tilt], foot, t);
+    rotation_about_x(memo, r[VR_bearing_block_tilt], foot, t);
     transform_point(t, bearing, moved);
     r[VR_dz_bearing_block_tilt] = moved[2] - bearing[2];
 }
@@ -142,12 +149,13 @@ static void bearing_block_tilt(double *r, const double *dt, double alpha_block) 
  * (thickness * pressure / modulus) and bends the structure. Returns the T-plate bottom's Z. */
 static double bearing_branch(ModelInstance *comp, const double *dt, const double *a) {
     double *r = comp->v.r;
+    double phase, cos_phase;
     /* the block's two lower halves stand side by side on the heel block: the axis rises with
      * their mean; heel block and bearing block each grow with their own coefficient */
     double heel = r[VR_h_heel_block] * dt[HEEL];
     double block = r[VR_h_bearing_block] * 0.5 * (dt[BBLOCK] + dt[BBLOCK_REAR]);
     r[VR_dz_bearing_block] = -(a[P_HEEL] * heel + a[P_BBLOCK] * block);
-    bearing_block_tilt(r, dt, a[P_BBLOCK]);
+    bearing_block_tilt(comp->memo, r, dt, a[P_BBLOCK]);
     r[VR_dz_spindle] = a[P_SPINDLE] * r[VR_r_spindle] * dt[SPINDLE];
     r[VR_dz_bearing] = a[P_RINGS] * r[VR_t_bearing_rings] * dt[BEARING];
     r[VR_dz_t_plate] = a[P_TPLATE] * r[VR_l_t_plate] * dt[TPLATE];
@@ -157,7 +165,11 @@ static double bearing_branch(ModelInstance *comp, const double *dt, const double
     r[VR_dz_loading] = liner_play(comp, liner_elastic(comp)) + comp->v.m.creep +
                        r[VR_compliance_structure] * (1.0 + r[VR_compliance_angle_factor] * (1.0 - cos(r[VR_angle]))) *
                            r[VR_radial_load];
-    r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos(r[VR_runout_phase]));
+    phase = r[VR_runout_phase];
+    cos_phase = memo_hit(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0)
+                    ? comp->memo[MEMO_RUNOUT_PHASE].value
+                    : memo_keep(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0, cos(phase));
+    r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos_phase);
     r[VR_dz_vibration] = r[VR_vibration_z];
     r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
     r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_bearing_block_tilt] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
@@ -222,10 +234,14 @@ static void pole_contact(double *r, double z_t) {
  * angle; the probe, off the pole's axis by the Abbe offset, sees that as e*phi. Its axis,
  * tilted from Z by its mounting and by the frame's bending, reads the relative motion times
  * cos(tilt). */
-static void probe_reading(double *r) {
+static void probe_reading(Memo *memo, double *r) {
     double rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
     double relative = r[VR_z_clamp] - r[VR_z_sensor];
-    double measured = (relative + r[VR_abbe_offset] * rotation) * cos(r[VR_sensor_tilt] + r[VR_frame_tilt]);
+    double tilt = r[VR_sensor_tilt] + r[VR_frame_tilt];
+    double cos_tilt = memo_hit(&memo[MEMO_PROBE_TILT], tilt, 0.0)
+                          ? memo[MEMO_PROBE_TILT].value
+                          : memo_keep(&memo[MEMO_PROBE_TILT], tilt, 0.0, cos(tilt));
+    double measured = (relative + r[VR_abbe_offset] * rotation) * cos_tilt;
     r[VR_tplate_rotation] = rotation;
     r[VR_dz_positioning] = measured - relative;
     r[VR_probe_true] = r[VR_probe_preload] + measured;
@@ -243,7 +259,7 @@ void model_outputs(ModelInstance *comp) {
     z_t = bearing_branch(comp, dt, a);
     detecting_branch(r, dt, a);
     pole_contact(r, z_t);
-    probe_reading(r);
+    probe_reading(comp->memo, r);
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
                           (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / r[VR_running_in_distance]));
 }

@@ -24,4 +24,9 @@ typedef struct {
 
 #define INTERNAL_STEP_VR VR_solver_step
 
+/* the friction coefficient's pressure and temperature factors: their arguments change with
+ * the load and the bearing's temperature, not with every step (model.h, Memo) */
+enum { MEMO_PRESSURE, MEMO_TEMPERATURE, OD_MEMOS };
+#define MODEL_MEMOS OD_MEMOS
+
 #endif

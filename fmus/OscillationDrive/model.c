@@ -82,13 +82,23 @@ static double variation(int wave, double th0, double th1) {
 
 /* ------------------------------------------------------------------ friction */
 
-static double friction_coefficient(const ModelInstance *comp) {
+static double friction_coefficient(ModelInstance *comp) {
     const double *r = comp->v.r;
     double p = fabs(r[VR_radial_load]) / (r[VR_d_k] * r[VR_liner_width]);
     double n = r[VR_mu_pressure_exponent];
-    double f_p = 1.0, f_t, mu;
-    if (n != 0.0) f_p = p > 0.0 ? pow(p / r[VR_p_ref], -n) : HUGE_VAL; /* no load: clipped to mu_max */
-    f_t = exp(-r[VR_mu_temp_coeff] * (r[VR_t_bearing] - r[VR_t_ref]));
+    double f_p = 1.0, f_t, mu, a, b;
+    Memo *memo = comp->memo;
+    if (n != 0.0 && p > 0.0) {
+        a = p / r[VR_p_ref];
+        b = -n;
+        f_p = memo_hit(&memo[MEMO_PRESSURE], a, b) ? memo[MEMO_PRESSURE].value
+                                                  : memo_keep(&memo[MEMO_PRESSURE], a, b, pow(a, b));
+    } else if (n != 0.0) {
+        f_p = HUGE_VAL; /* no load: clipped to mu_max */
+    }
+    a = -r[VR_mu_temp_coeff] * (r[VR_t_bearing] - r[VR_t_ref]);
+    f_t = memo_hit(&memo[MEMO_TEMPERATURE], a, 0.0) ? memo[MEMO_TEMPERATURE].value
+                                                   : memo_keep(&memo[MEMO_TEMPERATURE], a, 0.0, exp(a));
     mu = r[VR_mu_ref] > 0.0 ? r[VR_mu_ref] * f_p * f_t : 0.0;
     if (mu < r[VR_mu_min]) mu = r[VR_mu_min];
     if (mu > r[VR_mu_max]) mu = r[VR_mu_max];

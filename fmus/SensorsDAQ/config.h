@@ -50,4 +50,33 @@ typedef struct {
 
 #define INTERNAL_STEP_VR VR_solver_step
 
+/* What one DAQ sample is drawn from: the three streams where the sample starts drawing, the
+ * filter states, the interference and the inputs it reads. The sample of a communication
+ * step's last internal step is taken from a copy of these when its outputs are read (the
+ * wrapper's deferred outputs: MODEL_DEFERS_OUTPUTS), while the live streams skip its draws:
+ * a sample nobody reads then costs no logarithm, sine or cosine, and one that is read has
+ * the bits it had when it was taken at once. */
+typedef struct {
+    Rng rng;
+    Rng rng2;
+    Rng rng3;
+    double temp_lag[SD_TEMPS];
+    double probe_filt;
+    double body_lag;
+    double spike_value;
+    int spike_left;
+    double t_probe_body;
+    double load_true;
+    double torque_true;
+    double vibration_true;
+    double angle_true;
+} SampleSource;
+
+typedef struct {
+    int pending; /* 1: the outputs are the sample of `source`, not taken yet */
+    SampleSource source;
+} ModelDeferred;
+
+#define MODEL_DEFERS_OUTPUTS 1
+
 #endif

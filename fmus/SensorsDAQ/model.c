@@ -87,9 +87,30 @@ static void update_spike(ModelInstance *comp) {
     }
 }
 
-/* One DAQ sample from the current filter states: draws one noise value per channel, always
- * in the same order and even when a noise std is 0, so the streams do not depend on it. */
-static void take_sample(ModelInstance *comp) {
+/* What a sample taken now draws from: the live streams, filter states and inputs. */
+static void sample_source(const ModelInstance *comp, SampleSource *src) {
+    const ModelState *m = &comp->v.m;
+    const double *r = comp->v.r;
+    src->rng = m->rng;
+    src->rng2 = m->rng2;
+    src->rng3 = m->rng3;
+    memcpy(src->temp_lag, m->temp_lag, sizeof src->temp_lag);
+    src->probe_filt = m->probe_filt;
+    src->body_lag = m->body_lag;
+    src->spike_value = m->spike_value;
+    src->spike_left = m->spike_left;
+    src->t_probe_body = r[VR_t_probe_body];
+    src->load_true = r[VR_load_true];
+    src->torque_true = r[VR_torque_true];
+    src->vibration_true = r[VR_vibration_true];
+    src->angle_true = r[VR_angle_true];
+}
+
+/* One DAQ sample from `src` (filter states, interference, inputs, and the streams it draws
+ * from, which it advances): draws one noise value per channel, always in the same order and
+ * even when a noise std is 0, so the streams do not depend on it. The parameters it reads are
+ * fixed after initialization. */
+static void take_sample(ModelInstance *comp, SampleSource *src) {
     ModelState *m = &comp->v.m;
     const double *r = comp->v.r;
     double sigma_t = r[VR_temp_noise], q_t = r[VR_temp_resolution];
@@ -97,34 +118,46 @@ static void take_sample(ModelInstance *comp) {
     double r0, x, y, u, d_body;
     int i;
     /* first stream: the temperatures, then the probe (the order of the first version) */
-    for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(m->temp_lag[i] + sigma_t * rng_gauss(&m->rng), q_t);
+    for (i = 0; i < SD_TEMPS; i++) m->temp_sample[i] = quantize(src->temp_lag[i] + sigma_t * rng_gauss(&src->rng), q_t);
     /* the probe's bow-shaped linearity error, zero at both ends of its range, then its zero
      * drift and its span drift (the gain acts on the indicated position; a zero span drift adds
      * an exact 0.0, so the reading keeps its bits) */
-    u = (m->probe_filt - lo) / (hi - lo);
-    x = m->probe_filt + r[VR_probe_nonlinearity] * (hi - lo) * 4.0 * u * (1.0 - u);
-    d_body = r[VR_t_probe_body] - m->t_probe_body0;
+    u = (src->probe_filt - lo) / (hi - lo);
+    x = src->probe_filt + r[VR_probe_nonlinearity] * (hi - lo) * 4.0 * u * (1.0 - u);
+    d_body = src->t_probe_body - m->t_probe_body0;
     r0 = x + r[VR_probe_zero_drift] * d_body;
     if (r[VR_probe_span_drift] != 0.0) r0 += r[VR_probe_span_drift] * d_body * x;
-    x = r0 + r[VR_probe_noise] * rng_gauss(&m->rng);
+    x = r0 + r[VR_probe_noise] * rng_gauss(&src->rng);
     /* the spike after filtering and zero drift, before quantization and clipping; added only
      * while one is on, so without a spike x keeps its bits (even a -0.0) */
-    if (m->spike_left > 0) x += m->spike_value;
+    if (src->spike_left > 0) x += src->spike_value;
     y = quantize(x, r[VR_probe_resolution]);
     m->probe_sample = y < lo ? lo : (y > hi ? hi : y);
     m->probe_in_range = (r0 >= lo && r0 <= hi) ? 1.0 : 0.0;
-    m->spike_sample = m->spike_left > 0 ? 1.0 : 0.0;
+    m->spike_sample = src->spike_left > 0 ? 1.0 : 0.0;
     /* second stream: load, torque, vibration */
-    m->load_sample = quantize(r[VR_load_true] + r[VR_load_noise] * rng_gauss(&m->rng2), r[VR_load_resolution]);
-    m->torque_sample = quantize(r[VR_torque_true] + r[VR_torque_noise] * rng_gauss(&m->rng2), r[VR_torque_resolution]);
-    m->vibration_sample = r[VR_vibration_true] + r[VR_vibration_noise] * rng_gauss(&m->rng2);
-    m->angle_sample = quantize(r[VR_angle_true], r[VR_encoder_resolution]); /* no noise */
+    m->load_sample = quantize(src->load_true + r[VR_load_noise] * rng_gauss(&src->rng2), r[VR_load_resolution]);
+    m->torque_sample = quantize(src->torque_true + r[VR_torque_noise] * rng_gauss(&src->rng2), r[VR_torque_resolution]);
+    m->vibration_sample = src->vibration_true + r[VR_vibration_noise] * rng_gauss(&src->rng2);
+    m->angle_sample = quantize(src->angle_true, r[VR_encoder_resolution]); /* no noise */
     /* third stream: the probe body's thermometer */
-    m->body_sample = quantize(m->body_lag + sigma_t * rng_gauss(&m->rng3), q_t);
+    m->body_sample = quantize(src->body_lag + sigma_t * rng_gauss(&src->rng3), q_t);
+}
+
+/* A sample taken now, drawing from the live streams. */
+static void take_sample_now(ModelInstance *comp) {
+    ModelState *m = &comp->v.m;
+    SampleSource src;
+    sample_source(comp, &src);
+    take_sample(comp, &src);
+    m->rng = src.rng;
+    m->rng2 = src.rng2;
+    m->rng3 = src.rng3;
 }
 
 /* What take_sample draws, without the sample: a sample before the last of a communication
- * step is overwritten before anyone reads it, so only its random draws matter (they keep the
+ * step is overwritten before anyone reads it (and the last is taken from a copy of the
+ * streams), so only its random draws matter (they keep the
  * streams, and with them every later sample, bit-identical to drawing it: doStep(2h) still
  * equals two doStep(h)). The filters and the interference process run on every step. */
 static void skip_sample(ModelInstance *comp) {
@@ -161,7 +194,8 @@ fmi2Status model_initialize(ModelInstance *comp) {
     m->body_lag = comp->v.r[VR_t_probe_body];
     m->spike_left = 0;
     m->spike_value = 0.0;
-    take_sample(comp); /* the sample at the start time */
+    comp->deferred.pending = 0;
+    take_sample_now(comp); /* the sample at the start time */
     return fmi2OK;
 }
 
@@ -173,10 +207,14 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     m->probe_filt += m->a_probe * (comp->v.r[VR_probe_true] - m->probe_filt);
     m->body_lag += m->a_temp * (comp->v.r[VR_t_probe_body] - m->body_lag);
     update_spike(comp);
-    if (comp->last_substep)
-        take_sample(comp);
-    else
-        skip_sample(comp);
+    /* the last sample of the communication step is what the outputs show: kept to be taken when
+     * they are read (model_outputs), its draws skipped on the live streams as an earlier
+     * sample's are; taking it from the kept copy draws the same numbers */
+    if (comp->last_substep) {
+        sample_source(comp, &comp->deferred.source);
+        comp->deferred.pending = 1;
+    }
+    skip_sample(comp);
     return fmi2OK;
 }
 
@@ -184,6 +222,10 @@ void model_outputs(ModelInstance *comp) {
     const ModelState *m = &comp->v.m;
     double *r = comp->v.r;
     int i;
+    if (comp->deferred.pending) { /* the step's last sample, taken now */
+        comp->deferred.pending = 0;
+        take_sample(comp, &comp->deferred.source);
+    }
     for (i = 0; i < SD_TEMPS; i++) r[VR_MEAS[i]] = m->temp_sample[i];
     r[VR_probe_meas] = m->probe_sample;
     r[VR_probe_in_range] = m->probe_in_range;

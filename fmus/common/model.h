@@ -32,6 +32,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "fmi2Functions.h"
 
@@ -85,6 +86,33 @@ typedef struct {
     ModelState m;
 } ModelValues;
 
+/* The last arguments (their bits) and result of an expensive libm call whose arguments seldom
+ * change (a temperature's factor, held for the thermal network's 10 s, asked for every 0.1 s):
+ * the same bits in give the same bits out, so a hit returns exactly what the call would. A
+ * model whose config.h defines MODEL_MEMOS keeps that many in its instance, outside its FMU
+ * state (a memo is right for any state). */
+typedef struct {
+    uint64_t key[2];
+    double value;
+    int valid;
+} Memo;
+
+/* Whether m holds the result for the arguments (x, y); memo_keep stores it. */
+static inline int memo_hit(const Memo *m, double x, double y) {
+    uint64_t kx, ky;
+    memcpy(&kx, &x, sizeof kx);
+    memcpy(&ky, &y, sizeof ky);
+    return m->valid && m->key[0] == kx && m->key[1] == ky;
+}
+
+static inline double memo_keep(Memo *m, double x, double y, double value) {
+    memcpy(&m->key[0], &x, sizeof x);
+    memcpy(&m->key[1], &y, sizeof y);
+    m->value = value;
+    m->valid = 1;
+    return value;
+}
+
 typedef struct ModelInstance {
     char *instance_name;
     fmi2CallbackLogger logger;
@@ -95,6 +123,19 @@ typedef struct ModelInstance {
      * communication step, whose values the host reads; a model may skip computing what only
      * an earlier step's outputs would show (not part of the FMU state) */
     int last_substep;
+    /* 1 after a set in the state 'step complete' until the outputs are computed again: the
+     * wrapper defers model_outputs to the next read of a value or of the state (not part of the
+     * FMU state; see fmi2_wrapper.c, fresh_outputs) */
+    int outputs_stale;
+#ifdef MODEL_MEMOS
+    Memo memo[MODEL_MEMOS];
+#endif
+#ifdef MODEL_DEFERS_OUTPUTS
+    /* a model whose config.h defines MODEL_DEFERS_OUTPUTS leaves the end of a step's outputs to
+     * model_outputs, from what it kept here (not part of the FMU state: a state is taken with
+     * the outputs computed, and a state handed back has none pending) */
+    ModelDeferred deferred;
+#endif
     ModelValues v;
 } ModelInstance;
 

@@ -38,8 +38,7 @@ def open_slots(
                 slot = pool.open(path, inst.name, lambda p=path, n=inst.name: FMUSlot(p, n))
             slots.append(slot)
             slot.setup(plan.scenario.start_ns / NS_PER_S)
-            for name, value in inst.parameters:
-                slot.set_value(name, value)
+            slot.set_values(inst.parameters)
     except BaseException:
         close_slots(slots)
         raise

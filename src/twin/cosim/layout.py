@@ -66,6 +66,8 @@ STRUCTS: dict[str, str] = {
         int64_t period_ns;           /* its communication step */
         int32_t n_in;                /* number of inputs */
         int32_t n_out;               /* number of Real outputs */
+        int32_t read_always;         /* 1: a connection reads its outputs, fetched after every step */
+        int32_t pad;
         const unsigned int *in_vr;   /* input value references */
         double *in_val;              /* the inputs last set */
         const int32_t *in_kind;      /* IN_CONNECTION, IN_DELAYED or IN_DRIVEN */

@@ -27,7 +27,7 @@ from twin.cosim.layout import (
     entry,
     entry_argtypes,
 )
-from twin.cosim.plan import Plan
+from twin.cosim.plan import InputKind, Plan
 from twin.cosim.state import State
 from twin.cosim.stepping import non_finite
 from twin.errors import FMUError, RunError
@@ -91,6 +91,9 @@ class NativeLoop:
             )
             for inst in plan.instances
         ]
+        # the instances a connection reads (the others' outputs are fetched only where a row,
+        # or Python between two batches, can see them: stepper.c, fetch_needed)
+        self._read = {i.src for inst in plan.instances for i in inst.inputs if i.kind != InputKind.DRIVEN}
         self.slots = (TwinSlot * len(plan.instances))()
         for i, s in enumerate(self.slots):
             self._point(i, s)
@@ -104,6 +107,7 @@ class NativeLoop:
         s.comp, s.set_real, s.get_real, s.do_step = self.fmus[i].native_handles()
         s.period_ticks, s.period_ns = inst.period_ticks, inst.period_ns
         s.n_in, s.n_out = len(inst.inputs), len(inst.outputs)
+        s.read_always = int(i in self._read)
         s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
         s.in_val, s.out_pending = _address(buf.in_port.values), _address(buf.out_port.values)
         s.in_kind, s.in_src, s.in_idx = map(_address, self._inputs[i])

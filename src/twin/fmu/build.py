@@ -58,7 +58,16 @@ __all__ = [
 ]
 
 #: bump when the generator or the FMU layout changes, so cached FMUs are rebuilt
-BUILD_FORMAT = "2"
+BUILD_FORMAT = "3"
+
+#: how the twin builds its FMUs beyond fmpy's Release settings: the wrapper, the model and the
+#: shared code (rng.c, linalg.c) are separate files, and the calls between them (model_outputs,
+#: model_step, the noise draws) are made on every internal step; link-time optimization inlines
+#: them, and hidden visibility keeps every symbol but the FMI functions (FMI2_Export: default
+#: visibility) out of the library's interface, so no call goes through the PLT. Neither changes
+#: an operation's order or its rounding (no -ffast-math, no FMA contraction on baseline x86-64):
+#: the outputs keep their bits (tests/fmus/test_cost_not_values.py)
+OPTIMIZE = {"CMAKE_INTERPROCEDURAL_OPTIMIZATION": "ON", "CMAKE_C_VISIBILITY_PRESET": "hidden"}
 
 #: the sources folder (kept under its old name: tests and benchmarks use it)
 fmu_sources_dir = sources_dir
@@ -145,6 +154,10 @@ def generate_vars_header(description: Description, where: str = "modelDescriptio
         lines.extend(f"#define VR_{v.name} {v.value_reference}" for v in vs)
         rows = [_c_row(v) for v in vs] or ['    {"", CAUS_LOCAL, VAR_CONSTANT, 0.0, 0.0, 0.0},']
         tables.append(f"static const VarInfo {table}[] = {{\n" + "\n".join(rows) + "\n};")
+        if kind == "Real":  # the outputs the wrapper checks after every step, without a search
+            outs = [str(v.value_reference) for v in vs if v.causality == "output"]
+            lines.append(f"#define N_OUTPUT_REALS {len(outs)}")
+            tables.append(f"static const int OUTPUT_REALS[] = {{{', '.join(outs) or '0'}}};")
     lines += ['#include "config.h"', "#endif", "#ifdef MODEL_VARS_TABLES", *tables, "#endif"]
     return "\n".join(lines) + "\n"
 
@@ -177,8 +190,13 @@ def _lay_out(tree: Path, m: Model, files: Mapping[str, bytes]) -> None:
     (tree / "sources" / "model_vars.h").write_text(generate_vars_header(m.description, str(m.folder)))
 
 
-def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug: bool = False) -> Path:
+def build_fmu(
+    model_name: str, out_dir: Path, *, src: Path | None = None, debug: bool = False, optimize: bool = True
+) -> Path:
     """Build one model into ``out_dir/<model>.fmu`` and return its path.
+
+    ``optimize=False`` builds with fmpy's settings alone (no :data:`OPTIMIZE`): the test that
+    the optimized build keeps every output's bits compares against it.
 
     Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
     (with the tail of the compiler output) when compilation fails.
@@ -201,7 +219,12 @@ def build_fmu(model_name: str, out_dir: Path, *, src: Path | None = None, debug:
         create_cmake_settings(
             tree, build_dir, configuration="Debug" if debug else "Release", all_warnings=True
         )
-        run_cmake(Path(fmpy.__file__).parent / "c-code", build_dir, f"FMU '{model_name}'")
+        run_cmake(
+            Path(fmpy.__file__).parent / "c-code",
+            build_dir,
+            f"FMU '{model_name}'",
+            OPTIMIZE if optimize else None,
+        )
         fmu_path = out_dir / f"{model_name}.fmu"
         _zip_tree(tree, fmu_path)
     return fmu_path

@@ -8,7 +8,8 @@
  *       visible outputs; a delayed connection gives the value of the previous exchange; a
  *       driven input takes its column of the precomputed profile matrix),
  *   (3) the row of an output tick is recorded,
- *   (4) the due FMUs step from t to t + period and their outputs become pending.
+ *   (4) the due FMUs step from t to t + period and their outputs become pending (fetched only
+ *       where something can read them: fetch_needed).
  * Scenario events are applied by Python between batches. Time is t = k * step_ns / 1e9, from
  * integers, identical to Python's t_ns / 1_000_000_000.
  */
@@ -36,11 +37,38 @@ static double transformed(const TwinSlot *s, int32_t j, double v) {
     return (f != 1.0 || o != 0.0) ? v * f + o : v;
 }
 
+/* The first tick >= k that is a multiple of p (p > 0; k may be negative). */
+static int64_t first_multiple(int64_t k, int64_t p) {
+    int64_t r = k % p;
+    if (r < 0) r += p;
+    return r ? k + (p - r) : k;
+}
+
+/* Must the outputs of the step at tick k be fetched (fmi2GetReal)? They are visible from
+ * k + p until the next step's commit at k + 2p. Nothing else reads the outputs of an instance
+ * no connection reads (read_always 0) but a recorded row in that window, and Python between
+ * two batches (events, checkpoints, the last row): the last two steps before the batch's end
+ * k1 are always fetched. Skipping a fetch nobody sees changes no value: an FMU computes its
+ * outputs from its states and inputs whenever they are read (fmi2_wrapper.c, fresh_outputs). */
+static int fetch_needed(const TwinSlot *s, int64_t k, int64_t k1, int64_t out_every) {
+    const int64_t p = s->period_ticks, visible = k + p;
+    if (s->read_always || visible + p >= k1) return 1;
+    return first_multiple(visible, out_every) < visible + p;
+}
+
+/* The largest number of instances whose next tick the stepper keeps on its stack; a larger
+ * system (never met: the tester has five) falls back to the remainder of each tick. */
+#define LOCAL_SLOTS 64
+
 int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int64_t step_ns, int64_t out_every,
                    const double *driven, int32_t n_driven, double *rec, int64_t rec_capacity, const TwinColumn *cols,
                    int32_t n_cols, TwinCounters *c) {
-    int64_t k;
+    int64_t k, next_out = first_multiple(k0, out_every);
+    /* each instance's next tick: its period's multiples, counted instead of divided for */
+    int64_t next_due[LOCAL_SLOTS];
+    const int counted = n_slots <= LOCAL_SLOTS;
     int32_t i, j;
+    for (i = 0; counted && i < n_slots; i++) next_due[i] = first_multiple(k0, slots[i].period_ticks);
     for (k = k0; k < k1; k++) {
         const int64_t t_ns = k * step_ns;
         const double t = (double)t_ns / 1e9;
@@ -49,7 +77,7 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
         for (i = 0; i < n_slots; i++) {
             TwinSlot *s = &slots[i];
             int status;
-            if (k % s->period_ticks) continue;
+            if (counted ? k != next_due[i] : k % s->period_ticks != 0) continue;
             for (j = 0; j < s->n_in; j++) {
                 switch (s->in_kind[j]) {
                     case IN_CONNECTION:
@@ -67,8 +95,9 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
                 return STEP_FAILED;
             }
         }
-        if (k % out_every == 0) {
+        if (k == next_out) {
             double *row;
+            next_out += out_every;
             if (c->rows >= rec_capacity) return STEP_OVERFLOW; /* the caller sized the buffer: cannot happen */
             row = rec + c->rows * (int64_t)n_cols;
             for (j = 0; j < n_cols; j++) {
@@ -80,21 +109,24 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
         for (i = 0; i < n_slots; i++) {
             TwinSlot *s = &slots[i];
             int status;
-            if (k % s->period_ticks) continue;
+            if (counted ? k != next_due[i] : k % s->period_ticks != 0) continue;
+            if (counted) next_due[i] += s->period_ticks;
             status = s->do_step(s->comp, t, (double)s->period_ns / 1e9, 1);
             if (status > 1) {
                 c->fail_slot = i, c->fail_call = CALL_DO_STEP, c->fail_tick = k, c->fail_status = status;
                 return STEP_FAILED;
             }
-            if (s->n_out && (status = s->get_real(s->comp, s->out_vr, (size_t)s->n_out, s->out_pending)) > 1) {
-                c->fail_slot = i, c->fail_call = CALL_GET_REAL, c->fail_tick = k, c->fail_status = status;
-                return STEP_FAILED;
-            }
-            /* an FMU that reports success with NaN/Inf must not poison the others */
-            for (j = 0; j < s->n_out; j++) {
-                if (!isfinite(s->out_pending[j])) {
-                    c->fail_slot = i, c->fail_call = CALL_NON_FINITE, c->fail_tick = k, c->fail_status = j;
+            if (s->n_out && fetch_needed(s, k, k1, out_every)) {
+                if ((status = s->get_real(s->comp, s->out_vr, (size_t)s->n_out, s->out_pending)) > 1) {
+                    c->fail_slot = i, c->fail_call = CALL_GET_REAL, c->fail_tick = k, c->fail_status = status;
                     return STEP_FAILED;
+                }
+                /* an FMU that reports success with NaN/Inf must not poison the others */
+                for (j = 0; j < s->n_out; j++) {
+                    if (!isfinite(s->out_pending[j])) {
+                        c->fail_slot = i, c->fail_call = CALL_NON_FINITE, c->fail_tick = k, c->fail_status = j;
+                        return STEP_FAILED;
+                    }
                 }
             }
             *s->pending_at = k + s->period_ticks;
