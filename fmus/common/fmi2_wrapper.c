@@ -111,6 +111,7 @@ static int fresh_outputs(ModelInstance *comp) {
  * handed back). */
 static void nothing_pending(ModelInstance *comp) {
     comp->outputs_stale = 0;
+    comp->init_done = 0;
 #ifdef MODEL_DEFERS_OUTPUTS
     comp->deferred.pending = 0;
 #endif
@@ -225,6 +226,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     ModelInstance *comp = (ModelInstance *)c;
     if (!allowed(comp, "fmi2EnterInitializationMode", ST_INSTANTIATED)) return fmi2Error;
     comp->state = ST_INIT_MODE;
+    comp->init_done = 0;
     return fmi2OK;
 }
 
@@ -234,6 +236,12 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     double h;
     if (!allowed(comp, "fmi2ExitInitializationMode", ST_INIT_MODE)) return fmi2Error;
     h = comp->v.r[INTERNAL_STEP_VR];
+    if (comp->init_done) { /* checked and computed for a get, from what is set now */
+        comp->init_done = 0;
+        comp->state = ST_STEP_COMPLETE;
+        log_info(comp, "fmi2ExitInitializationMode: initialized at %.17g s, internal step %.17g s", model_time(comp), h);
+        return fmi2OK;
+    }
     if (!(h > 0.0) || !isfinite(h)) {
         log_error(comp, "parameter %s = %g must be a positive finite step", VARS_REAL[INTERNAL_STEP_VR].name, h);
         return fmi2Error; /* stay in initialization mode: the host may correct the parameter */
@@ -374,7 +382,7 @@ static int check_set_args(ModelInstance *comp, BaseType type, const fmi2ValueRef
 static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
     char msg[MSG_SIZE];
     double h = comp->v.r[INTERNAL_STEP_VR];
-    if (comp->state != ST_INIT_MODE) return fmi2OK; /* every get after a step: before any work */
+    if (comp->state != ST_INIT_MODE || comp->init_done) return fmi2OK; /* before any work */
     msg[0] = '\0';
     if (!(h > 0.0) || !isfinite(h) || model_check(comp, msg, sizeof msg) != 0) {
         log_error(comp, "outputs cannot be computed in initialization mode: invalid parameters%s%s", msg[0] ? ": " : "",
@@ -385,6 +393,7 @@ static fmi2Status outputs_in_init_mode(ModelInstance *comp) {
     model_outputs(comp);
     /* parameters in their ranges can still combine into an overflow (a spring of 1e-307 N/m) */
     if (!outputs_finite(comp)) return fmi2Error;
+    comp->init_done = 1;
     return fmi2OK;
 }
 
@@ -427,6 +436,7 @@ static fmi2Status set_values(fmi2Component c, BaseType type, const fmi2ValueRefe
     ModelInstance *comp = (ModelInstance *)c;
     size_t k;
     if (!check_set_args(comp, type, vr, nvr, value)) return fmi2Error;
+    if (nvr) comp->init_done = 0; /* initialization mode computes again from the new values */
     if (type == T_REAL) {
         for (k = 0; k < nvr; k++) comp->v.r[vr[k]] = ((const fmi2Real *)value)[k];
     } else {

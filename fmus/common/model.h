@@ -127,6 +127,10 @@ typedef struct ModelInstance {
      * wrapper defers model_outputs to the next read of a value or of the state (not part of the
      * FMU state; see fmi2_wrapper.c, fresh_outputs) */
     int outputs_stale;
+    /* 1 while the states and outputs initialization mode computed for a get (the wrapper's
+     * outputs_in_init_mode) are those of the current parameters and inputs: nothing was set
+     * since, so neither the next get nor fmi2ExitInitializationMode computes them again */
+    int init_done;
 #ifdef MODEL_MEMOS
     Memo memo[MODEL_MEMOS];
 #endif

@@ -115,3 +115,23 @@ def test_a_daq_state_taken_before_its_sample_is_read(fmu_paths: dict[str, Path])
     a.slave.freeFMUstate(state)
     for d in (a, b):
         d.close()
+
+
+def test_initialization_mode_computes_again_after_a_set(fmu_paths: dict[str, Path]) -> None:
+    """The outputs initialization mode computed for a get are kept until something is set: a set
+    after a get is seen by the next get and by fmi2ExitInitializationMode."""
+    mech = Driver(fmu_paths["FixtureMechanics"])
+    mech.slave.setupExperiment(startTime=0.0)
+    mech.slave.enterInitializationMode()
+    first = mech.get(["probe_true"])
+    assert np.array_equal(mech.get(["probe_true"]), first)
+    mech.set({"probe_preload": 0.002})
+    second = mech.get(["probe_true"])
+    assert second[0] != first[0]
+    mech.set({"probe_preload": 0.003})
+    mech.slave.exitInitializationMode()
+    reference = Driver.started(fmu_paths["FixtureMechanics"], parameters={"probe_preload": 0.003}, name="ref")
+    assert np.array_equal(mech.get(mech.outputs()), reference.get(reference.outputs()))
+    assert mech.get(["probe_true"])[0] != second[0]
+    mech.close()
+    reference.close()
