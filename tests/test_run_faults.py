@@ -284,7 +284,7 @@ UP = [
 ]
 
 
-@pytest.mark.parametrize("delay", [0.0, 0.1, 0.2, 0.3, 0.6])
+@pytest.mark.parametrize("delay", [0.0, 0.1, 0.15, 0.2, 0.25, 0.3, 0.6])
 def test_ctrl_c_in_the_first_moments_exits_130_in_one_line(delay: float, tmp_path: Path) -> None:
     out = tmp_path / "run"
     p = subprocess.Popen(

@@ -203,14 +203,18 @@ def _hard_exit() -> None:
             return
         _state.ending = True
         _state.ender = threading.get_ident()
-        hooks = list(_state.hooks)
     name = _state.name or "SIGINT"
     for stream in (sys.stdout, sys.stderr):
         with suppress(OSError, ValueError):
             stream.flush()
     err = _silence()
-    told = [_told(hook, name) for hook in hooks]
     end_children()
+    # the hooks as they are now, just before the end: the main thread runs on meanwhile (ending
+    # the children takes a tenth of a second), and a signal during prepare found no run folder
+    # that the run may have made, and begun to record into, by now
+    with _state.lock:
+        hooks = list(_state.hooks)
+    told = [_told(hook, name) for hook in hooks]
     with _state.lock:
         line = None if _state.said else next((t for t in told if t), None) or _line()
         _state.said = True
