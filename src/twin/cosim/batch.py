@@ -287,11 +287,11 @@ def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int
     if not every:
         return out
     ticks = np.arange(-(-k0 // every) * every, k1, every, dtype=np.int64)
-    t = ticks * copies[0].plan.step_ns / NS_PER_S
-    rows = ticks - k0
+    step = copies[0].plan.step_ns
     for c, copy in enumerate(copies):
-        for d, fn in enumerate(copy.state.driven.functions[:n_driven]):
-            out[rows, c * n_driven + d] = fn(t)
+        out[ticks - k0, c * n_driven : (c + 1) * n_driven] = copy.state.driven.at_ticks(ticks, step)[
+            :, :n_driven
+        ]
     return out
 
 

@@ -85,8 +85,12 @@ class Driven:
 
     def matrix(self, k0: int, k1: int, step_ns: int) -> np.ndarray:
         """The driven values at ticks ``k0`` to ``k1 - 1``, one row per tick."""
-        t = np.arange(k0, k1, dtype=np.int64) * step_ns / NS_PER_S
-        out = np.empty((k1 - k0, max(len(self.functions), 1)))
+        return self.at_ticks(np.arange(k0, k1, dtype=np.int64), step_ns)
+
+    def at_ticks(self, ticks: np.ndarray, step_ns: int) -> np.ndarray:
+        """The driven values at the ticks ``ticks`` (int64), one row per tick."""
+        t = ticks * step_ns / NS_PER_S
+        out = np.empty((len(ticks), max(len(self.functions), 1)))
         for d, fn in enumerate(self.functions):
             out[:, d] = fn(t)
         return out
