@@ -24,8 +24,8 @@ from twin.fmu.pool import SlotPool, sweep_pool
 from twin.pipeline.cluster import Payload, Record, one_line, peak_rss_mb
 from twin.pipeline.prepare import PreparedRun, RunOptions, prepare
 from twin.pipeline.run_summary import RunSummary
-from twin.pipeline.shipping import check_worker
 from twin.pipeline.stages import Simulation, evaluate_run, run_into_folder, run_point, summarize
+from twin.pipeline.worker_state import check_worker
 
 __all__ = ["Tasks", "abandon", "batch_tasks", "figures", "finish_tasks", "point_task", "start_tasks"]
 

@@ -23,11 +23,12 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from twin.errors import RunError
 from twin.files import write_bytes_atomic
+from twin.pipeline.worker_state import PROBLEM as _PROBLEM
+from twin.pipeline.worker_state import check_worker
+
+__all__ = ["PLUGIN_NAME", "Artifact", "BinariesPlugin", "check_worker", "collect", "install"]
 
 PLUGIN_NAME = "twin-sweep-binaries"
-
-#: why this worker cannot run points (set by the plugin; checked by every task)
-_PROBLEM: list[str] = []
 
 
 @dataclass(frozen=True)
@@ -96,12 +97,6 @@ def install(artifacts: tuple[Artifact, ...]) -> list[Path]:
             + "): install the same version on every worker"
         )
     return written
-
-
-def check_worker() -> None:
-    """Raise :class:`RunError` when the binaries could not be installed on this worker."""
-    if _PROBLEM:
-        raise RunError(_PROBLEM[-1])
 
 
 class BinariesPlugin(WorkerPlugin):
