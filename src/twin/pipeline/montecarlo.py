@@ -41,6 +41,7 @@ experiment makes of them is its report's (:mod:`twin.pipeline.report`).
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -292,15 +293,49 @@ def _predictive(rows: Sequence[Mapping[str, Any]], groups: Mapping[str, str]) ->
 
 def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
     """The Monte Carlo's samples as a CSV (``uncertainty.csv`` of a run folder): each sample's
-    figures, then what was drawn for it."""
-    import pandas as pd
+    figures, then what was drawn for it.
 
-    frame = pd.DataFrame.from_records(list(rows))
-    parts = sorted(c for c in frame.columns if c.startswith("thermal_parts_mm."))
+    Written by the csv module as pandas' ``DataFrame.from_records(rows).to_csv(index=False)``
+    wrote it (the same bytes: :func:`_csv_column`), without importing pandas, which a default
+    run needed for nothing else."""
+    rows = list(rows)
+    seen: dict[str, None] = {}  # every key, in the order first met (pandas' columns)
+    for row in rows:
+        seen.update(dict.fromkeys(row))
+    parts = sorted(c for c in seen if c.startswith("thermal_parts_mm."))
     # then every drawn input, in the order drawn: a sample can be rerun or analysed from its row
-    inputs = [c for c in frame.columns if c not in SAMPLE_COLUMNS and c not in parts]
-    frame = frame.reindex(columns=[*SAMPLE_COLUMNS, *parts, *inputs])
-    return write_atomic(path, lambda tmp: frame.to_csv(tmp, index=False))  # never through a link
+    inputs = [c for c in seen if c not in SAMPLE_COLUMNS and c not in parts]
+    columns = [*SAMPLE_COLUMNS, *parts, *inputs]
+    cells = [_csv_column([row.get(c, _MISSING) for row in rows]) for c in columns]
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", encoding="utf-8", newline="") as f:
+            out = csv.writer(f, lineterminator="\n")
+            out.writerow(columns)
+            out.writerows(zip(*cells, strict=True))
+
+    return write_atomic(path, write)  # never through a link
+
+
+#: a key a sample's row does not have (pandas' missing value: an empty cell)
+_MISSING = object()
+
+
+def _csv_column(values: Sequence[Any]) -> list[str]:
+    """One column's cells as pandas writes them: a column of numbers, some missing or any a
+    float, is pandas' float64 (numpy's shortest repr, ``3.0`` for an integer, missing empty); a
+    column of integers (or of booleans) with none missing their text; anything else each
+    value's text, missing (None, NaN) empty."""
+    missing = [v is _MISSING or v is None or (isinstance(v, float) and math.isnan(v)) for v in values]
+    present = [v for v, m in zip(values, missing, strict=True) if not m]
+    if present and all(isinstance(v, int | float | np.integer) and not isinstance(v, bool) for v in present):
+        if not any(missing) and all(isinstance(v, int | np.integer) for v in present):
+            return [str(int(v)) for v in values]
+        floats = np.array([math.nan if m else float(v) for v, m in zip(values, missing, strict=True)])
+        return ["" if m else t for m, t in zip(missing, floats.astype(str).tolist(), strict=True)]
+    if present and not any(missing) and all(isinstance(v, bool | np.bool_) for v in present):
+        return [str(bool(v)) for v in values]
+    return ["" if m else str(v) for v, m in zip(values, missing, strict=True)]
 
 
 def line(summary: Mapping[str, Any]) -> str | None:
