@@ -14,7 +14,8 @@
 - :mod:`~twin.pipeline.montecarlo`: the uncertainty of a run's prediction;
 - :mod:`~twin.pipeline.cluster`, :mod:`~twin.pipeline.shipping`, :mod:`~twin.pipeline.point`,
   :mod:`~twin.pipeline.results`: many runs on Dask (the client, the binaries shipped to the
-  workers, what a worker runs for a point, the results table);
+  workers, what a worker runs for a point, the results table); :mod:`~twin.pipeline.worker_state`
+  whether a worker's binaries installed, without Dask's import;
 - :mod:`~twin.pipeline.compensation` (:func:`compensate`): the error model on a CSV of
   measurements, a lab's or a run's.
 """

@@ -1,0 +1,41 @@
+"""What a default run's Monte Carlo in process imports: not Dask's distributed (only when a
+cluster pays), not pandas, SALib or scipy.stats (the draws, uncertainty.csv and the variance
+shares are computed without them); and the worker's binaries check still refuses a point
+where the plugin failed."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from twin.errors import RunError
+from twin.pipeline import shipping, worker_state
+from twin.pipeline.point import point_task
+
+
+def test_in_process_modules_leave_the_heavy_ones_out() -> None:
+    code = (
+        "import sys\n"
+        "import twin.pipeline.run, twin.pipeline.point, twin.pipeline.montecarlo\n"
+        "import twin.uncertainty.shares, twin.uncertainty.testers, twin.cli.run\n"
+        "print(*(m in sys.modules for m in ('distributed', 'dask', 'pandas', 'SALib', 'scipy.stats')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False"] * 5
+
+
+def test_a_worker_whose_binaries_failed_refuses_points() -> None:
+    """The plugin's failure (damaged bytes) is what an in-process point's check reads."""
+    plugin = shipping.BinariesPlugin((shipping.Artifact("x.fmu", b"damaged", "0" * 64),))
+    try:
+        with pytest.raises(RunError, match="sha256 mismatch"):
+            plugin.setup(worker=None)
+        with pytest.raises(RunError, match="sha256 mismatch"):
+            worker_state.check_worker()
+        record = point_task({"index": 3, "run": None})
+        assert record["status"] == "failed" and "sha256 mismatch" in record["error"]
+    finally:
+        worker_state.PROBLEM.clear()
+    worker_state.check_worker()  # a worker whose binaries installed runs its points
