@@ -109,6 +109,8 @@ def run_samples(
     evaluation = dataclasses.replace(prepared.evaluation, credibility=False)
     shapes: dict[int, str] = {}
     drawn: dict[int, dict[str, float]] = {}
+    # the samples share their structure (only values differ): each plan is made from the last
+    last: list[PreparedRun] = []
 
     def payload(i: int) -> dict[str, Any]:
         try:
@@ -116,7 +118,9 @@ def run_samples(
             scenario, shapes[i], drawn[i] = makers[predictive](j)
         except ConfigError as exc:
             return failed(i, one_line(exc))
-        return {"index": i, "run": prepare_scenario(scenario, evaluation)}
+        point = prepare_scenario(scenario, evaluation, last[0].plan if last else None)
+        last[:] = [point]
+        return {"index": i, "run": point}
 
     told = f" and {updated} of the updated tester's posterior" if updated else ""
     controls.echo(f"uncertainty: {unc.samples} prior samples{told} of {prepared.scenario.name}")
