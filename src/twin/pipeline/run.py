@@ -12,6 +12,7 @@ measured experiment it replays makes of both.
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import os
 import time
@@ -127,7 +128,13 @@ def run_samples(
     start = time.perf_counter()
     progress = montecarlo.Progress(total, controls.echo, start)
     records: dict[int, dict[str, Any]] = {}
-    left = _in_process(range(total), payload, controls, records, progress)
+    # what lives now (the modules, the nominal run) lives through the samples: kept out of the
+    # collector's full passes, which would walk it again and again while the samples come and go
+    gc.freeze()
+    try:
+        left = _in_process(range(total), payload, controls, records, progress)
+    finally:
+        gc.unfreeze()
     threads = 1
     if left and controls.stopped() is None:
         controls.echo(f"uncertainty: the other {len(left)} samples on Dask (a local cluster)")
