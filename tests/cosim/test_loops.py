@@ -18,12 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import twin.cosim.loops
 from twin.cli import main
 from twin.config.load import load_scenario, scenarios_dir
 from twin.config.loops import algebraic_loops, strongly_connected
-from twin.cosim.loops import LoopError
+from twin.cosim.instances import close_slots, open_slots
+from twin.cosim.loops import LoopError, initialize
 from twin.cosim.master import Master, run_scenario
-from twin.cosim.plan import make_plan
+from twin.cosim.plan import Plan, make_plan
+from twin.cosim.state import make_state
 from twin.fmu import catalog
 
 STEP = 0.1
@@ -277,3 +280,47 @@ def test_a_run_with_an_algebraic_loop_resumes_from_a_checkpoint_byte_for_byte(
     assert full.table is not None and rest.table is not None
     for name in full.table.names():
         assert rest.table[name].tobytes() == full.table[name][40:].tobytes(), name
+
+
+# ----------------------------------------------------------------- initialization
+
+
+def _initialized(plan: Plan) -> list[np.ndarray]:
+    """Every instance's inputs set and outputs visible after :func:`initialize`."""
+    slots = open_slots(plan)
+    try:
+        state = make_state(plan)
+        initialize(plan, state, slots)
+        return [np.concatenate([b.in_port.values, b.cur]) for b in state.buffers]
+    finally:
+        close_slots(slots)
+
+
+@pytest.mark.parametrize("name", ["base/tester-system.toml", "li2017-thermal-experiment.toml"])
+def test_an_instance_leaves_initialization_once_its_inputs_are_set_with_the_same_values(
+    name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The thermal network works its initial state out again when it leaves initialization
+    mode: each instance leaves as soon as its inputs are set, never before one of them (its
+    cycle's iteration included), and the values are those of every instance leaving at the end."""
+    plan = make_plan(load_scenario(scenarios_dir() / name))
+    leaving = twin.cosim.loops._leaving(plan)
+    early = set().union(*leaving)
+    (thermal,) = [i.index for i in plan.instances if i.name == "thermal"]
+    assert thermal in early
+    for s, instances in enumerate(leaving):
+        for i in instances:
+            later = [
+                v
+                for stage in plan.init_stages[s + 1 :]
+                for v in (*stage.inputs, *(x for c in stage.cycles for x in c.inputs))
+            ]
+            now = [v for c in plan.init_stages[s].cycles for v in c.inputs]
+            assert all(j != i for j, _ in later + now), (plan.instances[i].name, s)
+    if name.startswith("base/"):  # its friction loop is iterated: thermal leaves after that stage
+        (cycle_stage,) = [s for s, stage in enumerate(plan.init_stages) if stage.cycles]
+        assert thermal in leaving[cycle_stage + 1]
+    now = _initialized(plan)
+    monkeypatch.setattr(twin.cosim.loops, "_leaving", lambda p: [set() for _ in p.init_stages])
+    at_the_end = _initialized(plan)
+    assert all(np.array_equal(a, b) for a, b in zip(now, at_the_end, strict=True))

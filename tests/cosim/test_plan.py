@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
 
 import twin.cosim.instances
+import twin.cosim.plan
 import twin.fmu.build
 import twin.fmu.catalog
 from twin.config.load import load_scenario
@@ -113,3 +115,34 @@ def test_an_event_off_the_step_grid_is_refused(tmp_path: Path) -> None:
     sc = load_scenario(scenario(tmp_path, body, duration="2 min"))
     with pytest.raises(ConfigError, match="not on the step grid"):
         make_plan(sc)
+
+
+def test_a_plan_made_like_another_of_its_structure_equals_the_one_made_from_scratch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from twin.config.spec import Profile
+
+    base = load_scenario(scenario(tmp_path, BODY, duration="2 min"))
+    like = make_plan(base)
+    # a sample: other parameter values, another profile, another seed (the seed is generated)
+    sample = (
+        base.with_parameter("thermal", "solver_step", 0.5)
+        .with_input(Profile("thermal.q_hydraulic", "ramp", {"start": 90.0, "end": 120.0, "duration": 60.0}))
+        .with_seed(11)
+    )
+    fresh = make_plan(sample)
+    assert make_plan(sample, like) == fresh
+    assert fresh != like  # the parameters and the seed did change
+    assert fresh.instances[1].parameters[0] == ("seed", instance_seed(11, 1))
+
+    # another structure (one more parameter set, or a connection gone) is made from scratch:
+    # a plan like the base's would be wrong, so reading the descriptions again must happen
+    calls: list[str] = []
+    real = twin.cosim.plan.model_variables
+    monkeypatch.setattr(twin.cosim.plan, "model_variables", lambda m: calls.append(m) or real(m))
+    assert make_plan(sample, like) == fresh and calls == []
+    seeded = sample.with_parameter("sensors", "seed", 5)
+    assert make_plan(seeded, like) == make_plan(seeded) and calls
+    assert make_plan(seeded, like).instances[1].parameters[-1] == ("seed", 5)
+    unfed = dataclasses.replace(sample, connections=tuple(c for c in sample.connections if c.delay))
+    assert make_plan(unfed, like) == make_plan(unfed) != fresh

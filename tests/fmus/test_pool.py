@@ -93,3 +93,28 @@ def test_sweep_points_reuse_the_workers_instances() -> None:
         point_task({"index": 0, "run": sc})["figures"] == first
     )  # same scenario, same seed: the same figures
     assert pool.reused == reused + 5
+
+
+def test_an_fmu_rebuilt_at_the_same_path_is_not_given_the_old_ones_instances(tmp_path: Path) -> None:
+    """The pool resolves an FMU's path once; its size and time are read at every open."""
+    import os
+    import shutil
+
+    from twin.fmu import catalog
+    from twin.fmu.slot import FMUSlot, file_key
+
+    fmu = tmp_path / "sensors.fmu"
+    shutil.copyfile(catalog.fmu("SensorsDAQ"), fmu)
+    pool = SlotPool()
+    first = pool.open(fmu, "sensors", lambda: FMUSlot(fmu, "sensors"))
+    assert first.pool_key == (file_key(fmu), "sensors")
+    pool.release(first)
+    again = pool.open(fmu, "sensors", lambda: FMUSlot(fmu, "sensors"))
+    assert again is first and pool.reused == 1
+    pool.release(again)
+    st = os.stat(fmu)
+    os.utime(fmu, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))  # as a rebuild leaves it
+    rebuilt = pool.open(fmu, "sensors", lambda: FMUSlot(fmu, "sensors"))
+    assert rebuilt is not first and pool.created == 2 and rebuilt.pool_key == (file_key(fmu), "sensors")
+    pool.release(rebuilt)
+    pool.clear()

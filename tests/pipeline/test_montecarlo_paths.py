@@ -52,3 +52,30 @@ def test_a_cluster_pays_when_its_workers_save_more_than_its_start() -> None:
     # sixteen cores: the cluster pays from a few hundred samples of that size
     assert pays(400, 0.009, 0.013, cores=16) and not pays(100, 0.009, 0.013, cores=16)
     assert not pays(10_000, 1.0, 1.0, cores=1)  # one core: on a worker it only costs more
+
+
+def test_what_lives_before_the_samples_is_frozen_for_them_and_thawed_after(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The collector's full passes skip the modules and the nominal run while the samples
+    come and go; nothing stays frozen after the Monte Carlo, even one that fails."""
+    import gc
+
+    real, frozen = run_module._in_process, []
+
+    def watched(*args: object) -> list[int]:
+        frozen.append(gc.get_freeze_count())
+        return real(*args)
+
+    monkeypatch.setattr(run_module, "_in_process", watched)
+    small = [*ARGS[:3], "4", *ARGS[4:]]
+    assert main([*small, "--out", str(tmp_path / "a")]) == 0
+    assert frozen and frozen[0] > 10_000 and gc.get_freeze_count() == 0
+
+    def fails(*args: object) -> list[int]:
+        raise RuntimeError("a sample's bug")
+
+    monkeypatch.setattr(run_module, "_in_process", fails)
+    with pytest.raises(RuntimeError, match="a sample's bug"):
+        main([*small, "--out", str(tmp_path / "b")])
+    assert gc.get_freeze_count() == 0

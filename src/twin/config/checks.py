@@ -9,7 +9,7 @@ each check returns the checked value or the reason it is refused, so both say th
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from twin.config.reader import did_you_mean, finite_number
@@ -44,11 +44,14 @@ def typed_value(var: Variable, raw: Any) -> tuple[ParameterValue | None, str | N
     return float(raw), None
 
 
-def parameter_value(model: str, name: str, raw: Any) -> tuple[ParameterValue | None, str | None]:
+def parameter_value(
+    model: str, name: str, raw: Any, variables: Mapping[str, Variable] | None = None
+) -> tuple[ParameterValue | None, str | None]:
     """``raw`` as the value of ``model``'s parameter ``name`` (it exists, has the type, lies in
-    its physical range), or the reason it cannot be."""
+    its physical range), or the reason it cannot be. ``variables``: the model's (looked up
+    once by a caller that checks many of its parameters)."""
 
-    variables = model_variables(model)
+    variables = model_variables(model) if variables is None else variables
     var = variables.get(name)
     if var is None or var.causality != "parameter":
         known = [n for n, v in variables.items() if v.causality == "parameter"]

@@ -282,8 +282,9 @@ class Scenario:
         """A copy with several parameters of one instance set (see :meth:`with_parameter`)."""
         spec = self._instance(instance)
         params = dict(spec.parameters)
+        variables = model_variables(spec.model)
         for name, raw in values.items():
-            value, why = parameter_value(spec.model, name, raw)
+            value, why = parameter_value(spec.model, name, raw, variables)
             if why is not None or value is None:
                 raise ConfigError(why or "", source=self.source_path, key=f"fmu.{instance}.parameters.{name}")
             params[name] = Parameter(value, source)

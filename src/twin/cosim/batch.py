@@ -22,13 +22,14 @@ from __future__ import annotations
 import ctypes
 import math
 import time
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from twin.config.spec import NS_PER_S
-from twin.cosim.instances import close_slots, initialize, open_slots
+from twin.cosim.instances import close_slots, fmu_files, initialize, open_slots
 from twin.cosim.layout import Status, TwinColumn, TwinCounters, TwinSlot, entry
 from twin.cosim.master import RunResult
 from twin.cosim.native import NativeLoop, stepper
@@ -119,12 +120,19 @@ class Batch:
         self.setup_s = self.step_s = 0.0
         self._attempted = False
         self._failed: int | None = None  # the copy whose FMU failed in the last attempt
+        self._files: dict[str, Path] | None = None  # each model's .fmu (found at open)
 
     def open(self) -> Batch:
         """Load and initialize every copy; a copy an FMU refuses goes to :attr:`alone`."""
         start = time.perf_counter()
+        if self.plans:
+            # the copies share their models (structure): each file is found once for them all
+            try:
+                self._files = fmu_files(self.plans[0])
+            except RunError:
+                self._files = None  # each copy finds it again, fails and runs alone (its error told)
         for index, plan in enumerate(self.plans):
-            copy = _open(index, plan, self.pool)
+            copy = _open(index, plan, self.pool, self._files)
             if copy is None:
                 self.alone.append(index)
             else:
@@ -147,7 +155,7 @@ class Batch:
                 c.slots = []
             reopened = []
             for c in (c for i, c in enumerate(self.copies) if i != failed):
-                again = _open(c.index, c.plan, self.pool)
+                again = _open(c.index, c.plan, self.pool, self._files)
                 if again is None:
                     self.alone.append(c.index)
                 else:
@@ -194,11 +202,11 @@ def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | Non
         return batch.results()
 
 
-def _open(index: int, plan: Plan, pool: SlotPool | None) -> _Copy | None:
+def _open(index: int, plan: Plan, pool: SlotPool | None, files: Mapping[str, Path] | None) -> _Copy | None:
     """Copy ``index``'s instances loaded and initialized (None: an FMU refused)."""
     # what an FMU's refusal raises; anything else is a bug and goes up
     try:
-        slots = open_slots(plan, pool)
+        slots = open_slots(plan, pool, files=files)
     except RunError:
         return None
     try:

@@ -8,7 +8,8 @@ connected to is read, and makes their initial outputs visible.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 
 from twin.config.spec import NS_PER_S
 from twin.cosim.loops import initialize
@@ -19,7 +20,10 @@ from twin.fmu.slot import FMUSlot
 
 
 def open_slots(
-    plan: Plan, pool: SlotPool | None = None, log: Callable[[str, str, str, str], None] | None = None
+    plan: Plan,
+    pool: SlotPool | None = None,
+    log: Callable[[str, str, str, str], None] | None = None,
+    files: Mapping[str, Path] | None = None,
 ) -> list[FMUSlot]:
     """One instantiated FMU per planned instance, its experiment set up at the run's start,
     parameters set; none left open on a failure.
@@ -27,11 +31,13 @@ def open_slots(
     With a ``pool``, an idle instance of the same FMU file and name is reset and reused
     (:mod:`twin.fmu.pool`) instead of instantiating another. With a ``log`` (a run into its
     folder, never a pooled study's point), the instances log everything (debug logging on) and
-    every message goes to it as well."""
+    every message goes to it as well. ``files`` gives each model's ``.fmu``
+    (:func:`fmu_files`), where a caller opens many runs of the same models (a batch of
+    samples): a file is found (its sources hashed, its cache entry checked) once for them all."""
     slots: list[FMUSlot] = []
     try:
         for inst in plan.instances:
-            path = catalog.fmu(inst.model)
+            path = files[inst.model] if files is not None else catalog.fmu(inst.model)
             if pool is None:
                 slot = FMUSlot(path, inst.name, log=log)
             else:
@@ -43,6 +49,11 @@ def open_slots(
         close_slots(slots)
         raise
     return slots
+
+
+def fmu_files(plan: Plan) -> dict[str, Path]:
+    """The ``.fmu`` of each model of ``plan`` (built on first use), as :func:`open_slots` takes them."""
+    return {inst.model: catalog.fmu(inst.model) for inst in plan.instances}
 
 
 def check_initialization(plan: Plan) -> None:
@@ -69,4 +80,4 @@ def close_slots(slots: Sequence[FMUSlot], pool: SlotPool | None = None) -> None:
             pool.release(slot)
 
 
-__all__ = ["check_initialization", "close_slots", "initialize", "open_slots"]
+__all__ = ["check_initialization", "close_slots", "fmu_files", "initialize", "open_slots"]

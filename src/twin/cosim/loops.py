@@ -23,8 +23,9 @@ loop between instances, no instance can be initialized whole before another. Eve
 enters initialization mode; the inputs known at once (driven, delayed) are set; then, stage by
 stage (:class:`twin.cosim.plan.PlannedStage`), the inputs whose sources are read are set and
 the outputs whose dependencies are set are read (FMI 2.0 allows fmi2GetReal in initialization
-mode), a cycle of the initial dependencies being iterated as above; at last every instance
-leaves initialization mode and its outputs become visible.
+mode), a cycle of the initial dependencies being iterated as above; each instance leaves
+initialization mode as soon as every input of it is set (its outputs are then read from the
+initialized instance), and at last every instance's outputs become visible.
 """
 
 from __future__ import annotations
@@ -237,9 +238,48 @@ def _initial_cycle(plan: Plan, state: State, slots: Sequence[FMUSlot], loop: Pla
     raise LoopError(loop.name, "at initialization")
 
 
+def _leaving(plan: Plan) -> list[set[int]]:
+    """Per initialization stage, the instances that may leave initialization mode before its
+    outputs are read: every input of theirs is set by then (driven and delayed ones before the
+    stages, connected ones in a stage before, or in this one and on none of its cycles, which
+    set them again). An instance with a connected input no stage sets leaves at the end."""
+    last = {inst.index: -1 for inst in plan.instances}  # the stage that sets its last input
+    staged: set[VarIndex] = set()
+    iterated: list[set[int]] = []
+    for s, stage in enumerate(plan.init_stages):
+        on_cycles = [v for c in stage.cycles for v in c.inputs]
+        for i, k in (*stage.inputs, *on_cycles):
+            last[i] = s
+            staged.add((i, k))
+        iterated.append({i for i, _ in on_cycles})
+    for inst in plan.instances:
+        if any(
+            p.kind == InputKind.CONNECTION and (inst.index, k) not in staged
+            for k, p in enumerate(inst.inputs)
+        ):
+            last[inst.index] = len(plan.init_stages)
+    leaving: list[set[int]] = [set() for _ in plan.init_stages]
+    for i, s in last.items():
+        if s < 0:
+            at = 0
+        elif s < len(leaving):
+            at = s + (i in iterated[s])  # after the cycles that set its inputs again
+        else:
+            continue  # leaves at the end
+        if at < len(leaving):
+            leaving[at].add(i)
+    return leaving
+
+
 def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
     """Initialization mode of every instance, variable by variable (see the module); the
-    outputs become visible."""
+    outputs become visible.
+
+    An instance leaves initialization mode as soon as every input of it is set, before its
+    outputs are read for the others (:func:`_leaving`), not after every instance's: an FMU
+    that works out its initial state for an output read in initialization mode works it out
+    again when it leaves it (FMI 2.0 lets fmi2GetReal read an initialized instance's outputs
+    at the start time, and lets the others be still in initialization mode)."""
     drow = state.driven.row(plan.scenario.start_ns / NS_PER_S)
     for slot in slots:
         slot.enter_initialization()
@@ -248,13 +288,22 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         Gather(inst, state.buffers).drive(drow)
         known += [(inst.index, j) for j, i in enumerate(inst.inputs) if i.kind != InputKind.CONNECTION]
     _Variables(plan, state, slots, known).set_inputs(connected=False)
-    for stage in plan.init_stages:
+    left: set[int] = set()
+
+    def leave(i: int) -> None:
+        slots[i].write(state.buffers[i].in_port)
+        slots[i].exit_initialization()
+        left.add(i)
+
+    for stage, leaving in zip(plan.init_stages, _leaving(plan), strict=True):
         _Variables(plan, state, slots, stage.inputs).set_inputs(connected=True)
+        for i in sorted(leaving - left):
+            leave(i)
         _Variables(plan, state, slots, stage.outputs).read_outputs()
         for cycle in stage.cycles:
             _initial_cycle(plan, state, slots, cycle)
-    for slot, buf in zip(slots, state.buffers, strict=True):
-        slot.write(buf.in_port)
-        slot.exit_initialization()
+    for i, (slot, buf) in enumerate(zip(slots, state.buffers, strict=True)):
+        if i not in left:
+            leave(i)
         slot.read(buf.out_port)
         buf.commit()

@@ -21,6 +21,7 @@ outputs, variable by variable (:attr:`Plan.init_stages`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
@@ -372,8 +373,50 @@ def _init_stages(scenario: Scenario, instances: Sequence[PlannedInstance]) -> tu
     )
 
 
-def make_plan(scenario: Scenario) -> Plan:
-    """The plan of ``scenario`` (reads the models' descriptions; loads no FMU)."""
+def _shape(scenario: Scenario) -> tuple[object, ...]:
+    """Everything of ``scenario`` its plan is made of but the parameters' values and the
+    seed: the instances (names, models, periods, which parameters, units), the connections,
+    which inputs the profiles drive (not their values: the plan names a profile by its
+    place), the events and the clock."""
+    fmus = tuple(
+        (f.name, f.model, f.period_ns, tuple(f.parameters), tuple(f.units.items())) for f in scenario.fmus
+    )
+    return (
+        scenario.source_path,
+        scenario.step_ns,
+        scenario.start_ns,
+        scenario.duration_ns,
+        scenario.output_interval_ns,
+        fmus,
+        scenario.connections,
+        tuple(p.target for p in scenario.profiles),
+        scenario.events,
+    )
+
+
+def _parameters(scenario: Scenario, like: PlannedInstance) -> tuple[tuple[str, ParameterValue], ...]:
+    """Instance ``like``'s parameters as ``scenario`` sets them: the same names in the same
+    order (:func:`_shape` says so), the generated seed where ``like`` has one."""
+    spec = scenario.fmus[like.index]
+    params = [(n, p.value) for n, p in spec.parameters.items()]
+    if len(like.parameters) > len(params):  # the seed the scenario does not set
+        params.insert(0, ("seed", instance_seed(scenario.seed, like.index)))
+    return tuple(params)
+
+
+def make_plan(scenario: Scenario, like: Plan | None = None) -> Plan:
+    """The plan of ``scenario`` (reads the models' descriptions; loads no FMU).
+
+    ``like``, the plan of a scenario of the same structure (a Monte Carlo's or a sweep's
+    other sample: the same FMUs, connections, profiles' targets and events, other parameter
+    values, profile values or seed), gives everything but the parameters: the plan is
+    equal to the one made from scratch, without reading the descriptions again. A ``like``
+    of another structure is ignored."""
+    if like is not None and _shape(like.scenario) == _shape(scenario):
+        instances = tuple(
+            dataclasses.replace(inst, parameters=_parameters(scenario, inst)) for inst in like.instances
+        )
+        return dataclasses.replace(like, scenario=scenario, instances=instances)
     b = _Builder(scenario)
     instances = tuple(b.instance(i, spec) for i, spec in enumerate(scenario.fmus))
     return Plan(

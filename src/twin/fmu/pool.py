@@ -16,6 +16,7 @@ its error state, and a reset is not what a failed instance should be trusted wit
 from __future__ import annotations
 
 import atexit
+import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -40,10 +41,11 @@ class SlotPool:
         self._lock = threading.Lock()
         self.reused = 0  # instances handed out again (for tests and benchmarks)
         self.created = 0  # instances made because none was idle
+        self._resolved: dict[Path, str] = {}
 
     def open(self, fmu_path: Path, instance_name: str, make: Callable[[], FMUSlot]) -> FMUSlot:
         """An idle instance of that file and name, reset and ready for ``setup``, else ``make()``."""
-        key = (file_key(fmu_path), instance_name)
+        key = (self._file_key(fmu_path), instance_name)
         with self._lock:
             idle = self._idle.get(key)
             slot = idle.pop() if idle else None
@@ -55,6 +57,17 @@ class SlotPool:
         slot.reuse()
         self.reused += 1
         return slot
+
+    def _file_key(self, fmu_path: Path) -> tuple[str, int, int]:
+        """:func:`~twin.fmu.slot.file_key`, the path resolved once per pool (resolving it was
+        most of the key's cost, asked for by every instance a Monte Carlo sample opens); the
+        size and modification time are the file's now, so a rebuilt FMU is never taken for
+        the one whose instances are idle."""
+        resolved = self._resolved.get(fmu_path)
+        if resolved is None:
+            resolved = self._resolved.setdefault(fmu_path, file_key(fmu_path)[0])
+        st = os.stat(fmu_path)
+        return resolved, st.st_size, st.st_mtime_ns
 
     def release(self, slot: FMUSlot) -> None:
         """Keep ``slot`` for the next run after ``fmi2Reset``; free it if the reset fails, if it

@@ -190,11 +190,14 @@ def prepare(
     return prepared
 
 
-def prepare_scenario(scenario: Scenario, evaluation: EvaluationConfig | None = None) -> PreparedRun:
+def prepare_scenario(
+    scenario: Scenario, evaluation: EvaluationConfig | None = None, like: Plan | None = None
+) -> PreparedRun:
     """A study's point: ``scenario`` in memory, no folder, no FMU check (a point the FMUs
     refuse fails as a point); ``evaluation`` reuses the error model's configuration of the
-    study's base scenario (a point changes no ``[errormodel]``)."""
-    plan = make_plan(scenario)
+    study's base scenario (a point changes no ``[errormodel]``); ``like``, another point's
+    plan, gives its structure to this point's when they share it (:func:`make_plan`)."""
+    plan = make_plan(scenario, like)
     if evaluation is None:
         evaluation = evaluation_config(scenario)
         check_recorded_columns(scenario, plan.column_names())

@@ -12,6 +12,7 @@ measured experiment it replays makes of both.
 from __future__ import annotations
 
 import dataclasses
+import gc
 import json
 import os
 import time
@@ -109,6 +110,8 @@ def run_samples(
     evaluation = dataclasses.replace(prepared.evaluation, credibility=False)
     shapes: dict[int, str] = {}
     drawn: dict[int, dict[str, float]] = {}
+    # the samples share their structure (only values differ): each plan is made from the last
+    last: list[PreparedRun] = []
 
     def payload(i: int) -> dict[str, Any]:
         try:
@@ -116,14 +119,22 @@ def run_samples(
             scenario, shapes[i], drawn[i] = makers[predictive](j)
         except ConfigError as exc:
             return failed(i, one_line(exc))
-        return {"index": i, "run": prepare_scenario(scenario, evaluation)}
+        point = prepare_scenario(scenario, evaluation, last[0].plan if last else None)
+        last[:] = [point]
+        return {"index": i, "run": point}
 
     told = f" and {updated} of the updated tester's posterior" if updated else ""
     controls.echo(f"uncertainty: {unc.samples} prior samples{told} of {prepared.scenario.name}")
     start = time.perf_counter()
     progress = montecarlo.Progress(total, controls.echo, start)
     records: dict[int, dict[str, Any]] = {}
-    left = _in_process(range(total), payload, controls, records, progress)
+    # what lives now (the modules, the nominal run) lives through the samples: kept out of the
+    # collector's full passes, which would walk it again and again while the samples come and go
+    gc.freeze()
+    try:
+        left = _in_process(range(total), payload, controls, records, progress)
+    finally:
+        gc.unfreeze()
     threads = 1
     if left and controls.stopped() is None:
         controls.echo(f"uncertainty: the other {len(left)} samples on Dask (a local cluster)")
