@@ -52,6 +52,22 @@ def test_a_cluster_pays_when_its_workers_save_more_than_its_start() -> None:
     # sixteen cores: the cluster pays from a few hundred samples of that size
     assert pays(400, 0.009, 0.013, cores=16) and not pays(100, 0.009, 0.013, cores=16)
     assert not pays(10_000, 1.0, 1.0, cores=1)  # one core: on a worker it only costs more
+    # a loaded machine: other work kept 1.5 of two cores busy and stretched the samples in
+    # process (wall twice the CPU's share of two threads); its workers would get one core
+    assert pays(1000, 0.013, 0.013, cores=2) and not pays(1000, 0.013, 0.013, cores=2, others=1.5)
+    assert not pays(1000, 0.0134, 0.013, cores=16, others=15.5)  # sixteen cores, all but half busy
+
+
+def test_the_cores_other_work_keeps_busy_are_the_machine_s_busy_time_less_the_run_s() -> None:
+    busy = run_module._machine_busy_s()
+    if busy is None:  # not Linux: the run counts every core as free
+        assert run_module._others(None, None, 1.0, 1.0) == 0.0
+        return
+    assert busy > 0
+    # over 2 s the machine ran 5 CPU seconds, 2 of them this process's: 1.5 cores of others
+    assert run_module._others(10.0, 15.0, 2.0, 2.0) == pytest.approx(1.5)
+    assert run_module._others(10.0, 11.0, 2.0, 2.0) == 0.0  # never below none
+    assert run_module._others(None, 15.0, 2.0, 2.0) == 0.0
 
 
 def test_what_lives_before_the_samples_is_frozen_for_them_and_thawed_after(

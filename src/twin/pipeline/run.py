@@ -170,14 +170,42 @@ CLUSTER_START_S = 3.0
 ON_DASK = 1.3
 
 
-def _cluster_pays(left: int, wall_s: float, cpu_s: float, cores: int | None = None) -> bool:
+def _cluster_pays(
+    left: int, wall_s: float, cpu_s: float, cores: int | None = None, others: float = 0.0
+) -> bool:
     """Whether ``left`` samples finish sooner on a local cluster of one worker per core than
     in process, where a sample took ``wall_s`` (its batch's ticks already run beside the batch
     before: two threads) and ``cpu_s`` CPU seconds: on the cluster each costs :data:`ON_DASK`
-    times that CPU, shared out over the workers, and what that saves must exceed the
-    cluster's start."""
+    times that CPU, shared out over the cores other work leaves free (``others``: the cores
+    other processes kept busy meanwhile; at least one), and what that saves must exceed the
+    cluster's start. A machine busy with other work stretches a sample's wall time in process,
+    but gives the workers no more cores: counted on every core, a loaded machine sent its
+    samples to a cluster that took longer still."""
     n = cores if cores is not None else (os.cpu_count() or 1)
-    return left * (wall_s - cpu_s * ON_DASK / n) > CLUSTER_START_S
+    free = max(1.0, n - others)
+    return left * (wall_s - cpu_s * ON_DASK / free) > CLUSTER_START_S
+
+
+def _machine_busy_s() -> float | None:
+    """CPU seconds every process of the machine has run since it started (Linux's /proc/stat:
+    all but idle and waiting for disks), or None where that cannot be read."""
+    try:
+        with open("/proc/stat", encoding="ascii") as f:
+            fields = f.readline().split()
+        ticks = [int(x) for x in fields[1:9]]
+    except (OSError, ValueError):
+        return None
+    if len(ticks) < 5:
+        return None
+    return (sum(ticks) - ticks[3] - ticks[4]) / os.sysconf("SC_CLK_TCK")
+
+
+def _others(busy0: float | None, busy1: float | None, cpu_s: float, wall_s: float) -> float:
+    """The cores other processes kept busy over ``wall_s``, from the machine's busy time
+    (:func:`_machine_busy_s` before and after) less this process's ``cpu_s``; 0 unknown."""
+    if busy0 is None or busy1 is None or wall_s <= 0:
+        return 0.0
+    return max(0.0, (busy1 - busy0 - cpu_s) / wall_s)
 
 
 def _in_process(
@@ -210,7 +238,7 @@ def _in_process(
         while left and controls.stopped() is None:
             # its wall time and its CPU time (every thread's): a machine busy with other work
             # makes a sample slower in process and on a cluster alike
-            t0, w0 = time.process_time(), time.perf_counter()
+            t0, w0, b0 = time.process_time(), time.perf_counter(), _machine_busy_s()
             batch, left = left[:size], left[size:]
             items = [payload(i) for i in batch]
             records.update({r["index"]: r for r in items if "status" in r})
@@ -220,8 +248,10 @@ def _in_process(
             pending = started
             # judged from the second batch on: the first also made the pool's instances
             batches += 1
-            cpu, wall = (time.process_time() - t0) / len(batch), (time.perf_counter() - w0) / len(batch)
-            if batches > 1 and _cluster_pays(len(left), wall, cpu):
+            cpu_s, wall_s = time.process_time() - t0, time.perf_counter() - w0
+            others = _others(b0, _machine_busy_s(), cpu_s, wall_s)
+            cpu, wall = cpu_s / len(batch), wall_s / len(batch)
+            if batches > 1 and _cluster_pays(len(left), wall, cpu, others=others):
                 break
         if pending is not None and controls.stopped() is None:
             finish(pending)
