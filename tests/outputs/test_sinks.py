@@ -177,6 +177,31 @@ def test_tee_writes_a_chunk_while_the_run_goes_and_waits_for_it_before_the_next(
     np.testing.assert_array_equal(np.concatenate([e[2] for e in slow.events if e[1] == "write"]), table.time)
 
 
+def test_a_long_runs_last_rows_are_written_while_the_caller_goes_on_and_flush_waits_for_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import threading
+
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
+    _, table = recorded(make_table(rows=250))
+    release = threading.Event()
+
+    class Slow(Log):
+        def write(self, block: Block) -> None:
+            if len(block.time) == 50:  # the last rows, handed on at close
+                assert release.wait(10.0)
+            super().write(block)
+
+    slow = Slow()
+    rec = TeeRecorder([slow], hold_last=True)
+    stream(rec, table, batch=50)  # 100, 100 while it runs; the last 50 at close
+    assert [len(e[2]) for e in slow.events if e[1] == "write"] == [100, 100]  # close did not wait
+    release.set()
+    rec.flush()  # what twin run does before any sink closes
+    writes = [e for e in slow.events if e[1] == "write"]
+    np.testing.assert_array_equal(np.concatenate([e[2] for e in writes]), table.time)
+
+
 def test_tee_raises_a_failed_write_of_its_thread_and_writes_nothing_after_it(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

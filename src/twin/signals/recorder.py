@@ -61,9 +61,10 @@ class TeeRecorder:
     formatting and sending it goes on while the co-simulation steps (the compiled stepper and
     Arrow's CSV writer leave Python's lock free): one chunk at a time, the one before waited
     for (and its error raised, the rows after it dropped, as a write that failed at once
-    would leave them) before the next is handed on. Every other way rows reach the sinks
-    (:meth:`flush`, :meth:`close`, :meth:`checkpoint`) writes them before it returns, so a
-    sink is never closed, failed or asked where it stands while a chunk is being written.
+    would leave them) before the next is handed on. :meth:`flush` and :meth:`checkpoint`
+    write every row before they return, and so does :meth:`close` without ``hold_last``, so a
+    sink is never asked where it stands while a chunk is being written, nor closed or failed
+    after a flush.
 
     With ``hold_last``, :meth:`close` of a run none of whose rows went to the sinks yet (all
     of them came within :data:`FLUSH_ROWS` and :data:`FLUSH_SECONDS`: a short run, like the
@@ -72,7 +73,8 @@ class TeeRecorder:
     loading rerun with the first of them (:mod:`twin.outputs.recording_sink`), overlaps the
     drawing. A longer run's files are open by then and its last rows cheap to write: they are
     handed on at once, not held beside the error model's columns (which would raise a long
-    run's peak memory).
+    run's peak memory), and written by the thread while the error model runs; the caller's
+    :meth:`flush` (before any sink closes, and on the way out of a failure) waits for them.
     """
 
     def __init__(
@@ -186,9 +188,15 @@ class TeeRecorder:
 
     def close(self) -> None:
         """The master is done: hand on what is buffered (the sinks stay open for the outcome),
-        unless ``hold_last`` holds it for the caller's :meth:`flush` (see the class)."""
-        if not self.hold_last or self._handed_on:
+        unless ``hold_last`` holds it for the caller's :meth:`flush` (see the class). With
+        ``hold_last`` the caller flushes before it closes the sinks in any case: a run whose
+        rows went to the sinks already has its last ones written meanwhile, in the thread."""
+        if not self.hold_last:
             self.flush()
+        elif self._handed_on:
+            # a long run's last rows: written by the writer thread while the caller goes on
+            # (the error model); the caller's flush() waits for them before the sinks close
+            self._hand_on(wait=False)
 
     def checkpoint(self) -> dict[str, Any]:
         """Flush, and describe where every file stands and the kept rows (a checkpoint's
