@@ -157,3 +157,74 @@ def test_ninja_builds_where_make_is_missing(tmp_path: Path, monkeypatch: pytest.
 def test_the_readme_names_every_package_the_check_asks_for() -> None:
     readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
     assert "apt-get install gcc g++ make" in readme and "ninja-build" in readme
+
+
+def _fresh_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """What a new process knows of the source hashes: only the cache's record."""
+    from twin.fmu import build, toolchain
+
+    monkeypatch.setattr(toolchain, "_recorded", {})
+    build._content_hash.cache_clear()
+
+
+def test_a_fresh_process_takes_the_source_hash_from_the_caches_record_until_a_file_changes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import json
+    import shutil
+
+    from twin.fmu import build, toolchain
+
+    monkeypatch.setenv(toolchain.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setattr(toolchain, "SETTLED_S", -60.0)  # the copied files count as settled
+    copy = tmp_path / "fmus"
+    shutil.copytree(sources_dir(), copy)
+    _fresh_process(monkeypatch)
+    before = source_hash("ThermalNetwork", copy)
+    assert before == source_hash("ThermalNetwork")  # the same files, the same hash
+    record = json.loads((tmp_path / "cache" / toolchain.SOURCE_HASHES).read_text())
+    assert before in record.values()
+
+    _fresh_process(monkeypatch)
+    hashed: list[str] = []
+    real = build.content_hash
+    monkeypatch.setattr(build, "content_hash", lambda *a: hashed.append("hashed") or real(*a))
+    assert source_hash("ThermalNetwork", copy) == before
+    assert hashed == []  # no source read: the record said it
+
+    # the same size, another content: its change time (or inode) is another, the record not used
+    linalg = copy / "common" / "linalg.c"
+    text = linalg.read_text()
+    linalg.write_text(text.replace("(", "[", 1))
+    _fresh_process(monkeypatch)
+    after = source_hash("ThermalNetwork", copy)
+    assert hashed == ["hashed"] and after != before
+
+
+def test_a_source_changed_just_now_is_hashed_but_not_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # a file rewritten within the clock's tick keeps its times: only settled files are recorded
+    import shutil
+
+    from twin.fmu import toolchain
+
+    monkeypatch.setenv(toolchain.CACHE_ENV, str(tmp_path / "cache"))
+    copy = tmp_path / "fmus"
+    shutil.copytree(sources_dir(), copy)
+    _fresh_process(monkeypatch)
+    copied = source_hash("ThermalNetwork", copy)
+    assert not (tmp_path / "cache" / toolchain.SOURCE_HASHES).exists()
+    assert copied == source_hash("ThermalNetwork")
+
+
+def test_a_record_entry_that_is_no_hash_is_not_used(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from twin.fmu import toolchain
+
+    folder = tmp_path / "cache"
+    monkeypatch.setenv(toolchain.CACHE_ENV, str(folder))
+    toolchain.private_cache_dir()
+    (folder / toolchain.SOURCE_HASHES).write_text('{"k": "../../etc/passwd", "j": 3}\n')
+    assert toolchain._read_hashes(folder / toolchain.SOURCE_HASHES) == {}
+    (folder / toolchain.SOURCE_HASHES).write_text("[not a record")
+    assert toolchain._read_hashes(folder / toolchain.SOURCE_HASHES) == {}

@@ -68,6 +68,37 @@ def test_chunked_writing_equals_one_shot_byte_for_byte(table: SignalTable, tmp_p
     assert (tmp_path / "b.units.json").read_bytes() == (tmp_path / "a.units.json").read_bytes()
 
 
+def test_a_chunk_is_formatted_in_pieces_and_flushed_in_slices_of_whole_rows(
+    table: SignalTable, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # what a full disk can leave is cut back to the last flushed slice: each must end a row,
+    # and the position a resumed run continues from is that of the last one
+    import twin.outputs.csv as csv_module
+
+    one_shot = write_signals_csv(table, tmp_path / "a.csv").read_bytes()
+    monkeypatch.setattr(csv_module, "_SLICE_BYTES", 300)
+    monkeypatch.setattr(csv_module, "_FORMAT_BYTES", 5000)
+    flushed: list[tuple[int, float]] = []
+    real = SignalsCsvWriter._flush
+
+    def flush(self: SignalsCsvWriter) -> None:
+        real(self)
+        flushed.append((self._file.tell(), self._last_time))  # type: ignore[union-attr]
+
+    monkeypatch.setattr(SignalsCsvWriter, "_flush", flush)
+    with SignalsCsvWriter(tmp_path / "b.csv", [table.meta[n] for n in table.names()]) as writer:
+        writer.append(table.time, table.columns)
+        assert writer.position() == (len(one_shot), float(table.time[-1]))
+    assert (tmp_path / "b.csv").read_bytes() == one_shot
+    assert len(flushed) > len(one_shot) // 1000  # many slices, not one
+    for (size, _), (_, last) in itertools.pairwise(flushed):
+        assert one_shot[size - 1 : size] == b"\n"  # a whole row
+        # the slice flushed next starts after the row at the time recorded with it
+        assert (
+            one_shot[:size].count(b"\n") - 1 == int(np.searchsorted(table.time, last)) + 1 or last == -np.inf
+        )
+
+
 def test_same_input_gives_identical_bytes(tmp_path: Path) -> None:
     a = write_signals_csv(make_table(), tmp_path / "a.csv").read_bytes()
     b = write_signals_csv(make_table(), tmp_path / "b.csv").read_bytes()

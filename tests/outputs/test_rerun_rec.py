@@ -114,6 +114,60 @@ def test_streaming_writer_matches_the_table(table: SignalTable, tmp_path: Path) 
     np.testing.assert_array_equal(values, table["probe.reading"] * 1e6)
 
 
+def _chunks(path: Path) -> dict[tuple[str, bool], list[tuple[tuple, dict[str, str]]]]:
+    """Every chunk of a recording's data store by entity and staticness: its fields (name,
+    type, metadata) and its columns' values (as text: NaN equals NaN), the row ids and the
+    recording's start time left out (new for every recording)."""
+    out: dict[tuple[str, bool], list[tuple[tuple, dict[str, str]]]] = {}
+    for chunk in RrdReader(path).stream().to_chunks():
+        if chunk.entity_path == "/__properties":
+            continue
+        batch = chunk.to_record_batch()
+        fields = tuple(
+            (f.name, str(f.type), tuple(sorted((f.metadata or {}).items())))
+            for f in batch.schema
+            if "RowId" not in f.name
+        )
+        values = {n: repr(batch.column(n).to_pylist()) for n in batch.schema.names if "RowId" not in n}
+        out.setdefault((chunk.entity_path, chunk.is_static), []).append((fields, values))
+    return out
+
+
+def test_the_series_are_sent_as_send_columns_sends_them(table: SignalTable, tmp_path: Path) -> None:
+    # the writer builds the Arrow arrays rr.send_columns would (without its conversions): the
+    # recording holds the same chunks, fields and values as one written through rerun's API
+    import rerun as rr
+
+    from twin.outputs import rerun_rec
+    from twin.outputs.rerun_rec import TIMELINE
+
+    signals = [table.meta[n] for n in table.names()]
+    table.columns["thermal.t_base"][3] = np.nan  # a gap stays a gap
+    ours = write_recording(table, tmp_path / "ours.rrd", recording_name="same")
+
+    class ThroughApi(RecordingWriter):
+        def _send(self, t: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
+            assert self._rec is not None
+            for name, values in arrays.items():
+                finite = np.abs(values[np.isfinite(values)])
+                self.peaks[name] = (
+                    max(self.peaks[name], float(finite.max())) if finite.size else self.peaks[name]
+                )
+            index = [rr.TimeColumn(TIMELINE, duration=rerun_rec._to_duration(t))]
+            for name, path_ in self.paths.items():
+                if name in arrays:
+                    self._rec.send_columns(
+                        path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name]), strict=True
+                    )
+
+    with ThroughApi(tmp_path / "api.rrd", signals, recording_name="same") as writer:
+        writer.append(table.time, dict(table.columns))
+    theirs = _chunks(tmp_path / "api.rrd")
+    assert _chunks(ours) == theirs
+    assert len([k for k in theirs if not k[1]]) == len(signals)  # one series per signal
+    assert _verify(ours).returncode == 0
+
+
 def test_sim_time_is_rounded_to_whole_nanoseconds(tmp_path: Path) -> None:
     table = SignalTable(time=np.array([0.0, 0.1, 0.3, 86400.7]))
     table.add(Signal("x.a", "m", "x"), np.arange(4.0))

@@ -141,6 +141,89 @@ def test_tee_hands_a_failing_block_to_no_sink_twice() -> None:
     assert [e[0] for e in first.events + full.events if e[1] == "write"] == ["csv", "rrd"]
 
 
+def test_tee_writes_a_chunk_while_the_run_goes_and_waits_for_it_before_the_next(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a chunk handed on while the run goes is written by a thread: append returns before the
+    # sink is done; the next chunk, a checkpoint and the run's end wait for it
+    import threading
+
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
+    _, table = recorded(make_table(rows=300))
+    release = threading.Event()
+    writing: list[str] = []
+
+    class Slow(Log):
+        def write(self, block: Block) -> None:
+            writing.append(threading.current_thread().name)
+            assert release.wait(10.0)
+            super().write(block)
+
+    slow = Slow()
+    rec = TeeRecorder([slow])
+    rec.open([table.meta[n] for n in table.names()])
+    names = table.names()
+    rows = np.column_stack([table[n] for n in names])
+    rec.append(table.time[:100], rows[:100])  # a whole chunk: handed to the writer thread
+    assert not [e for e in slow.events if e[1] == "write"]  # append did not wait for the sink
+    release.set()
+    rec.append(table.time[100:250], rows[100:250])  # waits for the first chunk, hands on the next
+    rec.checkpoint()  # waits for the chunk being written: every row written is in the files
+    writes = [e for e in slow.events if e[1] == "write"]
+    assert [len(e[2]) for e in writes] == [100, 150]
+    assert writing[0] != threading.main_thread().name
+    rec.append(table.time[250:], rows[250:])
+    rec.close()  # the rest written here, before the sinks are closed
+    np.testing.assert_array_equal(np.concatenate([e[2] for e in slow.events if e[1] == "write"]), table.time)
+
+
+def test_a_long_runs_last_rows_are_written_while_the_caller_goes_on_and_flush_waits_for_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import threading
+
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
+    _, table = recorded(make_table(rows=250))
+    release = threading.Event()
+
+    class Slow(Log):
+        def write(self, block: Block) -> None:
+            if len(block.time) == 50:  # the last rows, handed on at close
+                assert release.wait(10.0)
+            super().write(block)
+
+    slow = Slow()
+    rec = TeeRecorder([slow], hold_last=True)
+    stream(rec, table, batch=50)  # 100, 100 while it runs; the last 50 at close
+    assert [len(e[2]) for e in slow.events if e[1] == "write"] == [100, 100]  # close did not wait
+    release.set()
+    rec.flush()  # what twin run does before any sink closes
+    writes = [e for e in slow.events if e[1] == "write"]
+    np.testing.assert_array_equal(np.concatenate([e[2] for e in writes]), table.time)
+
+
+def test_tee_raises_a_failed_write_of_its_thread_and_writes_nothing_after_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # a full disk under the writer thread: the next rows raise its error (as a write that failed
+    # at once would) and are not written; the run's failure path hands nothing on after it
+    monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
+    _, table = recorded(make_table(rows=300))
+
+    class Full(Log):
+        def write(self, block: Block) -> None:
+            super().write(block)
+            raise OSError(28, "No space left on device")
+
+    first, full = Log(name="csv"), Full(name="rrd")
+    rec = TeeRecorder([first, full])
+    with pytest.raises(OSError, match="No space left"):
+        stream(rec, table, batch=100)
+    rec.flush()  # the run's failure path (stages._hand_on)
+    assert [e[0] for e in first.events + full.events if e[1] == "write"] == ["csv", "rrd"]
+    assert [len(e[2]) for e in first.events if e[1] == "write"] == [100]
+
+
 def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file_closes() -> None:
     from twin.pipeline import RunControls
     from twin.pipeline.stages import OutputsLog, write_outputs

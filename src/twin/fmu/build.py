@@ -38,6 +38,7 @@ from twin.fmu.toolchain import (
     content_hash,
     digest_file,
     find_tools,
+    hash_by_stats,
     private_cache_dir,
     progress,
     run_cmake,
@@ -94,15 +95,16 @@ _VARIABILITY = {
 def source_hash(model_name: str, src: Path | None = None) -> str:
     """Content hash of everything that goes into a model's FMU (sources, XML, readme).
 
-    Kept per process while no file's size or modification time changes: a sweep's worker
-    asks for it five times a point."""
+    Kept per process while no file's size, modification or change time changes (a sweep's
+    worker asks for it five times a point), and across processes by the same key
+    (:func:`~twin.fmu.toolchain.hash_by_stats`: a fresh process reads no source file)."""
     m = model(model_name, src)
     return _content_hash(m, m.stat_key())
 
 
 @functools.lru_cache(maxsize=64)
-def _content_hash(m: Model, _stats: tuple[tuple[str, int, int], ...]) -> str:
-    return content_hash(m.files(), BUILD_FORMAT)
+def _content_hash(m: Model, stats: tuple[tuple[str, int, int, int, int], ...]) -> str:
+    return hash_by_stats(stats, BUILD_FORMAT, lambda: content_hash(m.files(), BUILD_FORMAT))
 
 
 # ---------------------------------------------------------------------------- model_vars.h

@@ -115,16 +115,31 @@ class Model:
         }
         return common | folder_files(self.folder)
 
-    def stat_key(self) -> tuple[tuple[str, int, int], ...]:
-        """(name, size, modification time) of every file :meth:`files` reads: what a process
-        may keep the files' content hash by (a sweep's worker asks for every point)."""
-        common = [p for p in (self.root / "common").iterdir() if p.suffix in _COMMON_SUFFIXES]
-        own = [p for p in self.folder.iterdir() if not p.name.startswith(".")]
+    def stat_key(self) -> tuple[tuple[str, int, int, int, int], ...]:
+        """(path, size, modification time, change time, inode) of every file :meth:`files`
+        reads: what their content hash is kept by, in a process (a sweep's worker asks for
+        every point) and across processes (:func:`twin.fmu.toolchain.hash_by_stats`). A file
+        written anew (an editor's save, a checkout) has another change time or inode, whatever
+        its size and modification time."""
         out = []
-        for p in sorted(common, key=lambda p: p.name) + sorted(own, key=lambda p: p.name):
-            st = p.stat()
-            if stat.S_ISREG(st.st_mode):
-                out.append((str(p), st.st_size, st.st_mtime_ns))
+        for folder, common in ((self.root / "common", True), (self.folder, False)):
+            with os.scandir(folder) as it:
+                entries = sorted(
+                    (
+                        e
+                        for e in it
+                        if (
+                            os.path.splitext(e.name)[1] in _COMMON_SUFFIXES
+                            if common
+                            else not e.name.startswith(".")
+                        )
+                    ),
+                    key=lambda e: e.name,
+                )
+            for e in entries:
+                st = e.stat()  # through a link, as files() reads it
+                if stat.S_ISREG(st.st_mode):
+                    out.append((e.path, st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino))
         return tuple(out)
 
 

@@ -26,16 +26,19 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
+import re
 import shutil
 import stat
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from importlib.resources.abc import Traversable
 from pathlib import Path
+from typing import Any
 
 from twin.errors import BuildError, ToolMissingError, UnsafeCacheError
 from twin.files import write_text_atomic
@@ -189,6 +192,56 @@ def content_hash(files: Mapping[str, bytes], salt: str = "") -> str:
     for name, data in files.items():
         h.update(name.encode() + b"\0" + data + b"\0")
     return h.hexdigest()[:16]
+
+
+#: the cache's record of source content hashes by their files' stat keys (hash_by_stats)
+SOURCE_HASHES = "source-hashes.json"
+#: a stat key is recorded only when every file of it is older than this (seconds): a file
+#: rewritten within the file system's clock tick keeps its modification time (git's "racy
+#: clean" case), and one being written now may change again
+SETTLED_S = 2.0
+#: the record keeps the last this many keys (one per version of a model's sources, per checkout)
+RECORDED_HASHES = 256
+_DIGEST = re.compile(r"[0-9a-f]{16}")
+#: the records as this process read (and added to) them, by cache folder
+_recorded: dict[Path, dict[str, str]] = {}
+
+
+def hash_by_stats(stats: Sequence[tuple[Any, ...]], salt: str, compute: Callable[[], str]) -> str:
+    """The content hash ``compute()`` of the files whose stat keys (path, size, modification
+    and change time, inode) are ``stats``, kept in the cache folder (:data:`SOURCE_HASHES`) by
+    a SHA-256 of the keys and ``salt``, so that a fresh process hashes no source whose files
+    did not change since. Where the key says nothing about the content (a file changed within
+    :data:`SETTLED_S`), it is computed and not recorded. A record that cannot be read or
+    written is computed around. The record only names which build to look up: what is loaded
+    is still checked against the SHA-256 recorded at its build (:func:`cached`)."""
+    key = hashlib.sha256(repr((salt, tuple(stats))).encode()).hexdigest()[:32]
+    record = private_cache_dir() / SOURCE_HASHES
+    if record not in _recorded:
+        _recorded[record] = _read_hashes(record)
+    found = _recorded[record].get(key)
+    if found is not None:
+        return found
+    digest = compute()
+    settled = time.time_ns() - int(SETTLED_S * 1e9)
+    if all(s[2] < settled and s[3] < settled for s in stats):
+        known = {**_read_hashes(record), key: digest}  # with what other processes added meanwhile
+        _recorded[record] = dict(list(known.items())[-RECORDED_HASHES:])
+        with contextlib.suppress(OSError):
+            write_text_atomic(record, json.dumps(_recorded[record], indent=0) + "\n")
+    return digest
+
+
+def _read_hashes(record: Path) -> dict[str, str]:
+    """The record of :func:`hash_by_stats` (empty when missing or unreadable; an entry that is
+    not a key and 16 hex digits is left out)."""
+    try:
+        data = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {k: v for k, v in data.items() if isinstance(v, str) and _DIGEST.fullmatch(v)}
 
 
 def folder_files(folder: Path | Traversable) -> dict[str, bytes]:

@@ -73,8 +73,10 @@ def _check_names(names: Sequence[str]) -> None:
         seen.add(name)
 
 
-#: bytes of text written and flushed at a time (about: a value takes up to 24 characters)
+#: bytes of text written and flushed at a time
 _SLICE_BYTES = 1 << 18
+#: about the bytes of text formatted at a time (a value takes up to 24 characters)
+_FORMAT_BYTES = 1 << 22
 
 
 class SignalsCsvWriter(ClosesOnExit):
@@ -150,29 +152,40 @@ class SignalsCsvWriter(ClosesOnExit):
             raise ValueError(
                 f"times must be finite and strictly increasing (after t = {self._last_time!r} s)"
             )
-        block = np.empty((t.size, len(self.names) + 1), dtype=np.float64)
-        block[:, 0] = t
-        for j, name in enumerate(self.names, start=1):
-            values = np.asarray(columns_chunk[name], dtype=np.float64)
+        columns = [np.ascontiguousarray(t)]
+        for name in self.names:
+            values = np.ascontiguousarray(columns_chunk[name], dtype=np.float64)
             if values.shape != t.shape:
                 raise ValueError(f"column '{name}' has shape {values.shape}, time has {t.shape}")
-            block[:, j] = values
-        # tolist() gives Python floats, whose repr is the shortest exact one (numpy scalars
-        # would print as "np.float64(...)").
-        # in slices of rows, each flushed: a write that fails (a full disk) loses at most one
-        # slice, and abandon() cuts the file back to the last whole one
-        rows = max(1, _SLICE_BYTES // (24 * block.shape[1]))
+            columns.append(values)
+        # formatted in large pieces (Arrow's cost per call is that of many rows), written in
+        # slices of whole rows, each flushed: a write that fails (a full disk) loses at most
+        # one slice, and abandon() cuts the file back to the last whole one
+        rows = max(1, _FORMAT_BYTES // (24 * len(columns)))
         for i in range(0, t.size, rows):
-            part = block[i : i + rows]
+            self._write_rows(_csv_rows([c[i : i + rows] for c in columns]), t[i : i + rows])
+
+    def _write_rows(self, text: bytes, t: np.ndarray) -> None:
+        """Write ``text`` (the rows at times ``t``) in slices of about :data:`_SLICE_BYTES`,
+        each ending with a row's line end and flushed."""
+        assert self._file is not None
+        view = memoryview(text)
+        start = done = 0
+        while start < len(text):
+            # the line end at or after the slice's size (the text ends with one)
+            end = text.find(b"\n", min(start + _SLICE_BYTES, len(text)) - 1) + 1 or len(text)
             try:
-                self._file.write(_csv_rows(part))
+                self._file.write(view[start:end])
                 self._flush()
             except OSError as exc:
                 exc.filename = exc.filename or str(self.path)
                 raise
+            rows = text.count(b"\n", start, end)
+            done += rows
             self._good = self._file.tell()
-            self._last_time = float(part[-1, 0])
-            self.rows += len(part)
+            self._last_time = float(t[done - 1])
+            self.rows += rows
+            start = end
 
     def abandon(self) -> None:
         """Close after a failed write (a full disk): the file is cut back to its last whole
@@ -200,19 +213,17 @@ class SignalsCsvWriter(ClosesOnExit):
             self._file = None
 
 
-def _csv_rows(block: np.ndarray) -> bytes:
-    """The rows of a 2-D float block as CSV text: each number the shortest text that reads
-    back to the same double (Arrow's writer: ``0.00001``, ``1e+22``, ``nan``, ``-0``)."""
+def _csv_rows(columns: Sequence[np.ndarray]) -> bytes:
+    """Rows of float columns (contiguous, of one length) as CSV text: each number the
+    shortest text that reads back to the same double (Arrow's writer: ``0.00001``, ``1e+22``,
+    ``nan``, ``-0``), each row ending with ``\\n``."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    n = block.shape[0]
+    n = columns[0].shape[0]
     # zero-copy Arrow arrays on the columns' buffers (pa.array() would import pandas)
-    arrays = [
-        pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(np.ascontiguousarray(block[:, j]))])
-        for j in range(block.shape[1])
-    ]
-    table = pa.Table.from_arrays(arrays, names=[f"c{j}" for j in range(block.shape[1])])
+    arrays = [pa.Array.from_buffers(pa.float64(), n, [None, pa.py_buffer(c)]) for c in columns]
+    table = pa.Table.from_arrays(arrays, names=[f"c{j}" for j in range(len(columns))])
     sink = pa.BufferOutputStream()
     pacsv.write_csv(table, sink, pacsv.WriteOptions(include_header=False, quoting_style="none"))
     return sink.getvalue().to_pybytes()

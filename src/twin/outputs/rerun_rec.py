@@ -7,8 +7,9 @@ Layout of the recording:
 * one timeline ``sim_time``, a *duration* timeline (simulation seconds shown as time since
   start, not as wall-clock dates); values are rounded to whole nanoseconds;
 * one entity per signal, ``/<subsystem>/<variable>`` (``thermal.t_base`` of subsystem
-  ``thermal`` -> ``/thermal/t_base``), holding ``Scalars`` sent column-wise with
-  ``send_columns`` (one call per column and chunk, never one ``log`` per sample);
+  ``thermal`` -> ``/thermal/t_base``), holding ``Scalars`` sent column-wise: the Arrow
+  arrays ``send_columns`` sends, built on the values' buffers and handed to rerun's native
+  sender (one call per column and chunk, never one ``log`` per sample);
 * lengths in µm: a signal in metres is recorded times 1e6 (the twin's lengths are microns of
   drift and wear; a view in metres shows 0.00001); every other signal in its own unit;
 * static per entity: ``SeriesLines`` with the legend name ``"<variable> [<unit>]"`` (rerun
@@ -36,9 +37,11 @@ import os
 import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pyarrow as pa
 
 # rerun's file writer logs its own failed writes (three lines on stderr, read from RUST_LOG when
 # rerun loads); the twin reports a failed recording in one line (RecordingWriter.close), so
@@ -193,6 +196,34 @@ def _to_duration(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64).astype("timedelta64[ns]")
 
 
+def _bindings() -> ModuleType:
+    """rerun's native module: what ``rr.send_columns`` hands its Arrow arrays to."""
+    import rerun_bindings
+
+    return rerun_bindings
+
+
+def _scalars_descriptor() -> rr.ComponentDescriptor:
+    """The descriptor of ``rr.Scalars``' scalars, as ``rr.Scalars.columns`` gives it."""
+    (column,) = rr.Scalars.columns(scalars=np.zeros(1))
+    return column.component_descriptor()
+
+
+def _offsets(n: int) -> pa.Array:
+    """The offsets of ``n`` one-value lists (0, 1, ..., n), as an Arrow int32 array."""
+    return pa.Array.from_buffers(pa.int32(), n + 1, [None, pa.py_buffer(np.arange(n + 1, dtype=np.int32))])
+
+
+def _scalars(offsets: pa.Array, values: np.ndarray) -> pa.ListArray:
+    """One series' values as ``rr.Scalars.columns(scalars=values)`` sends them: a list of one
+    float64 per row (the same Arrow array, built on the values' buffer without a copy per
+    row and without rerun's conversions, which cost more than the sending)."""
+    data = np.ascontiguousarray(values, dtype=np.float64)
+    return pa.ListArray.from_arrays(
+        offsets, pa.Array.from_buffers(pa.float64(), data.size, [None, pa.py_buffer(data)])
+    )
+
+
 class RecordingWriter(ClosesOnExit):
     """Stream a run to an ``.rrd`` file chunk by chunk (memory flat in run length).
 
@@ -241,6 +272,8 @@ class RecordingWriter(ClosesOnExit):
         self._rec.save(self.path)
         # rerun's conversions to Arrow, here and in append and close, without pandas
         with without_pandas():
+            #: the component every series is sent as (that of ``rr.Scalars.columns``)
+            self._scalars = _scalars_descriptor()
             self._describe(recording_name)
 
     def _describe(self, recording_name: str | None) -> None:
@@ -294,17 +327,22 @@ class RecordingWriter(ClosesOnExit):
             finite = np.abs(values[np.isfinite(values)])
             if finite.size:
                 self.peaks[name] = max(self.peaks[name], float(finite.max()))
+        native = self._rec.to_native()
         for start in range(0, t.size, CHUNK_ROWS):
             part = slice(start, start + CHUNK_ROWS)
             if self._unwritten:
                 self._settle(self._rec)
-            # One time column shared by every entity of the slice.
-            index = [rr.TimeColumn(TIMELINE, duration=_to_duration(t[part]))]
+            # One time column shared by every entity of the slice, made once
+            timelines = {TIMELINE: rr.TimeColumn(TIMELINE, duration=_to_duration(t[part])).as_arrow_array()}
+            offsets = _offsets(t[part].size)
             for name, path_ in self.paths.items():
                 if name not in arrays:
                     continue
-                self._rec.send_columns(
-                    path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name][part]), strict=True
+                _bindings().send_arrow_chunk(
+                    path_,
+                    timelines=timelines,
+                    components={self._scalars: _scalars(offsets, arrays[name][part])},
+                    recording=native,
                 )
             self._unwritten = True
         self.rows += t.size
