@@ -133,39 +133,26 @@ def _chunks(path: Path) -> dict[tuple[str, bool], list[tuple[tuple, dict[str, st
     return out
 
 
-def test_the_series_are_sent_as_send_columns_sends_them(table: SignalTable, tmp_path: Path) -> None:
+def test_the_series_are_sent_as_send_columns_sends_them(
+    table: SignalTable, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # the writer builds the Arrow arrays rr.send_columns would (without its conversions): the
-    # recording holds the same chunks, fields and values as one written through rerun's API
-    import rerun as rr
-
+    # recording holds the same chunks, fields and values as one written through rerun's API,
+    # which is what a rerun without the native sender gets
     from twin.outputs import rerun_rec
-    from twin.outputs.rerun_rec import TIMELINE
 
+    assert rerun_rec._bindings() is not None  # the rerun installed here has it
     signals = [table.meta[n] for n in table.names()]
     table.columns["thermal.t_base"][3] = np.nan  # a gap stays a gap
     ours = write_recording(table, tmp_path / "ours.rrd", recording_name="same")
-
-    class ThroughApi(RecordingWriter):
-        def _send(self, t: np.ndarray, arrays: dict[str, np.ndarray]) -> None:
-            assert self._rec is not None
-            for name, values in arrays.items():
-                finite = np.abs(values[np.isfinite(values)])
-                self.peaks[name] = (
-                    max(self.peaks[name], float(finite.max())) if finite.size else self.peaks[name]
-                )
-            index = [rr.TimeColumn(TIMELINE, duration=rerun_rec._to_duration(t))]
-            for name, path_ in self.paths.items():
-                if name in arrays:
-                    self._rec.send_columns(
-                        path_, indexes=index, columns=rr.Scalars.columns(scalars=arrays[name]), strict=True
-                    )
-
-    with ThroughApi(tmp_path / "api.rrd", signals, recording_name="same") as writer:
+    monkeypatch.setattr(rerun_rec, "_bindings", lambda: None)
+    with RecordingWriter(tmp_path / "api.rrd", signals, recording_name="same") as writer:
         writer.append(table.time, dict(table.columns))
     theirs = _chunks(tmp_path / "api.rrd")
     assert _chunks(ours) == theirs
     assert len([k for k in theirs if not k[1]]) == len(signals)  # one series per signal
     assert _verify(ours).returncode == 0
+    assert _verify(tmp_path / "api.rrd").returncode == 0
 
 
 def test_sim_time_is_rounded_to_whole_nanoseconds(tmp_path: Path) -> None:

@@ -196,11 +196,15 @@ def _to_duration(time_s: np.ndarray) -> np.ndarray:
     return np.rint(np.asarray(time_s, dtype=np.float64) * 1e9).astype(np.int64).astype("timedelta64[ns]")
 
 
-def _bindings() -> ModuleType:
-    """rerun's native module: what ``rr.send_columns`` hands its Arrow arrays to."""
-    import rerun_bindings
-
-    return rerun_bindings
+def _bindings() -> ModuleType | None:
+    """rerun's native module: what ``rr.send_columns`` hands its Arrow arrays to; None where
+    this rerun has no ``send_arrow_chunk`` there (it is not rerun's public API: a release that
+    moves it leaves the recording to ``send_columns``, slower, the same file)."""
+    try:
+        import rerun_bindings
+    except ImportError:
+        return None
+    return rerun_bindings if hasattr(rerun_bindings, "send_arrow_chunk") else None
 
 
 def _scalars_descriptor() -> rr.ComponentDescriptor:
@@ -327,18 +331,24 @@ class RecordingWriter(ClosesOnExit):
             finite = np.abs(values[np.isfinite(values)])
             if finite.size:
                 self.peaks[name] = max(self.peaks[name], float(finite.max()))
-        native = self._rec.to_native()
+        bindings = _bindings()
+        native = self._rec.to_native() if bindings is not None and hasattr(self._rec, "to_native") else None
         for start in range(0, t.size, CHUNK_ROWS):
             part = slice(start, start + CHUNK_ROWS)
             if self._unwritten:
                 self._settle(self._rec)
             # One time column shared by every entity of the slice, made once
-            timelines = {TIMELINE: rr.TimeColumn(TIMELINE, duration=_to_duration(t[part])).as_arrow_array()}
+            index = rr.TimeColumn(TIMELINE, duration=_to_duration(t[part]))
+            timelines = {TIMELINE: index.as_arrow_array()}
             offsets = _offsets(t[part].size)
             for name, path_ in self.paths.items():
                 if name not in arrays:
                     continue
-                _bindings().send_arrow_chunk(
+                if bindings is None or native is None:
+                    columns = rr.Scalars.columns(scalars=arrays[name][part])
+                    self._rec.send_columns(path_, indexes=[index], columns=columns, strict=True)
+                    continue
+                bindings.send_arrow_chunk(
                     path_,
                     timelines=timelines,
                     components={self._scalars: _scalars(offsets, arrays[name][part])},
