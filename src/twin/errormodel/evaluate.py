@@ -152,10 +152,14 @@ def summarize(
     part's ``rms`` and the ``spikes`` (their count, or the flags of every row), come separately.
     """
     parts = {name: c.e_z for name, c in contributions.items()}
+    # every drift's lines solved in one go (the same numbers as one by one)
+    predicted, probe, *drifts = m.drifts([e_z, m.reading, *m.temperatures.values(), *parts.values()])
+    rises = dict(zip(m.temperatures, drifts[: len(m.temperatures)], strict=True))
+    part_drifts = dict(zip(parts, drifts[len(m.temperatures) :], strict=True))
     summary: dict[str, Any] = {
-        "drift_mm": {"predicted": m.drift(e_z) * 1e3, "probe": m.drift(m.reading) * 1e3},
-        "temperature_rise_C": {point: m.drift(y) for point, y in m.temperatures.items()},
-        "error_parts_mm": {**{k: m.drift(v) * 1e3 for k, v in parts.items()}, "total": m.drift(e_z) * 1e3},
+        "drift_mm": {"predicted": predicted * 1e3, "probe": probe * 1e3},
+        "temperature_rise_C": rises,
+        "error_parts_mm": {**{k: v * 1e3 for k, v in part_drifts.items()}, "total": predicted * 1e3},
         "error_parts_rms_um": {k: rms[k] * 1e6 for k in parts},
     }
     for f in FACTORS:
