@@ -87,26 +87,28 @@ class Evaluation:
     summary: dict[str, Any]
 
 
-def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
-    """Run the error model over the table; adds ``errormodel.*`` columns to it.
+def evaluate(table: SignalTable, cfg: EvaluationConfig, *, columns: bool = True) -> Evaluation:
+    """Run the error model over the table; adds ``errormodel.*`` columns to it (unless
+    ``columns`` is False: a Monte Carlo sample's figures read none of them).
 
     Every factor of :data:`~twin.errormodel.factors.FACTORS` contributes its part (zero while
     switched off); e_z is their sum in the order of the list, the compensated wear the
     reading change minus e_z.
     """
     m = Measured.read(table, cfg, tester_model())
-    contributions, columns = evaluate_rows(m)
-    e_z, raw_change, compensated = columns["e_z"], columns["reading_change"], columns["wear_compensated"]
+    contributions, rows = evaluate_rows(m)
+    e_z, raw_change, compensated = rows["e_z"], rows["reading_change"], rows["wear_compensated"]
     parts = {name: c.e_z for name, c in contributions.items()}
     summary = summarize(m, contributions, e_z, rms={k: _rms(v) for k, v in parts.items()}, spikes=m.spikes)
-    if "residual" in columns:
+    if "residual" in rows:
         wear = table[cfg.true_wear] - table[cfg.true_wear][0]  # as evaluate_rows took it
         summary.update(
             compensation_summary(table.time, cfg.ra_window_s, raw_change, compensated, wear, cfg.credibility)
         )
-    meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in columns)}
-    for name, values in columns.items():
-        table.add(meta[f"errormodel.{name}"], values)
+    if columns:
+        meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in rows)}
+        for name, values in rows.items():
+            table.add(meta[f"errormodel.{name}"], values)
     by_body = {name: dict(c.by_body) for name, c in contributions.items() if c.by_body}
     return Evaluation(e_z, parts, by_body, raw_change, compensated, summary)
 
