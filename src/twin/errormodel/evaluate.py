@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
+from twin.errormodel.credibility import discrete_frechets, ra_fluctuation
 from twin.errormodel.factors import FACTORS, PARTS, Contribution, Measured, endpoints
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import COLUMN_FIELDS
@@ -200,11 +200,9 @@ def compensation_summary(
         },
     }
     if credibility:
+        frechet_before, frechet_after = _frechet_um(t, [raw_change, compensated], wear)
         out["credibility"] = {
-            "frechet_um": {
-                "before": _frechet_um(t, raw_change, wear),
-                "after": _frechet_um(t, compensated, wear),
-            },
+            "frechet_um": {"before": frechet_before, "after": frechet_after},
             "ra_um": {
                 "before": ra_fluctuation(t, raw_change, ra_window_s) * 1e6,
                 "after": ra_fluctuation(t, compensated, ra_window_s) * 1e6,
@@ -221,13 +219,14 @@ def _absmax(x: np.ndarray) -> float:
     return float(np.max(np.abs(x)))
 
 
-def _frechet_um(t: np.ndarray, online: np.ndarray, true: np.ndarray) -> float:
-    """Frechet distance between the curves (t in hours, z in um), decimated evenly."""
+def _frechet_um(t: np.ndarray, onlines: list[np.ndarray], true: np.ndarray) -> list[float]:
+    """Frechet distance between each on-line curve and the true one (t in hours, z in um),
+    decimated evenly; the curves' recursions run side by side."""
     step = max(1, int(np.ceil(len(t) / FRECHET_POINTS)))
     idx = np.arange(0, len(t), step)
     if idx[-1] != len(t) - 1:  # and the last row (np.unique of the two would load numpy.ma)
         idx = np.append(idx, len(t) - 1)
     th = t[idx] / 3600.0
-    p = np.column_stack([th, online[idx] * 1e6])
+    ps = [np.column_stack([th, online[idx] * 1e6]) for online in onlines]
     q = np.column_stack([th, true[idx] * 1e6])
-    return discrete_frechet(p, q)
+    return discrete_frechets(ps, q)
