@@ -94,6 +94,18 @@ def test_run_point_gives_the_runs_figures_and_writes_no_file(
     assert pickle.loads(pickle.dumps(point)).figures() == point.figures()  # a worker sends it back
 
 
+def test_evaluating_for_the_numbers_alone_gives_the_same_numbers_and_adds_no_column() -> None:
+    """A sample's evaluation (``columns=False``) leaves its table as simulated and gives the
+    results of the evaluation that adds the model's columns, to the bit."""
+    simulation = simulate(prepare_scenario(short_scenario()))
+    kept = simulation.table.names()
+    alone = evaluate_run(simulation, columns=False)
+    assert alone.columns == () and simulation.table.names() == kept
+    full = evaluate_run(simulation)
+    assert "errormodel.e_z" in full.columns and "errormodel.e_z" in simulation.table
+    assert json.dumps(alone.results) == json.dumps(full.results)
+
+
 def test_stages_one_by_one_make_the_runs_files(folder_run: tuple[Path, RunSummary], tmp_path: Path) -> None:
     out, summary = folder_run
     prepared = prepare_scenario(short_scenario())

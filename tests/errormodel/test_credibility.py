@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from twin.errormodel import credibility
 from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
 from twin.errormodel.sources import hampel
 
@@ -112,3 +113,27 @@ def test_frechet_is_the_same_double_with_its_distances_at_once_or_per_diagonal(
         assert discrete_frechet(p, q) == at_once
     finally:
         credibility.MATRIX_CELLS = cells
+
+
+@pytest.mark.parametrize("cells", [credibility.MATRIX_CELLS, 10])
+def test_frechets_side_by_side_are_each_alone_to_the_bit(cells: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run's two curves (before and after compensation) go through one recursion side by
+    side: each distance is the double the cell-by-cell recursion gives it alone (minima and
+    maxima of the same sums of squares), with the distances made at once or per anti-diagonal."""
+    monkeypatch.setattr(credibility, "MATRIX_CELLS", cells)
+    rng = np.random.default_rng(3)
+    for n, m in ((1, 1), (1, 7), (9, 1), (23, 17), (40, 40)):
+        q = rng.normal(size=(m, 2))
+        ps = [rng.normal(size=(n, 2)), rng.normal(size=(n, 2)) * 1e-3, np.zeros((n, 2))]
+
+        def alone(p: np.ndarray, q: np.ndarray = q) -> float:
+            ca = np.full((len(p) + 1, len(q) + 1), np.inf)
+            ca[0, 0] = -np.inf  # the start: the first cell is its own distance
+            for i, j in itertools.product(range(len(p)), range(len(q))):
+                reach = min(ca[i, j + 1], ca[i, j], ca[i + 1, j]) if i or j else ca[0, 0]
+                ca[i + 1, j + 1] = max(float(np.sqrt(np.sum((p[i] - q[j]) ** 2))), reach)
+            return float(ca[-1, -1])
+
+        got = credibility.discrete_frechets(ps, q)
+        assert [v.hex() for v in got] == [alone(p).hex() for p in ps]
+        assert got[0] == discrete_frechet(ps[0], q)

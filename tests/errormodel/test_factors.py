@@ -312,3 +312,27 @@ def test_the_drift_lines_are_polyfits_intercepts_to_the_bit() -> None:
             float(np.polyfit(t[end] - t[-1], y[end], 1)[1]),
         )
         assert lines.values(y) == expected
+
+
+@pytest.mark.parametrize("stacked", [True, False])
+def test_drifts_together_are_each_streams_drift_to_the_bit(
+    stacked: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """EndLines.drifts solves every stream's two lines in one call per end (numpy's stacked
+    least-squares kernel, or one lstsq per stream where numpy has none): each number is the one
+    values() gives that stream alone, signed zeros included."""
+    from twin.errormodel import factors as factors_mod
+
+    if not stacked:
+        monkeypatch.setattr(factors_mod, "_STACKED_LSTSQ", None)
+    rng = np.random.default_rng(5)
+    t = np.arange(2881) * 10.0
+    lines = factors_mod.EndLines(t, 300.0)
+    ys = [rng.normal(size=t.size).cumsum() * 10 ** rng.uniform(-9, 3) for _ in range(23)]
+    ys += [np.zeros(t.size), -np.zeros(t.size), np.full(t.size, 1e-5)]
+    expected = [end - start for start, end in (lines.values(y) for y in ys)]
+    got = lines.drifts(ys)
+    assert [v.hex() for v in got] == [v.hex() for v in expected]
+    short = factors_mod.EndLines(np.array([0.0, 1000.0]), 300.0)  # one row per window
+    pairs = [y[:2] for y in ys[:3]]
+    assert short.drifts(pairs) == [short.values(y)[1] - short.values(y)[0] for y in pairs]

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from twin.errormodel import model as model_mod
 from twin.errormodel.model import ERROR_KEYS, BranchModel, ErrorModel, Joint
-from twin.errormodel.tester import tester_model
+from twin.errormodel.tester import load_tester_spec, tester_model
 from twin.errormodel.topology import Body, Topology
 from twin.errormodel.transforms import rotation_y, rotation_z, translation
 from twin.errors import ConfigError
@@ -175,9 +175,8 @@ def test_constant_and_per_sample_angles_agree(tester: ErrorModel) -> None:
     assert coef[("bearing_block", "p_dz")].shape == (50,)
 
 
-def test_coefficients_computed_once_for_constant_ideal_matrices(
-    tester: ErrorModel, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_coefficients_computed_once_for_constant_ideal_matrices(monkeypatch: pytest.MonkeyPatch) -> None:
+    tester = load_tester_spec().model()  # its own: the shared model keeps what others made
     calls = []
     original = BranchModel._coefficients
 
@@ -190,6 +189,8 @@ def test_coefficients_computed_once_for_constant_ideal_matrices(
     tester.e_z({"detecting_frame": {"p_dz": np.linspace(0, 4e-5, n)}})
     assert calls == [2, 2]  # once per branch, from constant 4x4 matrices
     calls.clear()
+    tester.e_z({"detecting_frame": {"p_dz": np.linspace(0, 4e-5, 7)}})
+    assert calls == []  # kept for the next evaluation (a Monte Carlo's next sample)
     tester.e_z({"detecting_frame": {"p_dz": np.zeros(n)}}, {"angle": np.zeros(n)})
     chunks = -(-n // model_mod.CHUNK)
     assert len(calls) == 2 * chunks  # swinging spindle: per chunk of samples
@@ -291,3 +292,22 @@ def test_bad_kinematic_callable_output() -> None:
     not_4x4 = ErrorModel(topo, {2: Joint(kinematic=lambda m: np.eye(3))}, ends=("arm", "arm"))
     with pytest.raises(ConfigError, match="shape must be"):
         not_4x4.e_z(None, {"a": 0.0})
+
+
+def test_kept_coefficients_give_the_numbers_of_fresh_ones() -> None:
+    """The coefficients of constant ideal matrices are kept per motion: an evaluation after
+    others (other slots, another swing angle) gives the same doubles as a fresh model's."""
+    rng = np.random.default_rng(11)
+    used = load_tester_spec().model()
+    cases = [
+        (random_errors(rng, 1e-4, 40), {"angle": 0.3}),
+        ({"t_plate": {"p_dz": rng.normal(size=40)}}, {"angle": 0.3}),
+        (random_errors(rng, 1e-4, 40), {"angle": -1.1}),
+        (random_errors(rng, 1e-4, 40), None),
+    ]
+    for _ in range(2):
+        for errors, motion in cases:
+            fresh = load_tester_spec().model()
+            kept, new = used.e_z_by_body(errors, motion), fresh.e_z_by_body(errors, motion)
+            assert all(np.array_equal(kept[b], new[b]) for b in new)
+    assert len(used.branches[0]._constant) == 4  # three angles (one the default), at 0.3 two slot sets

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from twin.errormodel.credibility import discrete_frechet, ra_fluctuation
+from twin.errormodel.credibility import discrete_frechets, ra_fluctuation
 from twin.errormodel.factors import FACTORS, PARTS, Contribution, Measured, endpoints
 from twin.errormodel.settings import EvaluationConfig
 from twin.errormodel.sources import COLUMN_FIELDS
@@ -87,26 +87,28 @@ class Evaluation:
     summary: dict[str, Any]
 
 
-def evaluate(table: SignalTable, cfg: EvaluationConfig) -> Evaluation:
-    """Run the error model over the table; adds ``errormodel.*`` columns to it.
+def evaluate(table: SignalTable, cfg: EvaluationConfig, *, columns: bool = True) -> Evaluation:
+    """Run the error model over the table; adds ``errormodel.*`` columns to it (unless
+    ``columns`` is False: a Monte Carlo sample's figures read none of them).
 
     Every factor of :data:`~twin.errormodel.factors.FACTORS` contributes its part (zero while
     switched off); e_z is their sum in the order of the list, the compensated wear the
     reading change minus e_z.
     """
     m = Measured.read(table, cfg, tester_model())
-    contributions, columns = evaluate_rows(m)
-    e_z, raw_change, compensated = columns["e_z"], columns["reading_change"], columns["wear_compensated"]
+    contributions, rows = evaluate_rows(m)
+    e_z, raw_change, compensated = rows["e_z"], rows["reading_change"], rows["wear_compensated"]
     parts = {name: c.e_z for name, c in contributions.items()}
     summary = summarize(m, contributions, e_z, rms={k: _rms(v) for k, v in parts.items()}, spikes=m.spikes)
-    if "residual" in columns:
+    if "residual" in rows:
         wear = table[cfg.true_wear] - table[cfg.true_wear][0]  # as evaluate_rows took it
         summary.update(
             compensation_summary(table.time, cfg.ra_window_s, raw_change, compensated, wear, cfg.credibility)
         )
-    meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in columns)}
-    for name, values in columns.items():
-        table.add(meta[f"errormodel.{name}"], values)
+    if columns:
+        meta = {s.name: s for s in evaluation_signals(with_true_wear="residual" in rows)}
+        for name, values in rows.items():
+            table.add(meta[f"errormodel.{name}"], values)
     by_body = {name: dict(c.by_body) for name, c in contributions.items() if c.by_body}
     return Evaluation(e_z, parts, by_body, raw_change, compensated, summary)
 
@@ -152,10 +154,14 @@ def summarize(
     part's ``rms`` and the ``spikes`` (their count, or the flags of every row), come separately.
     """
     parts = {name: c.e_z for name, c in contributions.items()}
+    # every drift's lines solved in one go (the same numbers as one by one)
+    predicted, probe, *drifts = m.drifts([e_z, m.reading, *m.temperatures.values(), *parts.values()])
+    rises = dict(zip(m.temperatures, drifts[: len(m.temperatures)], strict=True))
+    part_drifts = dict(zip(parts, drifts[len(m.temperatures) :], strict=True))
     summary: dict[str, Any] = {
-        "drift_mm": {"predicted": m.drift(e_z) * 1e3, "probe": m.drift(m.reading) * 1e3},
-        "temperature_rise_C": {point: m.drift(y) for point, y in m.temperatures.items()},
-        "error_parts_mm": {**{k: m.drift(v) * 1e3 for k, v in parts.items()}, "total": m.drift(e_z) * 1e3},
+        "drift_mm": {"predicted": predicted * 1e3, "probe": probe * 1e3},
+        "temperature_rise_C": rises,
+        "error_parts_mm": {**{k: v * 1e3 for k, v in part_drifts.items()}, "total": predicted * 1e3},
         "error_parts_rms_um": {k: rms[k] * 1e6 for k in parts},
     }
     for f in FACTORS:
@@ -194,11 +200,9 @@ def compensation_summary(
         },
     }
     if credibility:
+        frechet_before, frechet_after = _frechet_um(t, [raw_change, compensated], wear)
         out["credibility"] = {
-            "frechet_um": {
-                "before": _frechet_um(t, raw_change, wear),
-                "after": _frechet_um(t, compensated, wear),
-            },
+            "frechet_um": {"before": frechet_before, "after": frechet_after},
             "ra_um": {
                 "before": ra_fluctuation(t, raw_change, ra_window_s) * 1e6,
                 "after": ra_fluctuation(t, compensated, ra_window_s) * 1e6,
@@ -215,13 +219,14 @@ def _absmax(x: np.ndarray) -> float:
     return float(np.max(np.abs(x)))
 
 
-def _frechet_um(t: np.ndarray, online: np.ndarray, true: np.ndarray) -> float:
-    """Frechet distance between the curves (t in hours, z in um), decimated evenly."""
+def _frechet_um(t: np.ndarray, onlines: list[np.ndarray], true: np.ndarray) -> list[float]:
+    """Frechet distance between each on-line curve and the true one (t in hours, z in um),
+    decimated evenly; the curves' recursions run side by side."""
     step = max(1, int(np.ceil(len(t) / FRECHET_POINTS)))
     idx = np.arange(0, len(t), step)
     if idx[-1] != len(t) - 1:  # and the last row (np.unique of the two would load numpy.ma)
         idx = np.append(idx, len(t) - 1)
     th = t[idx] / 3600.0
-    p = np.column_stack([th, online[idx] * 1e6])
+    ps = [np.column_stack([th, online[idx] * 1e6]) for online in onlines]
     q = np.column_stack([th, true[idx] * 1e6])
-    return discrete_frechet(p, q)
+    return discrete_frechets(ps, q)

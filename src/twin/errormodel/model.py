@@ -191,6 +191,9 @@ class BranchModel:
             raise ConfigError(f"branch end point must have 3 or 4 coordinates, got shape {p.shape}")
         self.point: Array = np.append(p, 1.0) if p.shape == (3,) else p
         self.motion_defaults = dict(motion_defaults or {})
+        # the coefficients of constant ideal matrices, by (rows, slots, scalar motion): the same
+        # for every evaluation of a model (a Monte Carlo evaluates one per sample)
+        self._constant: dict[tuple[Any, ...], dict[int, Array]] = {}
 
     @property
     def bodies(self) -> tuple[str, ...]:
@@ -305,6 +308,21 @@ class BranchModel:
             c[:, 3], c[:, 4], c[:, 5] = y * rz - z * ry, z * rx - x * rz, x * ry - y * rx
             out[slot] = c
         return out
+
+    def _chunk_coefficients(self, c: _Chunk, rows: tuple[int, ...], slots: set[int]) -> dict[int, Array]:
+        """:meth:`_coefficients` on the chunk ``c``; those of constant ideal matrices (no
+        per-sample stack, every motion variable a scalar) made once per motion and kept,
+        read-only (the kinematic matrices are functions of the motion alone)."""
+        if self._time_varying(c.motion) or any(v.ndim for v in c.motion.values()):
+            return self._coefficients(self._kinematics(c), rows=rows, slots=slots)
+        key = (rows, frozenset(slots), tuple(sorted((k, float(v)) for k, v in c.motion.items())))
+        known = self._constant.get(key)
+        if known is None:
+            known = self._coefficients(self._kinematics(c), rows=rows, slots=slots)
+            for value in known.values():
+                value.setflags(write=False)
+            self._constant[key] = known
+        return known
 
     def _error_slots(self, errors: Mapping[int, list[tuple[int, int, Array]]]) -> set[int]:
         """The slots (``2 * joint + kind``) that carry at least one given error parameter."""
@@ -515,7 +533,7 @@ class ErrorModel:
         """First-order e_z per body on one chunk: +branch-1 contribution - branch-2 contribution."""
         parts: dict[str, Array] = {}
         for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
-            coef = branch._coefficients(branch._kinematics(c), rows=(2,), slots=branch._error_slots(c.errors))
+            coef = branch._chunk_coefficients(c, (2,), branch._error_slots(c.errors))
             for body, value in branch._first_order(coef, c.errors).items():
                 name = self.topology.body(body).name
                 parts[name] = parts.get(name, 0.0) + sign * value[0]

@@ -157,7 +157,9 @@ def finish_tasks(tasks: Tasks) -> list[Record]:
                 record = _record(payload["index"])
                 try:
                     simulation = Simulation(payload["run"], result, result.table)
-                    record["figures"] = figures(summarize(simulation, evaluate_run(simulation)))
+                    record["figures"] = figures(
+                        summarize(simulation, evaluate_run(simulation, columns=False))
+                    )
                 except Exception as exc:
                     record.update(status="failed", error=one_line(exc))
                 record["point_s"] = each

@@ -90,7 +90,8 @@ class Evaluated:
     """What the error model made of a run.
 
     ``table`` is the simulation's table with the error model's columns added and
-    ``columns`` names those (in the order the files list them); ``results`` are its numbers
+    ``columns`` names those (in the order the files list them; none where only the numbers
+    were asked for: :func:`evaluate_run`'s ``columns``); ``results`` are its numbers
     for the summary. When the model did not run (fewer than two rows, a column it needs
     missing), ``table`` is None and ``error`` says why where there was a reason.
     """
@@ -155,24 +156,33 @@ def simulate(
     return Simulation(prepared, result, recorder.table(), recorder.write_s, recorder)
 
 
-def evaluate_run(simulation: Simulation, cfg: EvaluationConfig | None = None) -> Evaluated:
+def evaluate_run(
+    simulation: Simulation, cfg: EvaluationConfig | None = None, *, columns: bool = True
+) -> Evaluated:
     """The error model (``cfg``, default: the prepared run's) on the simulation's kept columns
-    (adds its columns to that table), then what the run's reports add."""
+    (adds its columns to that table), then what the run's reports add.
+
+    ``columns=False``: only the numbers are wanted (a study's point, a Monte Carlo's sample,
+    whose figures are the summary's): the table is left without the model's columns, unless a
+    report of the run reads them."""
     cfg = cfg or simulation.prepared.evaluation
     table = simulation.table
     if not cfg.evaluate:  # not the tester (one FMU alone): said in the summary, not an error
         return Evaluated(None, results={"errormodel": NOT_EVALUATED})
     if len(table) < 2:
         return Evaluated(None)
+    columns = columns or bool(simulation.prepared.reports)
     try:
-        evaluation = evaluate(table, cfg)
+        evaluation = evaluate(table, cfg, columns=columns)
     except ConfigError as exc:
         return Evaluated(None, error=str(exc))
-    columns = tuple(s.name for s in evaluation_signals(with_true_wear=bool(cfg.true_wear)) if s.name in table)
+    if not columns:
+        return Evaluated(table, (), dict(evaluation.summary))
+    names = tuple(s.name for s in evaluation_signals(with_true_wear=bool(cfg.true_wear)) if s.name in table)
     results = dict(evaluation.summary)
     for report in simulation.prepared.reports:
         report.add(results, table)
-    return Evaluated(table, columns, results)
+    return Evaluated(table, names, results)
 
 
 def summarize(
@@ -486,4 +496,4 @@ def run_point(
     before are reused (:mod:`twin.fmu.pool`).
     """
     simulation = simulate(prepared, (), controls, pool=pool)
-    return summarize(simulation, evaluate_run(simulation))
+    return summarize(simulation, evaluate_run(simulation, columns=False))
