@@ -252,57 +252,90 @@ def _lag1(r: np.ndarray) -> float:
 @dataclass
 class _Block:
     """One record's rows of a fit: the target, its nuisance columns (orthonormal), the model's
-    prediction as a function of the fitted parameters, and the noise level."""
+    prediction part by part (each factor's, at the used samples) as a function of the fitted
+    parameters, and the noise level."""
 
     target: np.ndarray
     basis: np.ndarray
-    predict: Callable[[np.ndarray], np.ndarray]
+    #: the parts of the prediction at p: every factor's, or those named, in the factors' order
+    parts: Callable[[np.ndarray, Sequence[str] | None], list[np.ndarray]]
     sigma: float = 1.0
     rms: float = 0.0
     inflation: float = 1.0
-    #: where the model is affine in the parameters (:meth:`linearise`): the point p0, the
-    #: residual there and its slope (nuisance projected out), residual(p) = r0 - slope (p - p0)
+    #: the residual's affine part once :meth:`linearise` found it: the point p0, the residual
+    #: there and its slope (nuisance projected out) of every part but the ``moving`` ones
     affine: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: the parts that are not affine in the parameters: evaluated at every p
+    moving: tuple[str, ...] = ()
+
+    def project(self, r: np.ndarray) -> np.ndarray:
+        """``r`` with the nuisance columns projected out."""
+        return r - self.basis @ (self.basis.T @ r)
+
+    def predict(self, p: np.ndarray) -> np.ndarray:
+        """The model's prediction at ``p`` (its parts summed in the factors' order)."""
+        return np.sum(self.parts(p, None), axis=0)
+
+    @property
+    def is_affine(self) -> bool:
+        """Every part affine: the residual is r0 - slope (p - p0)."""
+        return self.affine is not None and not self.moving
 
     def residual(self, p: np.ndarray) -> np.ndarray:
         """Target minus model, the nuisance projected out (not whitened)."""
-        if self.affine is not None:
-            p0, r0, slope = self.affine
-            return r0 - slope @ (p - p0)
-        r = self.target - self.predict(p)
-        return r - self.basis @ (self.basis.T @ r)
+        if self.affine is None:
+            return self.project(self.target - self.predict(p))
+        p0, r0, slope = self.affine
+        r = r0 - slope @ (p - p0)
+        if self.moving:
+            r = r - self.project(np.sum(self.parts(p, self.moving), axis=0))
+        return r
 
     def linearise(self, p0: np.ndarray, steps: np.ndarray) -> bool:
-        """Keep the model's affine form where it has one: most coefficients multiply a recorded
+        """Keep each part's affine form where it has one: most coefficients multiply a recorded
         signal (a body's growth its temperature rise, a compliance the load, a drift the
-        frame's thermometer, the clamp's rotation the torque), and a fit of those is linear.
+        frame's thermometer, the clamp's rotation the torque), and most parts of a fit do not
+        depend on its parameters at all (the thermal one in the runout's fit).
 
-        The form: the prediction at ``p0`` and its change over one step of each parameter
-        (``steps``), checked against the model at two further points, each parameter moved by
-        one to three steps; where it misses (a phase, a scale that divides), the block keeps
-        its model and the fit its finite differences. Affine, the fit evaluates the model
-        n + 3 times instead of once per residual and n times per Jacobian, and its Jacobian is
-        exact. True when the block is affine.
+        A part's form: its prediction at ``p0`` and its change over one step of each parameter
+        (``steps``), checked against the part at two further points, each parameter moved by a
+        quarter to three quarters of a step either way (never to zero: a step may be the value
+        itself). A part that misses (the runout's phase, the probe's scale: a cosine,
+        a division) is ``moving``: evaluated at every trial point, and the fit takes finite
+        differences. Every part affine, the fit evaluates the model n + 3 times instead of once
+        per residual and n times per Jacobian, and its Jacobian is exact; else each residual
+        evaluates the moving parts only. True when the block is affine. A model that cannot be
+        evaluated at a point of the check (an ArithmeticError) is kept whole, as without it.
         """
+        try:
+            return self._linearise(p0, steps)
+        except ArithmeticError:
+            self.affine, self.moving = None, ()
+            return False
+
+    def _linearise(self, p0: np.ndarray, steps: np.ndarray) -> bool:
         n = len(p0)
-        f0 = self.predict(p0)
-        slope = np.column_stack(
-            [(self.predict(p0 + s * e) - f0) / s for s, e in zip(steps, np.eye(n), strict=True)]
-        )
+        f0 = self.parts(p0, None)
+        names = [f.name for f in _FITTED]
+        ups = [self.parts(p0 + s * e, None) for s, e in zip(steps, np.eye(n), strict=True)]
+        slopes = [
+            np.column_stack([(up[k] - f0[k]) / s for up, s in zip(ups, steps, strict=True)])
+            for k in range(len(f0))
+        ]
+        affine = [True] * len(f0)
         signs = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
-        for z in (2.0 * signs, -signs * (1.0 + 2.0 * np.arange(n) / max(n - 1, 1))):
-            change = slope @ (steps * z)
-            f = self.predict(p0 + steps * z)
-            size = max(float(np.max(np.abs(f0))), float(np.max(np.abs(change))), 1e-300)
-            if not float(np.max(np.abs(f - f0 - change))) <= AFFINE_RTOL * size:
-                return False
-        r0 = self.target - f0
-        self.affine = (
-            p0.copy(),
-            r0 - self.basis @ (self.basis.T @ r0),
-            slope - self.basis @ (self.basis.T @ slope),
-        )
-        return True
+        for z in (0.5 * signs, -signs * (0.25 + 0.5 * np.arange(n) / max(n - 1, 1))):
+            at = self.parts(p0 + steps * z, None)
+            for k, (f, base, slope) in enumerate(zip(at, f0, slopes, strict=True)):
+                change = slope @ (steps * z)
+                size = max(float(np.max(np.abs(base))), float(np.max(np.abs(change))), 1e-300)
+                affine[k] &= float(np.max(np.abs(f - base - change))) <= AFFINE_RTOL * size
+        kept = [k for k in range(len(f0)) if affine[k]]
+        fixed = np.sum([f0[k] for k in kept], axis=0) if kept else np.zeros_like(self.target)
+        slope = np.sum([slopes[k] for k in kept], axis=0) if kept else np.zeros((len(self.target), n))
+        self.affine = (p0.copy(), self.project(self.target - fixed), self.project(slope))
+        self.moving = tuple(names[k] for k in range(len(f0)) if not affine[k])
+        return self.is_affine
 
     def measure(self, p: np.ndarray) -> tuple[np.ndarray, int]:
         """The residuals at ``p`` and their degrees of freedom before the fit's parameters
@@ -368,7 +401,7 @@ class _Problem:
     @property
     def affine(self) -> bool:
         """Every block's model is affine in the parameters (:meth:`_Block.linearise`)."""
-        return all(b.affine is not None for b in self.blocks)
+        return all(b.is_affine for b in self.blocks)
 
     def jacobian(self, z: np.ndarray, h: float = 1e-3) -> np.ndarray:
         """The whitened data residuals' derivatives in z: the affine form's slope where every
@@ -410,6 +443,10 @@ class _Problem:
         return np.array(lo)
 
 
+#: the factors a fit's model sums: all but the interference, which the robust filter took out
+_FITTED = tuple(f for f in FACTORS if f.name != "interference")
+
+
 def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) -> _Block:
     """The rows of one record: its cleaned reading's change minus the known displacement,
     against the error model's factors (interference aside) with trial coefficients."""
@@ -419,17 +456,16 @@ def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) ->
     target = (measured.cleaned - measured.cleaned[0] - (record.known - record.known[0]))[used]
     t = record.table.time[used]
     basis, _ = np.linalg.qr(np.column_stack(_nuisance(record.experiment.nuisance, t, record.known[used])))
-    parts = [f for f in FACTORS if f.name != "interference"]
 
-    def predict(p: np.ndarray) -> np.ndarray:
+    def parts(p: np.ndarray, which: Sequence[str] | None) -> list[np.ndarray]:
         trial = {**values, **dict(zip(names, p.tolist(), strict=True))}
         m = replace(measured, cfg=replace(cfg, **_coefficient_fields(trial)))
-        return np.sum([f.contribution(m).e_z for f in parts], axis=0)[used]
+        return [f.contribution(m).e_z[used] for f in _FITTED if which is None or f.name in which]
 
     # a first guess of the noise: the robust spread of the first differences
     diffs = np.diff(target)
     sigma = 1.4826 * float(np.median(np.abs(diffs - np.median(diffs)))) / math.sqrt(2)
-    return _Block(target, basis, predict, max(sigma, 1e-12))
+    return _Block(target, basis, parts, max(sigma, 1e-12))
 
 
 def _nuisance(kinds: Sequence[str], t: np.ndarray, known: np.ndarray) -> list[np.ndarray]:
