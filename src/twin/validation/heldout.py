@@ -36,6 +36,7 @@ from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
 from twin.errormodel.identify import Experiment, Record
 from twin.errors import ConfigError, RunError
+from twin.fmu.pool import SlotPool
 from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
@@ -250,9 +251,12 @@ def _figures(before: np.ndarray, after: np.ndarray) -> dict[str, float]:
     }
 
 
-def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: MlrAr) -> dict[str, float]:
-    """Run a held-out scenario, compensate it with the identified ``values`` (MBS) and with the
-    baseline; the figures of both against the twin's true wear.
+def evaluate_heldout(
+    scenario: Scenario, values: Mapping[str, float], baseline: MlrAr, pool: SlotPool | None = None
+) -> dict[str, float]:
+    """Run a held-out scenario (its FMU instances from ``pool`` where given), compensate it with
+    the identified ``values`` (MBS) and with the baseline; the figures of both against the
+    twin's true wear.
 
     The error model's rows only (:func:`~twin.errormodel.evaluate.evaluate_rows`, the numbers
     a run's evaluation writes): a run's summary (drifts, credibility metrics) is not a figure
@@ -269,7 +273,7 @@ def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: 
         thermal=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
         mechanics=MechanicalCoefficients.from_values(values, source="twin heldout: identified"),
     )
-    sim = simulate(prepared)
+    sim = simulate(prepared, pool=pool)
     if sim.result.status != "completed":
         raise RunError(f"{scenario.name} {sim.result.status}: {sim.result.error}")
     t = sim.table
@@ -295,13 +299,17 @@ def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: 
 def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
     """Identify one tester, fit the baseline, judge both on the held-out scenarios.
 
-    Returns one row of figures per held-out scenario and the timings.
+    Returns one row of figures per held-out scenario and the timings. Its thirteen runs, and
+    the next tester's on this worker, reuse the FMU instances of the ones before (the process's
+    :func:`~twin.fmu.pool.sweep_pool`: reset instances, the same signals bit for bit).
     """
     from twin.errormodel.identify import fit_records
+    from twin.fmu.pool import sweep_pool
     from twin.pipeline.lab import lab_record
 
     start = time.perf_counter()
-    records = {e.name: lab_record(e, s) for e, s in job.calibration}
+    pool = sweep_pool()
+    records = {e.name: lab_record(e, s, pool=pool) for e, s in job.calibration}
     coefficients = fit_records(records, job.priors)
     identified = coefficients.values()
     identify_s = time.perf_counter() - start
@@ -309,7 +317,7 @@ def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
     ident = {f"identified.{k}": v for k, v in identified.items()}
     rows = []
     for _, scenario in job.heldout:
-        figures = evaluate_heldout(scenario, identified, baseline)
+        figures = evaluate_heldout(scenario, identified, baseline, pool)
         figures["mlr_ar.temperatures_kept"] = float(len(baseline.names))
         figures["mlr_ar.ar_order"] = float(len(baseline.ar))
         rows.append({**figures, **ident})
