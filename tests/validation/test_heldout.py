@@ -236,3 +236,19 @@ def test_the_summary_of_testers_that_all_failed_says_there_is_no_row(tmp_path: P
     summary = summarise(cfg, table)
     assert all(summary["models"][m]["all"] == {"rows": 0} for m in MODELS)
     assert summary["testers_failed"] == [0]
+
+
+def test_jobs_made_from_files_read_once_are_those_made_from_the_files(tmp_path: Path) -> None:
+    """The client reads each scenario file once per study and makes every tester's job from
+    those scenarios: the same jobs as made each from the files, the scenarios read left as read
+    (a tester's values make new ones), and two testers' jobs differ."""
+    from twin.errormodel.coefficients import load_priors
+    from twin.validation.heldout import load_bases, make_job
+
+    cfg = load_heldout(write_heldout(tmp_path / "heldout.toml", testers=3))
+    draws, priors = Draws(tuple(load_testers(cfg.spreads)), cfg.seed), load_priors()
+    bases = load_bases(cfg)
+    shared = [make_job(cfg, draws, priors, i, bases) for i in range(3)]
+    assert shared == [make_job(cfg, draws, priors, i) for i in range(3)]
+    assert bases == load_bases(cfg)
+    assert shared[0] != shared[1] and shared[0].heldout != shared[1].heldout

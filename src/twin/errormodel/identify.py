@@ -68,6 +68,10 @@ RANK_RTOL = 1e-7
 FLAT = 1e6
 #: passes over the fits (:func:`fit_records`): the second sees every coefficient identified
 PASSES = 2
+#: a record's model is taken as affine in a fit's parameters (:meth:`_Block.linearise`) when
+#: its affine form predicts two further trial points to within this fraction of the largest
+#: prediction or change: rounding leaves some 1e-14, a phase or a scale that divides 1e-1 and more
+AFFINE_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -248,19 +252,90 @@ def _lag1(r: np.ndarray) -> float:
 @dataclass
 class _Block:
     """One record's rows of a fit: the target, its nuisance columns (orthonormal), the model's
-    prediction as a function of the fitted parameters, and the noise level."""
+    prediction part by part (each factor's, at the used samples) as a function of the fitted
+    parameters, and the noise level."""
 
     target: np.ndarray
     basis: np.ndarray
-    predict: Callable[[np.ndarray], np.ndarray]
+    #: the parts of the prediction at p: every factor's, or those named, in the factors' order
+    parts: Callable[[np.ndarray, Sequence[str] | None], list[np.ndarray]]
     sigma: float = 1.0
     rms: float = 0.0
     inflation: float = 1.0
+    #: the residual's affine part once :meth:`linearise` found it: the point p0, the residual
+    #: there and its slope (nuisance projected out) of every part but the ``moving`` ones
+    affine: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: the parts that are not affine in the parameters: evaluated at every p
+    moving: tuple[str, ...] = ()
+
+    def project(self, r: np.ndarray) -> np.ndarray:
+        """``r`` with the nuisance columns projected out."""
+        return r - self.basis @ (self.basis.T @ r)
+
+    def predict(self, p: np.ndarray) -> np.ndarray:
+        """The model's prediction at ``p`` (its parts summed in the factors' order)."""
+        return np.sum(self.parts(p, None), axis=0)
+
+    @property
+    def is_affine(self) -> bool:
+        """Every part affine: the residual is r0 - slope (p - p0)."""
+        return self.affine is not None and not self.moving
 
     def residual(self, p: np.ndarray) -> np.ndarray:
         """Target minus model, the nuisance projected out (not whitened)."""
-        r = self.target - self.predict(p)
-        return r - self.basis @ (self.basis.T @ r)
+        if self.affine is None:
+            return self.project(self.target - self.predict(p))
+        p0, r0, slope = self.affine
+        r = r0 - slope @ (p - p0)
+        if self.moving:
+            r = r - self.project(np.sum(self.parts(p, self.moving), axis=0))
+        return r
+
+    def linearise(self, p0: np.ndarray, steps: np.ndarray) -> bool:
+        """Keep each part's affine form where it has one: most coefficients multiply a recorded
+        signal (a body's growth its temperature rise, a compliance the load, a drift the
+        frame's thermometer, the clamp's rotation the torque), and most parts of a fit do not
+        depend on its parameters at all (the thermal one in the runout's fit).
+
+        A part's form: its prediction at ``p0`` and its change over one step of each parameter
+        (``steps``), checked against the part at two further points, each parameter moved by a
+        quarter to three quarters of a step either way (never to zero: a step may be the value
+        itself). A part that misses (the runout's phase, the probe's scale: a cosine,
+        a division) is ``moving``: evaluated at every trial point, and the fit takes finite
+        differences. Every part affine, the fit evaluates the model n + 3 times instead of once
+        per residual and n times per Jacobian, and its Jacobian is exact; else each residual
+        evaluates the moving parts only. True when the block is affine. A model that cannot be
+        evaluated at a point of the check (an ArithmeticError) is kept whole, as without it.
+        """
+        try:
+            return self._linearise(p0, steps)
+        except ArithmeticError:
+            self.affine, self.moving = None, ()
+            return False
+
+    def _linearise(self, p0: np.ndarray, steps: np.ndarray) -> bool:
+        n = len(p0)
+        f0 = self.parts(p0, None)
+        names = [f.name for f in _FITTED]
+        ups = [self.parts(p0 + s * e, None) for s, e in zip(steps, np.eye(n), strict=True)]
+        slopes = [
+            np.column_stack([(up[k] - f0[k]) / s for up, s in zip(ups, steps, strict=True)])
+            for k in range(len(f0))
+        ]
+        affine = [True] * len(f0)
+        signs = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+        for z in (0.5 * signs, -signs * (0.25 + 0.5 * np.arange(n) / max(n - 1, 1))):
+            at = self.parts(p0 + steps * z, None)
+            for k, (f, base, slope) in enumerate(zip(at, f0, slopes, strict=True)):
+                change = slope @ (steps * z)
+                size = max(float(np.max(np.abs(base))), float(np.max(np.abs(change))), 1e-300)
+                affine[k] &= float(np.max(np.abs(f - base - change))) <= AFFINE_RTOL * size
+        kept = [k for k in range(len(f0)) if affine[k]]
+        fixed = np.sum([f0[k] for k in kept], axis=0) if kept else np.zeros_like(self.target)
+        slope = np.sum([slopes[k] for k in kept], axis=0) if kept else np.zeros((len(self.target), n))
+        self.affine = (p0.copy(), self.project(self.target - fixed), self.project(slope))
+        self.moving = tuple(names[k] for k in range(len(f0)) if not affine[k])
+        return self.is_affine
 
     def measure(self, p: np.ndarray) -> tuple[np.ndarray, int]:
         """The residuals at ``p`` and their degrees of freedom before the fit's parameters
@@ -323,11 +398,41 @@ class _Problem:
         prior = self.scale * z / self.prior_sigma  # zero rows for flat priors
         return np.concatenate([self.data(z), prior])
 
+    @property
+    def affine(self) -> bool:
+        """Every block's model is affine in the parameters (:meth:`_Block.linearise`)."""
+        return all(b.is_affine for b in self.blocks)
+
     def jacobian(self, z: np.ndarray, h: float = 1e-3) -> np.ndarray:
-        """Central differences of the whitened data residuals in z (exact for a coefficient
-        the model is linear in)."""
+        """The whitened data residuals' derivatives in z: the affine form's slope where every
+        block has one, else central differences."""
+        if self.affine:
+            return np.vstack([-b.affine[2] * self.scale / b.sigma for b in self.blocks])  # type: ignore[index]
         step = h * np.eye(len(z))
         return np.column_stack([(self.data(z + d) - self.data(z - d)) / (2 * h) for d in step])
+
+    def compressed(self) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
+        """An affine problem's residual in n + 1 + n rows with the same sum of squares at every
+        z, and its (constant) Jacobian.
+
+        The whitened data residuals are d(z) = b + A z. With A = QR, ||b + A z||^2 =
+        ||Q^T b + R z||^2 + ||b - Q Q^T b||^2: the n rows Q^T b + R z, one constant row for the
+        part of b no parameter reaches, then the priors' rows. The solver sees the same cost,
+        gradient and J^T J as with every sample's row (thousands), at the cost of n rows.
+        """
+        n = len(self.names)
+        a = self.jacobian(np.zeros(n))
+        b = self.data(np.zeros(n))
+        q, r = np.linalg.qr(a)
+        c = q.T @ b
+        rest = np.array([float(np.linalg.norm(b - q @ c))])
+        prior = self.scale / self.prior_sigma  # zero for flat priors
+        jac = np.vstack([r, np.zeros((1, n)), np.diag(prior)])
+
+        def residual(z: np.ndarray) -> np.ndarray:
+            return np.concatenate([c + r @ z, rest, prior * z])
+
+        return residual, jac
 
     def bounds(self, lower: Mapping[str, float]) -> np.ndarray:
         """The scaled lower bounds (-inf where none)."""
@@ -336,6 +441,10 @@ class _Problem:
             for n, s, c in zip(self.names, self.start, self.scale, strict=True)
         ]
         return np.array(lo)
+
+
+#: the factors a fit's model sums: all but the interference, which the robust filter took out
+_FITTED = tuple(f for f in FACTORS if f.name != "interference")
 
 
 def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) -> _Block:
@@ -347,17 +456,16 @@ def _block(record: Record, values: Mapping[str, float], names: Sequence[str]) ->
     target = (measured.cleaned - measured.cleaned[0] - (record.known - record.known[0]))[used]
     t = record.table.time[used]
     basis, _ = np.linalg.qr(np.column_stack(_nuisance(record.experiment.nuisance, t, record.known[used])))
-    parts = [f for f in FACTORS if f.name != "interference"]
 
-    def predict(p: np.ndarray) -> np.ndarray:
+    def parts(p: np.ndarray, which: Sequence[str] | None) -> list[np.ndarray]:
         trial = {**values, **dict(zip(names, p.tolist(), strict=True))}
         m = replace(measured, cfg=replace(cfg, **_coefficient_fields(trial)))
-        return np.sum([f.contribution(m).e_z for f in parts], axis=0)[used]
+        return [f.contribution(m).e_z[used] for f in _FITTED if which is None or f.name in which]
 
     # a first guess of the noise: the robust spread of the first differences
     diffs = np.diff(target)
     sigma = 1.4826 * float(np.median(np.abs(diffs - np.median(diffs)))) / math.sqrt(2)
-    return _Block(target, basis, predict, max(sigma, 1e-12))
+    return _Block(target, basis, parts, max(sigma, 1e-12))
 
 
 def _nuisance(kinds: Sequence[str], t: np.ndarray, known: np.ndarray) -> list[np.ndarray]:
@@ -383,13 +491,23 @@ def _scale(prior: Prior) -> float:
 
 
 def _problem(
-    cal: Calibration, records: Sequence[Record], values: Mapping[str, float], priors: Mapping[str, Prior]
+    cal: Calibration,
+    records: Sequence[Record],
+    values: Mapping[str, float],
+    priors: Mapping[str, Prior],
+    linearise: bool = True,
 ) -> _Problem:
+    """The fit's problem; ``linearise``: each block's affine form where it has one
+    (:meth:`_Block.linearise`; False: the model at every trial point, as a check of it)."""
     names = cal.fit
     start = np.array([priors[n].value for n in names])
     sigma = np.array([math.inf if priors[n].sigma is None else priors[n].sigma for n in names])
     scale = np.array([_scale(priors[n]) for n in names])
-    return _Problem(names, start, scale, sigma, [_block(r, values, names) for r in records])
+    blocks = [_block(r, values, names) for r in records]
+    if linearise:
+        for b in blocks:
+            b.linearise(start, scale)
+    return _Problem(names, start, scale, sigma, blocks)
 
 
 def _starts(cal: Calibration, prob: _Problem) -> list[np.ndarray]:
@@ -408,22 +526,36 @@ def _solve(prob: _Problem, z0s: Sequence[np.ndarray], lo: np.ndarray) -> np.ndar
     """The best of the least-squares solutions from the start vectors ``z0s``."""
     from scipy.optimize import least_squares
 
-    solutions = [
-        least_squares(prob.residual, np.maximum(z0, lo), bounds=(lo, np.inf), method="trf") for z0 in z0s
-    ]
+    if prob.affine:
+        residual, jac = prob.compressed()
+        solutions = [
+            least_squares(residual, np.maximum(z0, lo), jac=lambda _: jac, bounds=(lo, np.inf), method="trf")
+            for z0 in z0s
+        ]
+    else:
+        solutions = [
+            least_squares(prob.residual, np.maximum(z0, lo), bounds=(lo, np.inf), method="trf") for z0 in z0s
+        ]
     return min(solutions, key=lambda sol: sol.cost).x
 
 
 def fit_calibration(
-    cal: Calibration, records: Sequence[Record], values: Mapping[str, float], priors: Mapping[str, Prior]
+    cal: Calibration,
+    records: Sequence[Record],
+    values: Mapping[str, float],
+    priors: Mapping[str, Prior],
+    *,
+    linearise: bool = True,
 ) -> tuple[dict[str, Coefficient], Fit]:
     """Fit the coefficients of ``cal`` to its experiments' ``records``, the others at ``values``.
 
     The noise levels are found with the fit: from each record's first differences at first,
     then from the residuals (serial-correlation inflated, each record's own but not below the
-    records' common level: :func:`noise_levels`), refitting until they settle.
+    records' common level: :func:`noise_levels`), refitting until they settle. ``linearise``
+    False evaluates the model at every trial point even where it is affine (the check of
+    :meth:`_Block.linearise`: both find the same optimum).
     """
-    prob = _problem(cal, records, values, priors)
+    prob = _problem(cal, records, values, priors, linearise)
     lo = prob.bounds(cal.lower)
     z = _solve(prob, _starts(cal, prob), lo)
     for _ in range(8):
@@ -498,6 +630,8 @@ def fit_records(
     priors: Mapping[str, Prior],
     identified: Mapping[str, Any] | None = None,
     calibrations: Sequence[Calibration] = CALIBRATIONS,
+    *,
+    linearise: bool = True,
 ) -> Coefficients:
     """Fit the calibrations in order, each with what the others found, to the records (by
     experiment name) of their experiments: :data:`PASSES` times over, as the fits depend on
@@ -506,7 +640,8 @@ def fit_records(
     the priors' values for what is not fitted yet, the next with the pass before's.
 
     A coefficient no calibration fits keeps its prior, with the prior's sigma as its standard
-    error (its experiment says "prior"); one without a prior sigma is an error.
+    error (its experiment says "prior"); one without a prior sigma is an error. ``linearise``:
+    see :func:`fit_calibration`.
     """
     values = {n: p.value for n, p in priors.items()}
     found: dict[str, Coefficient] = {}
@@ -514,7 +649,7 @@ def fit_records(
     for _ in range(PASSES):
         for cal in calibrations:
             coefficients, fits[cal.name] = fit_calibration(
-                cal, [records[e] for e in cal.experiments], values, priors
+                cal, [records[e] for e in cal.experiments], values, priors, linearise=linearise
             )
             found.update(coefficients)
             values.update({n: c.value for n, c in coefficients.items()})

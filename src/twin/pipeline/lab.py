@@ -18,6 +18,7 @@ from twin.config.spec import Scenario
 from twin.errormodel.identify import LAB_FIELDS, Experiment, Record, known_displacement, lab_channels
 from twin.errormodel.sources import Columns
 from twin.errors import ConfigError, RunError
+from twin.fmu.pool import SlotPool
 from twin.pipeline.compensation import LabConfig
 from twin.pipeline.prepare import prepare_scenario
 from twin.pipeline.stages import simulate
@@ -27,15 +28,18 @@ from twin.signals.table import Block, Signal, SignalTable
 __all__ = ["lab_record", "recorded"]
 
 
-def lab_record(experiment: Experiment, scenario: Scenario, digest: str = "") -> Record:
+def lab_record(
+    experiment: Experiment, scenario: Scenario, digest: str = "", pool: SlotPool | None = None
+) -> Record:
     """Run ``experiment``'s ``scenario`` on the twin and keep what a lab's DAQ records, with the
-    known displacement at each sample and the samples its fit uses; ``digest`` names what ran."""
+    known displacement at each sample and the samples its fit uses; ``digest`` names what ran,
+    ``pool`` reuses FMU instances (:mod:`twin.fmu.pool`)."""
     prepared = prepare_scenario(scenario)
     channels = lab_channels(experiment=experiment)
     missing = sorted(channels - prepared.plan.column_names())
     if missing:
         raise ConfigError(f"the experiment records no {', '.join(missing)}", source="twin identify")
-    simulation = simulate(prepared, keep=channels)
+    simulation = simulate(prepared, keep=channels, pool=pool)
     result = simulation.result
     if result.status != "completed":
         raise RunError(f"calibration experiment {experiment.name!r} {result.status}: {result.error}")

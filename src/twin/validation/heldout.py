@@ -36,6 +36,7 @@ from twin.errormodel.baselines import MlrAr, fit_mlr_ar
 from twin.errormodel.coefficients import Prior
 from twin.errormodel.identify import Experiment, Record
 from twin.errors import ConfigError, RunError
+from twin.fmu.pool import SlotPool
 from twin.pipeline.cluster import StudyOptions
 from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
@@ -250,11 +251,21 @@ def _figures(before: np.ndarray, after: np.ndarray) -> dict[str, float]:
     }
 
 
-def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: MlrAr) -> dict[str, float]:
-    """Run a held-out scenario, compensate it with the identified ``values`` (MBS) and with the
-    baseline; the figures of both against the twin's true wear."""
+def evaluate_heldout(
+    scenario: Scenario, values: Mapping[str, float], baseline: MlrAr, pool: SlotPool | None = None
+) -> dict[str, float]:
+    """Run a held-out scenario (its FMU instances from ``pool`` where given), compensate it with
+    the identified ``values`` (MBS) and with the baseline; the figures of both against the
+    twin's true wear.
+
+    The error model's rows only (:func:`~twin.errormodel.evaluate.evaluate_rows`, the numbers
+    a run's evaluation writes): a run's summary (drifts, credibility metrics) is not a figure
+    of this table."""
+    from twin.errormodel.evaluate import evaluate_rows
+    from twin.errormodel.factors import Measured
     from twin.errormodel.sources import MechanicalCoefficients, ThermalCoefficients
-    from twin.pipeline import evaluate_run, prepare_scenario, simulate
+    from twin.errormodel.tester import tester_model
+    from twin.pipeline import prepare_scenario, simulate
 
     prepared = prepare_scenario(scenario)
     cfg = replace(
@@ -262,22 +273,25 @@ def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: 
         thermal=ThermalCoefficients.from_values(values, source="twin heldout: identified"),
         mechanics=MechanicalCoefficients.from_values(values, source="twin heldout: identified"),
     )
-    sim = simulate(prepared)
+    sim = simulate(prepared, pool=pool)
     if sim.result.status != "completed":
         raise RunError(f"{scenario.name} {sim.result.status}: {sim.result.error}")
-    ev = evaluate_run(sim, cfg)
-    if ev.table is None or not cfg.true_wear:
-        raise RunError(f"{scenario.name}: the error model did not run ({ev.error})")
-    t = ev.table
+    t = sim.table
+    if not cfg.evaluate or not cfg.true_wear or cfg.true_wear not in t or len(t) < 2:
+        raise RunError(f"{scenario.name}: the error model did not run (no tester, no true wear or no rows)")
+    try:
+        contributions, columns = evaluate_rows(Measured.read(t, cfg, tester_model()))
+    except ConfigError as exc:
+        raise RunError(f"{scenario.name}: the error model did not run ({exc})") from None
     wear = t[cfg.true_wear] - t[cfg.true_wear][0]
-    raw = t["errormodel.reading_change"]
+    raw = columns["reading_change"]
     before = raw - wear
     temps = {point: t[col] for point, col in cfg.temperatures.items()}
     thermal_b = baseline.predict(temps)
     out = {"rms_before_um": float(np.sqrt(np.mean(before**2))) * 1e6}
     out["max_before_um"] = float(np.max(np.abs(before))) * 1e6
-    out.update({f"mbs.{k}": v for k, v in _figures(before, t["errormodel.residual"]).items()})
-    after_b = raw - t["errormodel.e_interference"] - thermal_b - wear
+    out.update({f"mbs.{k}": v for k, v in _figures(before, columns["residual"]).items()})
+    after_b = raw - contributions["interference"].e_z - thermal_b - wear
     out.update({f"mlr_ar.{k}": v for k, v in _figures(before, after_b).items()})
     return out
 
@@ -285,13 +299,17 @@ def evaluate_heldout(scenario: Scenario, values: Mapping[str, float], baseline: 
 def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
     """Identify one tester, fit the baseline, judge both on the held-out scenarios.
 
-    Returns one row of figures per held-out scenario and the timings.
+    Returns one row of figures per held-out scenario and the timings. Its thirteen runs, and
+    the next tester's on this worker, reuse the FMU instances of the ones before (the process's
+    :func:`~twin.fmu.pool.sweep_pool`: reset instances, the same signals bit for bit).
     """
     from twin.errormodel.identify import fit_records
+    from twin.fmu.pool import sweep_pool
     from twin.pipeline.lab import lab_record
 
     start = time.perf_counter()
-    records = {e.name: lab_record(e, s) for e, s in job.calibration}
+    pool = sweep_pool()
+    records = {e.name: lab_record(e, s, pool=pool) for e, s in job.calibration}
     coefficients = fit_records(records, job.priors)
     identified = coefficients.values()
     identify_s = time.perf_counter() - start
@@ -299,7 +317,7 @@ def run_tester(job: TesterJob) -> tuple[list[dict[str, Any]], dict[str, float]]:
     ident = {f"identified.{k}": v for k, v in identified.items()}
     rows = []
     for _, scenario in job.heldout:
-        figures = evaluate_heldout(scenario, identified, baseline)
+        figures = evaluate_heldout(scenario, identified, baseline, pool)
         figures["mlr_ar.temperatures_kept"] = float(len(baseline.names))
         figures["mlr_ar.ar_order"] = float(len(baseline.ar))
         rows.append({**figures, **ident})
@@ -326,12 +344,31 @@ def tester_task(payload: dict[str, Any]) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- the client
 
 
-def _heldout_scenario(
-    cfg: HeldOut, ho: HeldOutScenario, values: Mapping[str, float], i: int, j: int
-) -> Scenario:
-    """Held-out scenario ``j`` of tester ``i``: its file, its overrides, the tester's values,
-    a seed of its own and the room's slow drift."""
-    scenario = apply(load_scenario(ho.path, list(ho.overrides)), values)
+@dataclass(frozen=True)
+class Bases:
+    """The scenarios every tester's job starts from, each file read and checked once per
+    study: the calibration experiments (in :data:`~twin.errormodel.identify.EXPERIMENTS`'
+    order) and the held-out scenarios with their overrides (in the file's order). A tester's
+    values, seeds and room drift make new scenarios from them (a scenario is immutable)."""
+
+    calibration: tuple[Scenario, ...]
+    heldout: tuple[Scenario, ...]
+
+
+def load_bases(cfg: HeldOut) -> Bases:
+    """The files of ``cfg``'s calibration experiments and held-out scenarios, loaded."""
+    from twin.errormodel.identify import EXPERIMENTS
+
+    return Bases(
+        tuple(load_scenario(cfg.calibration / e.scenario) for e in EXPERIMENTS),
+        tuple(load_scenario(ho.path, list(ho.overrides)) for ho in cfg.scenarios),
+    )
+
+
+def _heldout_scenario(cfg: HeldOut, base: Scenario, values: Mapping[str, float], i: int, j: int) -> Scenario:
+    """Held-out scenario ``j`` of tester ``i``: its file and overrides (``base``), the tester's
+    values, a seed of its own and the room's slow drift."""
+    scenario = apply(base, values)
     scenario = scenario.with_seed(scenario_seed(cfg.seed, Key.RUN, i, j))
     if cfg.room_drift_K > 0:
         drift = rooms.smooth_drift(generator(cfg.seed, Key.ROOM, i, j), cfg.room_drift_K)
@@ -340,17 +377,24 @@ def _heldout_scenario(
     return scenario
 
 
-def make_job(cfg: HeldOut, testers: Testers, priors: Mapping[str, Prior], i: int) -> TesterJob:
+def make_job(
+    cfg: HeldOut, testers: Testers, priors: Mapping[str, Prior], i: int, bases: Bases | None = None
+) -> TesterJob:
     """Tester ``i``'s job: its drawn values applied to every calibration experiment and
-    every held-out scenario (scenarios built and checked here, on the client)."""
+    every held-out scenario (scenarios built and checked here, on the client, from ``bases``:
+    default, the files read now)."""
     from twin.errormodel.identify import EXPERIMENTS
 
+    bases = bases or load_bases(cfg)
     values = testers.draw(i)
     calibration = []
-    for k, e in enumerate(EXPERIMENTS):
-        scenario = apply(load_scenario(cfg.calibration / e.scenario), values)
+    for k, (e, base) in enumerate(zip(EXPERIMENTS, bases.calibration, strict=True)):
+        scenario = apply(base, values)
         calibration.append((e, scenario.with_seed(scenario_seed(cfg.seed, Key.RUN, i, 1000 + k))))
-    heldout = tuple((ho, _heldout_scenario(cfg, ho, values, i, j)) for j, ho in enumerate(cfg.scenarios))
+    heldout = tuple(
+        (ho, _heldout_scenario(cfg, base, values, i, j))
+        for j, (ho, base) in enumerate(zip(cfg.scenarios, bases.heldout, strict=True))
+    )
     return TesterJob(i, values, tuple(calibration), heldout, priors)
 
 
@@ -402,9 +446,11 @@ def run_heldout(
     todo = [i for i in range(cfg.testers) if not _complete(store, cfg, i)]
     timings: list[dict[str, float]] = []
 
+    bases = load_bases(cfg)
+
     def payload(i: int) -> dict[str, Any]:
         try:
-            return {"index": i, "scenario": make_job(cfg, testers, priors, i)}
+            return {"index": i, "scenario": make_job(cfg, testers, priors, i, bases)}
         except ConfigError as exc:
             return failed(i, one_line(exc)) | {"rows": []}
 
