@@ -7,6 +7,7 @@ master's batches, its ``errormodel.*`` columns are the outcome's derived columns
 from __future__ import annotations
 
 import json
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -141,25 +142,31 @@ def test_tee_hands_a_failing_block_to_no_sink_twice() -> None:
     assert [e[0] for e in first.events + full.events if e[1] == "write"] == ["csv", "rrd"]
 
 
+class Gated(Log):
+    """A sink whose writes (of ``rows`` rows; any, by default) wait for ``release``, noting
+    the thread each write comes from."""
+
+    def __init__(self, rows: int | None = None) -> None:
+        super().__init__()
+        self.rows, self.release = rows, threading.Event()
+        self.threads: list[str] = []
+
+    def write(self, block: Block) -> None:
+        self.threads.append(threading.current_thread().name)
+        if self.rows is None or len(block.time) == self.rows:
+            assert self.release.wait(10.0)
+        super().write(block)
+
+
 def test_tee_writes_a_chunk_while_the_run_goes_and_waits_for_it_before_the_next(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # a chunk handed on while the run goes is written by a thread: append returns before the
     # sink is done; the next chunk, a checkpoint and the run's end wait for it
-    import threading
-
     monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
     _, table = recorded(make_table(rows=300))
-    release = threading.Event()
-    writing: list[str] = []
-
-    class Slow(Log):
-        def write(self, block: Block) -> None:
-            writing.append(threading.current_thread().name)
-            assert release.wait(10.0)
-            super().write(block)
-
-    slow = Slow()
+    slow = Gated()
+    release, writing = slow.release, slow.threads
     rec = TeeRecorder([slow])
     rec.open([table.meta[n] for n in table.names()])
     names = table.names()
@@ -180,19 +187,10 @@ def test_tee_writes_a_chunk_while_the_run_goes_and_waits_for_it_before_the_next(
 def test_a_long_runs_last_rows_are_written_while_the_caller_goes_on_and_flush_waits_for_them(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import threading
-
     monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
     _, table = recorded(make_table(rows=250))
-    release = threading.Event()
-
-    class Slow(Log):
-        def write(self, block: Block) -> None:
-            if len(block.time) == 50:  # the last rows, handed on at close
-                assert release.wait(10.0)
-            super().write(block)
-
-    slow = Slow()
+    slow = Gated(rows=50)  # the last rows, handed on at close
+    release = slow.release
     rec = TeeRecorder([slow], hold_last=True)
     stream(rec, table, batch=50)  # 100, 100 while it runs; the last 50 at close
     assert [len(e[2]) for e in slow.events if e[1] == "write"] == [100, 100]  # close did not wait
