@@ -126,13 +126,16 @@ def test_tee_holds_nothing_of_a_run_whose_rows_went_to_the_files_already(
     assert [len(e[2]) for e in log.events if e[1] == "write"] == [200, 200, 200, 121]
 
 
+class Full(Log):
+    """A sink on a full disk: each write is noted, then fails."""
+
+    def write(self, block: Block) -> None:
+        super().write(block)
+        raise OSError(28, "No space left on device")
+
+
 def test_tee_hands_a_failing_block_to_no_sink_twice() -> None:
     _, table = recorded(make_table(rows=30))
-
-    class Full(Log):
-        def write(self, block: Block) -> None:
-            super().write(block)
-            raise OSError(28, "No space left on device")
 
     first, full = Log(name="csv"), Full(name="rrd")
     rec = TeeRecorder([first, full])
@@ -207,11 +210,6 @@ def test_tee_raises_a_failed_write_of_its_thread_and_writes_nothing_after_it(
     # at once would) and are not written; the run's failure path hands nothing on after it
     monkeypatch.setattr(recorder_module, "FLUSH_ROWS", 100)
     _, table = recorded(make_table(rows=300))
-
-    class Full(Log):
-        def write(self, block: Block) -> None:
-            super().write(block)
-            raise OSError(28, "No space left on device")
 
     first, full = Log(name="csv"), Full(name="rrd")
     rec = TeeRecorder([first, full])
