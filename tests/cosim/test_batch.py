@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from twin.config.load import load_scenario, scenarios_dir
-from twin.config.spec import NS_PER_S, Scenario
+from twin.config.spec import NS_PER_S, Event, Scenario
 from twin.cosim import make_plan
 from twin.cosim.batch import Batch, run_batch, structure, unbatchable
 from twin.cosim.master import Master
@@ -143,3 +143,63 @@ def test_plans_of_another_structure_or_with_events_are_refused(tmp_path: Path) -
     assert "events" in (unbatchable(evented) or "")
     with pytest.raises(ValueError, match="events"):
         run_batch([evented], set())
+
+
+def _uneven(tmp_path: Path, watts: float) -> Scenario:
+    """Instances whose periods (4 s, 6 s) and output interval (5 s) share no tick pattern with
+    the master's 1 s: most ticks do nothing, the driven inputs are read every second tick."""
+    path = tmp_path / f"uneven-{watts}.toml"
+    path.write_text(f"""
+[scenario]
+name = "uneven"
+duration = "10 min"
+step = "1 s"
+output_interval = "5 s"
+seed = 3
+[fmu.thermal]
+model = "ThermalNetwork"
+period = "4 s"
+parameters = {{ solver_step = 1.0 }}
+unconnected = "a test system: the inputs nothing feeds keep their start values"
+[fmu.mechanics]
+model = "FixtureMechanics"
+period = "6 s"
+unconnected = "a test system: the inputs nothing feeds keep their start values"
+[connections]
+"thermal.t_oil" = "mechanics.t_base"
+[input.thermal.q_hydraulic]
+profile = "ramp"
+start = 0.0
+end = {watts}
+duration = "7 min"
+source = "test: a heat input rising"
+[input.mechanics.radial_load]
+profile = "sine"
+mean = 1000.0
+amplitude = 500.0
+period = "77 s"
+source = "test: a load the mechanics read at their own exchanges"
+""")
+    return load_scenario(path)
+
+
+def test_ticks_where_nothing_happens_are_counted_not_changed(tmp_path: Path) -> None:
+    """The stepper skips the ticks where no instance is due, no output commits and no row is
+    recorded, and its driven matrix holds only the ticks that read it: each copy is bit for bit
+    the Python loop's run of it alone, which visits every tick."""
+    plans = [make_plan(_uneven(tmp_path, w)) for w in (200.0, 900.0, 3000.0)]
+    keep = {c.meta.name for c in plans[0].columns}
+    batch = run_batch(plans, keep, SlotPool(per_key=3))
+    assert batch.alone == []
+    for i, plan in enumerate(plans):
+        _same(Master(plan, loop="python").run(), batch.results[i])
+        _same(Master(plan, loop="fast").run(), batch.results[i])
+    assert batch.results[0].macro_steps == 600
+    temps = {batch.results[i].table["thermal.t_oil"].tobytes() for i in range(3)}
+    assert len(temps) == 3  # the copies differ: the check above can fail
+    # an event at an odd tick starts the master's next batch of ticks between two that read
+    # the driven inputs: its matrix's first row is the next even tick's
+    sc = _uneven(tmp_path, 900.0)
+    event = Event(at_ns=13 * NS_PER_S, action="bias", target="thermal.t_oil", value=0.5)
+    plan = make_plan(dataclasses.replace(sc, events=(event,)))
+    _same(Master(plan, loop="python").run(), Master(plan, loop="fast").run())

@@ -35,7 +35,7 @@ def test_ctypes_classes_follow_the_declarations() -> None:
     assert fields["period_ticks"] is ctypes.c_int64 and fields["n_in"] is ctypes.c_int32
     assert fields["pending_at"] is ctypes.c_void_p and fields["do_step"] is ctypes.c_void_p
     name, params = layout.entry()
-    assert name == "twin_run_ticks" and len(layout.entry_argtypes()) == len(params) == 13
+    assert name == "twin_run_ticks" and len(layout.entry_argtypes()) == len(params) == 14
 
 
 @needs_cc

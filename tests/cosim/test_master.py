@@ -257,3 +257,20 @@ def test_a_transformed_connection_gives_factor_times_output_plus_offset(tmp_path
     assert ambient[2] == 0.5 * room_meas[0] + 150.0  # through the delay, one exchange late
     # the loop x -> 0.5 x + 150 settles at its fixed point, 300 K
     assert abs(ambient[-1] - 300.0) < 1e-6 and abs(room_meas[-1] - 300.0) < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("k0", "k1", "every"), [(0, 100, 10), (3, 47, 4), (-7, 9, 3), (5, 6, 10), (8, 20, 0)]
+)
+def test_the_driven_matrix_holds_the_ticks_that_read_it(k0: int, k1: int, every: int) -> None:
+    from twin.cosim.state import driven_row, driven_ticks
+
+    ticks = driven_ticks(k0, k1, every)
+    assert len(ticks) >= 1  # the loops always get a row to point at
+    for k in range(k0, k1):
+        row = driven_row(k, k0, every)
+        assert 0 <= row < len(ticks)
+        if every and k % every == 0:
+            assert ticks[row] == k
+    if every:
+        assert list(ticks[ticks < k1]) == [k for k in range(k0, k1) if k % every == 0]

@@ -20,7 +20,6 @@ the failure as it would anyway, with everything recorded up to it.
 from __future__ import annotations
 
 import ctypes
-import math
 import time
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -34,7 +33,7 @@ from twin.cosim.layout import Status, TwinColumn, TwinCounters, TwinSlot, entry
 from twin.cosim.master import RunResult
 from twin.cosim.native import NativeLoop, stepper
 from twin.cosim.plan import BATCH_TICKS, InputKind, Plan
-from twin.cosim.state import State, make_state
+from twin.cosim.state import State, driven_every, driven_ticks, make_state
 from twin.cosim.stepping import final_tick
 from twin.errors import RunError
 from twin.fmu.pool import SlotPool
@@ -257,14 +256,14 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
     run = getattr(stepper(), entry()[0])
     k, end, step = plan.start_tick, plan.n_ticks, plan.step_ns
     counters = TwinCounters()
-    every = _driven_every(plan)
+    every = driven_every(plan)
     while k < end:
         k1 = min(k + BATCH_TICKS, end)
         driven = _driven(copies, k, k1, every, n_driven)
         view = rows.values[rows.done :]
         counters.rows = 0
         status = run(
-            slots, len(slots), k, k1, step, plan.out_every, driven.ctypes.data, driven.shape[1],
+            slots, len(slots), k, k1, step, plan.out_every, driven.ctypes.data, driven.shape[1], every,
             view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
         )  # fmt: skip
         if status == Status.OVERFLOW:
@@ -279,27 +278,17 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
     return None
 
 
-def _driven_every(plan: Plan) -> int:
-    """The ticks between two that read the driven columns: the stepper reads a tick's row only
-    for the instances due then, and only their driven inputs (the greatest common divisor of
-    the periods of the instances with one; 0: none has)."""
-    periods = [i.period_ticks for i in plan.instances if any(p.kind == InputKind.DRIVEN for p in i.inputs)]
-    return math.gcd(*periods) if periods else 0
-
-
 def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int) -> np.ndarray:
-    """Every copy's driven columns side by side, one row per tick from ``k0`` to ``k1 - 1``,
-    evaluated at the ticks that read them (:func:`_driven_every`; the paper replay's FMUs
-    exchange every tenth tick) and zero at the others, which nothing reads."""
-    out = np.zeros((k1 - k0, n_driven * len(copies)))
+    """Every copy's driven columns side by side, one row per tick that reads them from ``k0``
+    to ``k1 - 1`` (:func:`twin.cosim.state.driven_ticks`: the paper replay's FMUs exchange
+    every tenth tick)."""
+    ticks = driven_ticks(k0, k1, every)
+    out = np.zeros((len(ticks), n_driven * len(copies)))
     if not every:
         return out
-    ticks = np.arange(-(-k0 // every) * every, k1, every, dtype=np.int64)
     step = copies[0].plan.step_ns
     for c, copy in enumerate(copies):
-        out[ticks - k0, c * n_driven : (c + 1) * n_driven] = copy.state.driven.at_ticks(ticks, step)[
-            :, :n_driven
-        ]
+        out[:, c * n_driven : (c + 1) * n_driven] = copy.state.driven.at_ticks(ticks, step)[:, :n_driven]
     return out
 
 

@@ -104,8 +104,8 @@ STRUCTS: dict[str, str] = {
 #: the entry point
 ENTRY = (
     "int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int64_t step_ns, "
-    "int64_t out_every, const double *driven, int32_t n_driven, double *rec, int64_t rec_capacity, "
-    "const TwinColumn *cols, int32_t n_cols, TwinCounters *c)"
+    "int64_t out_every, const double *driven, int32_t n_driven, int64_t driven_every, double *rec, "
+    "int64_t rec_capacity, const TwinColumn *cols, int32_t n_cols, TwinCounters *c)"
 )
 
 _DECLARATION = re.compile(r"(?P<type>.+?)\s*\b(?P<name>\w+)")

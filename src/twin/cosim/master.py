@@ -45,7 +45,7 @@ from twin.cosim.loops import loop_solvers
 from twin.cosim.native import NativeLoop
 from twin.cosim.plan import Plan, make_plan
 from twin.cosim.recording import MemoryRecorder, Recorder, batch_rows
-from twin.cosim.state import State, make_state
+from twin.cosim.state import State, driven_every, make_state
 from twin.cosim.stepping import Loop, PythonLoop, Solver, Stepping, check_loop, final_tick
 from twin.errors import FMUError, RunError
 from twin.fmu.pool import SlotPool
@@ -104,6 +104,8 @@ class Master:
         self.state: State | None = None
         self.slots: list[FMUSlot] = []
         self.solvers: list[Solver] = []
+        # the ticks between two that read the driven inputs (a batch's matrix holds those rows)
+        self._driven_every = driven_every(plan)
 
     # ------------------------------------------------------------------ set-up
 
@@ -179,7 +181,7 @@ class Master:
         return "completed", None
 
     def _batch(self, stepping: Stepping, k0: int, k1: int) -> None:
-        driven = self.state.driven.matrix(k0, k1, self.plan.step_ns)
+        driven = self.state.driven.matrix(k0, k1, self.plan.step_ns, self._driven_every)
         with batch_rows(self.plan, self.recorder, self.state.counters, k0, k1) as rows:
             stepping.ticks(k0, k1, driven, rows)
 

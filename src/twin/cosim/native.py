@@ -28,7 +28,7 @@ from twin.cosim.layout import (
     entry_argtypes,
 )
 from twin.cosim.plan import InputKind, Plan
-from twin.cosim.state import State
+from twin.cosim.state import State, driven_every
 from twin.cosim.stepping import non_finite
 from twin.errors import FMUError, RunError
 from twin.fmu.slot import FMUSlot
@@ -94,6 +94,7 @@ class NativeLoop:
         # the instances a connection reads (the others' outputs are fetched only where a row,
         # or Python between two batches, can see them: stepper.c, fetch_needed)
         self._read = {i.src for inst in plan.instances for i in inst.inputs if i.kind != InputKind.DRIVEN}
+        self.driven_every = driven_every(plan)
         self.slots = (TwinSlot * len(plan.instances))()
         for i, s in enumerate(self.slots):
             self._point(i, s)
@@ -126,6 +127,7 @@ class NativeLoop:
             plan.out_every,
             driven.ctypes.data,
             len(self.state.driven),
+            self.driven_every,
             rows.ctypes.data,
             rows.shape[0],
             self.cols,

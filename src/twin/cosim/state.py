@@ -9,6 +9,7 @@ calls use directly.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -83,9 +84,10 @@ class Driven:
     def __len__(self) -> int:
         return len(self.functions)
 
-    def matrix(self, k0: int, k1: int, step_ns: int) -> np.ndarray:
-        """The driven values at ticks ``k0`` to ``k1 - 1``, one row per tick."""
-        return self.at_ticks(np.arange(k0, k1, dtype=np.int64), step_ns)
+    def matrix(self, k0: int, k1: int, step_ns: int, every: int) -> np.ndarray:
+        """The driven values from tick ``k0`` to ``k1 - 1`` at the ticks that read them
+        (:func:`driven_ticks`), one row per such tick."""
+        return self.at_ticks(driven_ticks(k0, k1, every), step_ns)
 
     def at_ticks(self, ticks: np.ndarray, step_ns: int) -> np.ndarray:
         """The driven values at the ticks ``ticks`` (int64), one row per tick."""
@@ -99,6 +101,32 @@ class Driven:
         """The driven values at the time ``t_s`` (s)."""
         t = np.array([t_s])
         return np.array([fn(t)[0] for fn in self.functions], dtype=np.float64)
+
+
+def driven_every(plan: Plan) -> int:
+    """The ticks between two that read the driven inputs: an instance reads its driven inputs
+    at its own exchanges only, the multiples of its period, so the greatest common divisor of
+    the periods of the instances with one (0: none has). The paper replay's FMUs exchange every
+    tenth tick: a matrix of every tick's values would be nine tenths rows nobody reads."""
+    periods = [i.period_ticks for i in plan.instances if any(p.kind == InputKind.DRIVEN for p in i.inputs)]
+    return math.gcd(*periods) if periods else 0
+
+
+def driven_ticks(k0: int, k1: int, every: int) -> np.ndarray:
+    """The ticks from ``k0`` to ``k1 - 1`` that read the driven inputs: the multiples of
+    ``every`` (:func:`driven_every`; 0: none, and one row for the loops' sake)."""
+    if every <= 0:
+        return np.array([k0], dtype=np.int64)
+    first = -(-k0 // every) * every
+    return np.arange(first, max(k1, first + 1), every, dtype=np.int64)
+
+
+def driven_row(k: int, k0: int, every: int) -> int:
+    """The row of tick ``k``'s driven values in the matrix of a batch from ``k0``
+    (:func:`driven_ticks`); a tick that reads none gets the row before it (nothing reads it)."""
+    if every <= 0:
+        return 0
+    return max(0, (k - -(-k0 // every) * every) // every)
 
 
 @dataclass
@@ -126,4 +154,4 @@ def make_state(plan: Plan) -> State:
     )
 
 
-__all__ = ["Buffers", "Driven", "State", "make_state"]
+__all__ = ["Buffers", "Driven", "State", "driven_every", "driven_row", "driven_ticks", "make_state"]

@@ -21,7 +21,7 @@ import numpy as np
 
 from twin.config.spec import NS_PER_S
 from twin.cosim.plan import ColumnKind, InputKind, Plan, PlannedInput, PlannedInstance
-from twin.cosim.state import Buffers, State
+from twin.cosim.state import Buffers, State, driven_every, driven_row
 from twin.errors import ConfigError, FMUError
 from twin.fmu.slot import FMUSlot
 
@@ -45,7 +45,8 @@ class Stepping(Protocol):
     def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
         """Run the ticks ``k0`` to ``k1 - 1``.
 
-        ``driven`` holds one row of driven values per tick; each recorded row goes to
+        ``driven`` holds one row of driven values per tick that reads them
+        (:func:`twin.cosim.state.driven_ticks`); each recorded row goes to
         ``rows[counters.rows]`` and counts in ``counters.rows``. Raises
         :class:`~twin.errors.FMUError` when an FMU fails (the state is then at that tick).
         """
@@ -185,6 +186,7 @@ class PythonLoop:
             _Unit(inst, slot, state, inst.index in looped)
             for inst, slot in zip(plan.instances, slots, strict=True)
         ]
+        self.driven_every = driven_every(plan)
 
     def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
         plan, c = self.plan, self.state.counters
@@ -193,13 +195,14 @@ class PythonLoop:
             t = k * step / NS_PER_S
             self._commit(k)
             due = [u for u in self.units if k % u.period_ticks == 0]
+            drow = driven[driven_row(k, k0, self.driven_every)]
             for solver in self.solvers:
                 if k % solver.period_ticks == 0:
-                    solver.solve(driven[k - k0], t, exchange=True)
+                    solver.solve(drow, t, exchange=True)
             for u in due:
                 if u.looped:
                     continue
-                u.gather(driven[k - k0], exchange=True)
+                u.gather(drow, exchange=True)
                 u.slot.time = t  # an error in fmi2SetReal names this time
                 u.slot.write(u.buf.in_port)
             if k % out_every == 0:

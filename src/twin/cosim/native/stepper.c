@@ -6,12 +6,17 @@
  *   (1) outputs that became valid at this tick are committed (pending -> raw, raw + bias -> cur),
  *   (2) the inputs of the FMUs due at this tick are gathered and set (connections read the
  *       visible outputs; a delayed connection gives the value of the previous exchange; a
- *       driven input takes its column of the precomputed profile matrix),
+ *       driven input takes its column of the precomputed profile matrix, whose rows are the
+ *       ticks that read it: the multiples of driven_every, twin.cosim.state.driven_ticks),
  *   (3) the row of an output tick is recorded,
  *   (4) the due FMUs step from t to t + period and their outputs become pending (fetched only
  *       where something can read them: fetch_needed).
  * Scenario events are applied by Python between batches. Time is t = k * step_ns / 1e9, from
  * integers, identical to Python's t_ns / 1_000_000_000.
+ *
+ * A tick where nothing happens (no instance due, no output committed, no row recorded) is
+ * counted, not visited: the paper replay's FMUs exchange every tenth tick of its master, and a
+ * Monte Carlo's batch steps sixty instances at once.
  */
 #include <math.h>
 #include <string.h>
@@ -56,23 +61,48 @@ static int fetch_needed(const TwinSlot *s, int64_t k, int64_t k1, int64_t out_ev
     return first_multiple(visible, out_every) < visible + p;
 }
 
-/* The largest number of instances whose next tick the stepper keeps on its stack; a larger
- * system (never met: the tester has five) falls back to the remainder of each tick. */
-#define LOCAL_SLOTS 64
+/* The largest number of instances whose next tick the stepper keeps on its stack (a Monte
+ * Carlo's batch of twenty copies of the five-instance tester holds a hundred); a larger system
+ * falls back to the remainder of each tick and visits every tick. */
+#define LOCAL_SLOTS 512
+
+/* The row of tick k's driven values: the matrix holds the multiples of every from the first
+ * at or after k0; a tick that reads none gets the row before it (nothing reads it), and the
+ * index never leaves the matrix the caller sized (twin.cosim.state.driven_row). */
+static const double *driven_row(const double *driven, int32_t n_driven, int64_t k, int64_t k0, int64_t every) {
+    int64_t r;
+    if (every <= 0) return driven;
+    r = (k - first_multiple(k0, every)) / every;
+    return driven + (r > 0 ? r : 0) * (int64_t)n_driven;
+}
+
+/* The first tick after k where something happens: an instance due, an output committed, a row
+ * recorded, or the batch's end. */
+static int64_t next_event(const TwinSlot *slots, int32_t n_slots, const int64_t *next_due, int64_t k, int64_t next_out,
+                          int64_t k1) {
+    int64_t next = next_out < k1 ? next_out : k1;
+    int32_t i;
+    for (i = 0; i < n_slots; i++) {
+        const int64_t p = *slots[i].pending_at;
+        if (next_due[i] < next) next = next_due[i];
+        if (p > k && p < next) next = p;
+    }
+    return next > k ? next : k + 1;
+}
 
 int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int64_t step_ns, int64_t out_every,
-                   const double *driven, int32_t n_driven, double *rec, int64_t rec_capacity, const TwinColumn *cols,
-                   int32_t n_cols, TwinCounters *c) {
-    int64_t k, next_out = first_multiple(k0, out_every);
+                   const double *driven, int32_t n_driven, int64_t driven_every, double *rec, int64_t rec_capacity,
+                   const TwinColumn *cols, int32_t n_cols, TwinCounters *c) {
+    int64_t k, next, next_out = first_multiple(k0, out_every);
     /* each instance's next tick: its period's multiples, counted instead of divided for */
     int64_t next_due[LOCAL_SLOTS];
     const int counted = n_slots <= LOCAL_SLOTS;
     int32_t i, j;
     for (i = 0; counted && i < n_slots; i++) next_due[i] = first_multiple(k0, slots[i].period_ticks);
-    for (k = k0; k < k1; k++) {
+    for (k = k0; k < k1; k = next) {
         const int64_t t_ns = k * step_ns;
         const double t = (double)t_ns / 1e9;
-        const double *drow = driven + (k - k0) * (int64_t)n_driven;
+        const double *drow = driven_row(driven, n_driven, k, k0, driven_every);
         for (i = 0; i < n_slots; i++) commit(&slots[i], k);
         for (i = 0; i < n_slots; i++) {
             TwinSlot *s = &slots[i];
@@ -132,7 +162,8 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
             *s->pending_at = k + s->period_ticks;
             c->fmu_steps++;
         }
-        c->macro_steps++;
+        next = counted ? next_event(slots, n_slots, next_due, k, next_out, k1) : k + 1;
+        c->macro_steps += next - k; /* this tick and those where nothing happens */
     }
     return STEP_OK;
 }
