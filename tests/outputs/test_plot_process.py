@@ -329,3 +329,25 @@ def test_a_ctrl_c_or_sigterm_is_the_runs_to_handle_not_the_helpers() -> None:
     assert process.running
     process.close()
     assert not process.running
+
+
+def test_the_last_plot_ends_the_helper_once_answered(
+    here: dict[str, bytes], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The only sink's plot closes the helper's input behind it: the helper ends as soon as it
+    has answered, without waiting for the run to release it (its memory beside the run's)."""
+    monkeypatch.setattr(plots, "save_png", lambda *a: pytest.fail("drawn in the run's process"))
+    out = tmp_path / "last"
+    out.mkdir()
+    process = PlotProcess()
+    process.start()
+    helper = process._proc
+    assert helper is not None
+    budget = ErrorBudgetSink(out / "error_budget.png", _columns(), TITLE, process)
+    outcome = _outcome(_table())
+    assert budget.begin(outcome)
+    assert helper.wait(timeout=30) == 0  # ended on its own: the sink still holds the process
+    assert process.users == 1 and process.pending == out / "error_budget.png"
+    budget.close(outcome)  # reads the answer the helper left
+    assert (out / "error_budget.png").read_bytes() == here["error_budget.png"]
+    assert not process.running

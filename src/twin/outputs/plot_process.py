@@ -120,10 +120,28 @@ class PlotProcess:
         """Whether the helper is up (started and not ended)."""
         return self._proc is not None and self._proc.poll() is None
 
-    def send(self, kind: str, path: Path, table: SignalTable, columns: Mapping[str, Any], title: str) -> bool:
+    @property
+    def users(self) -> int:
+        """The sinks that draw through this process and have not released it."""
+        return self._users
+
+    def send(
+        self,
+        kind: str,
+        path: Path,
+        table: SignalTable,
+        columns: Mapping[str, Any],
+        title: str,
+        *,
+        last: bool = False,
+    ) -> bool:
         """Hand the helper a plot to draw and return while it draws (:meth:`answer` waits for
         it). False when the helper is not there, died, or has a plot in hand already (one at
-        a time); the caller then draws in process, or sends again once answered.
+        a time); the caller then draws in process, or sends again once answered. The ``last``
+        plot closes the helper's input behind it: the helper ends as soon as it has answered,
+        instead of holding matplotlib's memory beside the run's until the run's outputs are
+        all written (the paper replay's recording imports rerun meanwhile: the two processes'
+        peaks fell together).
 
         The job is written to the helper's input by a thread: a helper still importing
         matplotlib does not read it yet, and the pipe holds only 64 KiB of the job's few
@@ -140,7 +158,9 @@ class PlotProcess:
         header |= {"n": len(table.time), "names": names}
         data = np.stack([table.time, *(table[n] for n in names)]).astype("<f8", copy=False)
         job = json.dumps(header).encode("utf-8") + b"\n" + np.ascontiguousarray(data).tobytes()
-        self._feeder = threading.Thread(target=_feed, args=(proc.stdin, job), name="plot job", daemon=True)
+        self._feeder = threading.Thread(
+            target=_feed, args=(proc.stdin, job, last), name="plot job", daemon=True
+        )
         self._feeder.start()
         self._sent = True
         self._pending = path
@@ -227,11 +247,14 @@ class PlotProcess:
             proc.stdout.close()
 
 
-def _feed(stdin: IO[bytes], job: bytes) -> None:
-    """Write one job to the helper's input (the thread of :meth:`PlotProcess.send`)."""
+def _feed(stdin: IO[bytes], job: bytes, last: bool) -> None:
+    """Write one job to the helper's input (the thread of :meth:`PlotProcess.send`), and
+    close that input behind the ``last`` one."""
     try:
         stdin.write(job)
         stdin.flush()
+        if last:
+            stdin.close()
     except (OSError, ValueError):  # the helper died (BrokenPipeError), or its input was closed
         pass
 
@@ -292,8 +315,11 @@ def main() -> int:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     from twin.outputs import plots
 
-    plots.warm_up()
     stdin, stdout = sys.stdin.buffer, sys.stdout
+    # the fonts are loaded ahead only while no plot waits: a plot sent during matplotlib's
+    # import (the paper replay's comes first) loads them itself, and the run waits less
+    if not _waiting(stdin):
+        plots.warm_up()
     while line := stdin.readline():
         try:
             header, table = _read_job(line, stdin)
@@ -309,6 +335,16 @@ def main() -> int:
         stdout.write(json.dumps(answer) + "\n")
         stdout.flush()
     return 0
+
+
+def _waiting(stream: IO[bytes]) -> bool:
+    """Whether the helper's input has something to read now (a job, or its end)."""
+    import select
+
+    try:
+        return bool(select.select([stream], [], [], 0)[0])
+    except (OSError, ValueError):
+        return False
 
 
 def columns_json(columns: Any) -> dict[str, Any]:

@@ -117,8 +117,14 @@ class _PlotSink(OutcomeSink):
         """Whether the plot process took it (False: draw it here)."""
         if self.process is None or not self.process.running:
             return False
+        # the only sink left drawing through the process sends its last plot
         return self.process.send(
-            self.kind, self.path, thinned(table, names), columns_json(columns), self.title
+            self.kind,
+            self.path,
+            thinned(table, names),
+            columns_json(columns),
+            self.title,
+            last=self.process.users == 1,
         )
 
 
