@@ -5,16 +5,25 @@ profiles: the same instances, connections, periods and recorded columns (one
 :func:`structure`). Run one by one, every sample pays the master's Python around its FMU work
 (simpy's clock, a profile matrix and a row buffer per batch of ticks, the recorder) for a few
 milliseconds of stepping. Stepped together, the copies' instances are one array of slots for
-the stepper's one call per batch of ticks: copy ``c``'s instance ``i`` is slot ``c * M + i``,
-its connections read the slots of its own copy and its driven inputs the columns of its own
-copy. The copies share nothing and each one's FMUs are called in the same order with the same
-values as alone, so every copy's rows are bit for bit those of its run alone
-(tests/cosim/test_batch.py).
+the stepper's one call per batch of ticks: each copy's connections read the slots of its own
+copy's instances and its driven inputs the columns of its own copy.
+
+Copies often run some instance the same way: a Monte Carlo's updated sample is its prior
+sample with the tester's posterior set, which sets the mechanics' and the sensors' parameters
+only, so both samples' thermal networks make the very same calls. Such an instance (the same
+model, parameters, seeds, start values and driven profiles, fed only by instances that are
+the same in turn: :func:`identities`, from the plans' values, never from the model's name) is
+opened and stepped once, by the first copy that has it; the others read its slot where they
+would read their own, and their initialization reads what its initialization read. Every
+FMU is still called in the order and with the values of its run alone (the stepper gathers
+every input before any instance steps), so every copy's rows are bit for bit those of its run
+alone (tests/cosim/test_batch.py).
 
 What a batch does not do, it refuses (:func:`unbatchable`): scenario events, algebraic loops
 (the Python loop's). A copy whose FMUs fail in their set-up or while stepping
 is not run on: the caller runs it alone (:attr:`BatchRuns.alone`), where the master reports
-the failure as it would anyway, with everything recorded up to it.
+the failure as it would anyway, with everything recorded up to it; the others are opened and
+run again without it (a copy that borrowed its instance opens its own).
 """
 
 from __future__ import annotations

@@ -85,7 +85,8 @@ def run_samples(
     """The prepared run's Monte Carlo: per sample its room shape and figures, in sample order.
 
     Samples run in this process, :data:`IN_PROCESS_BATCH` at a time with their FMUs stepped
-    together (:func:`twin.pipeline.point.batch_tasks`), for as long as the samples left would
+    together (:func:`twin.pipeline.point.batch_tasks`; prior and updated sample ``i`` in one
+    batch: :func:`_batches`), for as long as the samples left would
     take less than a local cluster saves: then the rest go to Dask (:func:`_cluster_pays`).
     ``controls.stop`` answering a signal's name ends it after the samples done so far
     (``"interrupted"`` then names it); ``on_stop(name)`` is called then, before a cluster
