@@ -100,7 +100,8 @@ def run_samples(
     updated = min(unc.samples, len(tester.draws)) if tester is not None else 0
     makers = {montecarlo.PRIOR: make}
     if tester is not None and updated:
-        makers[montecarlo.UPDATED] = montecarlo.updated_sampler(make, tester)
+        makers = _paired_draws(make, updated)
+        makers[montecarlo.UPDATED] = montecarlo.updated_sampler(makers[montecarlo.UPDATED], tester)
     total = unc.samples + updated
 
     def which(i: int) -> tuple[str, int]:
@@ -207,6 +208,27 @@ def _others(busy0: float | None, busy1: float | None, cpu_s: float, wall_s: floa
     if busy0 is None or busy1 is None or wall_s <= 0:
         return 0.0
     return max(0.0, (busy1 - busy0 - cpu_s) / wall_s)
+
+
+def _paired_draws(
+    make: Callable[[int], montecarlo.Draw], updated: int
+) -> dict[str, Callable[[int], montecarlo.Draw]]:
+    """Prior sample ``i``'s draw for the prior and for the updated prediction (what its updated
+    sample sets the posterior on): made once, kept from the prior sample to the updated one
+    (the two come in one batch: :func:`_batches`), made again where the prior's was not kept."""
+    kept: dict[int, montecarlo.Draw] = {}
+
+    def prior(i: int) -> montecarlo.Draw:
+        draw = make(i)
+        if i < updated:
+            kept[i] = draw
+        return draw
+
+    def again(i: int) -> montecarlo.Draw:
+        draw = kept.pop(i, None)
+        return make(i) if draw is None else draw
+
+    return {montecarlo.PRIOR: prior, montecarlo.UPDATED: again}
 
 
 def _batches(prior: int, updated: int) -> list[list[int]]:
