@@ -127,3 +127,16 @@ def test_prior_and_updated_sample_i_share_their_thermal_network_and_every_sample
     paired = (tmp_path / "paired" / "uncertainty.csv").read_bytes()
     assert paired.count(b"\n") == 1 + 40 and b",failed," not in paired
     assert paired == (tmp_path / "alone" / "uncertainty.csv").read_bytes()
+
+
+@pytest.mark.parametrize(("prior", "updated"), [(200, 200), (200, 13), (30, 12), (30, 0), (4, 4), (0, 0)])
+def test_batches_hold_every_sample_once_and_prior_and_updated_sample_i_together(
+    prior: int, updated: int
+) -> None:
+    batches = run_module._batches(prior, updated)
+    size = max(1, min(run_module.IN_PROCESS_BATCH, (prior + updated) // 10))
+    assert sorted(i for b in batches for i in b) == list(range(prior + updated))
+    assert all(0 < len(b) <= size for b in batches)
+    if size > 1:  # a batch of one sample cannot hold two
+        where = {i: n for n, b in enumerate(batches) for i in b}
+        assert all(where[i] == where[prior + i] for i in range(updated))
