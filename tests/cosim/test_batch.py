@@ -207,6 +207,15 @@ def test_a_copy_that_borrowed_the_failed_copy_s_instance_then_runs_its_own(tmp_p
     assert failed.status == "failed" and "t_base" in str(failed.error) and 0 < failed.macro_steps < 720
     for i in (1, 2):
         _same(Master(plans[i]).run(), results[i])
+    # the instance that fails shared too: the second copy runs the first's mechanics, fails
+    # alone as well on its own, and the third, which shares only their thermal network, is run
+    twice = [plans[0], make_plan(load_scenario(_heated(tmp_path, "t", 3000.0, 100.0))), plans[1]]
+    ids = identities(twice)
+    assert ids[0] == ids[1] and ids[2][0] == ids[0][0] and ids[2][1] != ids[0][1]
+    borrowed, results, opened = _placed(twice, SlotPool(per_key=3))
+    assert borrowed == {2: {}} and opened == 2
+    assert results[0] is None and results[1] is None
+    _same(Master(twice[2]).run(), results[2])
 
 
 def test_plans_of_another_structure_or_with_events_are_refused(tmp_path: Path) -> None:
