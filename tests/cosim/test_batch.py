@@ -13,7 +13,7 @@ import pytest
 from twin.config.load import load_scenario, scenarios_dir
 from twin.config.spec import NS_PER_S, Event, Scenario
 from twin.cosim import make_plan
-from twin.cosim.batch import Batch, run_batch, structure, unbatchable
+from twin.cosim.batch import Batch, identities, run_batch, structure, unbatchable
 from twin.cosim.master import Master
 from twin.errors import FMUError
 from twin.fmu.pool import SlotPool
@@ -71,7 +71,71 @@ def test_kept_columns_only_and_the_same_values() -> None:
             assert table[name].tobytes() == alone[name].tobytes()
 
 
-def _heated(tmp_path: Path, name: str, watts: float) -> Path:
+def _placed(plans: list, pool: SlotPool) -> tuple[dict[int, dict[str, int]], dict[int, object], int]:
+    """Run ``plans`` as one batch: per copy the instances it borrowed (name -> the copy that ran
+    it), its results, and the instances the batch opened (after its retries)."""
+    with Batch(plans, {c.meta.name for c in plans[0].columns}, pool) as batch:
+        batch.open().step()
+        names = [i.name for i in plans[0].instances]
+        borrowed = {c.index: {names[i]: o.index for i, o in c.borrowed.items()} for c in batch.copies}
+        opened = sum(len(c.slots) for c in batch.copies)
+        done = batch.results()
+    return borrowed, {**done.results, **dict.fromkeys(done.alone)}, opened
+
+
+def test_an_instance_the_same_in_two_copies_runs_once_and_every_copy_is_its_run_alone() -> None:
+    base = _paper(60)
+    room = "thermal.t_room"
+    own = base.with_seed(100).with_input(
+        shaped(base, room, "ramp", smooth_drift(np.random.default_rng(1), 1.0), "test: a sample's room")
+    )
+    c_base = own.fmu("thermal").parameters["c_base"].value
+    scenarios = [
+        own,
+        own.with_parameters("mechanics", {"alpha_base": 12e-6}),  # the thermal network's run the same
+        own.with_parameters("thermal", {"c_base": c_base * (1 + 1e-9)}),  # a heat capacity a little apart
+        own,  # the same throughout
+        own.with_seed(101),  # another noise seed: the sensors' only
+        own.with_input(  # another room: the thermal network's input, so all three differ
+            shaped(base, room, "s-curve", smooth_drift(np.random.default_rng(1), 1.0), "test: another room")
+        ),
+    ]
+    plans = [make_plan(s) for s in scenarios]
+    borrowed, results, opened = _placed(plans, SlotPool(per_key=6))
+    assert borrowed == {
+        0: {},
+        1: {"thermal": 0},
+        2: {},
+        3: {"thermal": 0, "mechanics": 0, "sensors": 0},
+        4: {"thermal": 0, "mechanics": 0},
+        5: {},
+    }
+    assert opened == 6 * 3 - 6
+    for i, plan in enumerate(plans):
+        _same(Master(plan).run(), results[i])
+    # what was shared is what the copies do have in common (the check above can fail)
+    probe = [results[i].table["sensors.probe_meas"].tobytes() for i in range(6)]
+    base_t = [results[i].table["thermal.t_base"].tobytes() for i in range(6)]
+    assert probe[0] == probe[3] and len({probe[i] for i in (0, 1, 4, 5)}) == 4
+    # another heat capacity: another temperature of the base (the probe's quantized reading may not see it)
+    assert base_t[0] == base_t[1] == base_t[4] and base_t[2] != base_t[0] and base_t[5] != base_t[0]
+
+
+def test_identities_tell_apart_what_is_equal_but_not_the_same_bits() -> None:
+    plan = make_plan(_paper(10))
+    thermal = [i.name for i in plan.instances].index("thermal")
+
+    def share(value: float) -> object:  # the base's share of the friction heat (none)
+        return make_plan(plan.scenario.with_parameters("thermal", {"fric_share_base": value}))
+
+    ulp = float(np.nextafter(0.0, 1.0))
+    same = identities([share(0.0), share(0.0), share(-0.0), share(ulp)])
+    assert same[0] == same[1] and same[0][thermal] != same[2][thermal] != same[3][thermal]
+    # what feeds an instance counts: the mechanics are fed by the thermal network
+    assert same[0][1:] == same[1][1:] and same[0][1:] != same[2][1:]
+
+
+def _heated(tmp_path: Path, name: str, watts: float, offset: float = 0.0) -> Path:
     path = tmp_path / f"{name}.toml"
     path.write_text(f"""
 [scenario]
@@ -90,7 +154,7 @@ model = "FixtureMechanics"
 period = "10 s"
 unconnected = "a test system: the inputs nothing feeds keep their start values"
 [connections]
-"thermal.t_oil" = "mechanics.t_base"
+"thermal.t_oil" = {{ to = "mechanics.t_base", offset = {offset} }}
 [input.thermal.q_hydraulic]
 profile = "constant"
 value = {watts}
@@ -127,6 +191,31 @@ def test_a_copy_that_fails_runs_alone_and_the_others_are_unchanged(tmp_path: Pat
     failed = Master(plans[1]).run()  # what its run alone says
     assert failed.status == "failed" and "fmi2SetReal" in str(failed.error), failed.error
     assert 0 < failed.macro_steps < 720  # mid-run: after the set-up, before the end
+
+
+def test_a_copy_that_borrowed_the_failed_copy_s_instance_then_runs_its_own(tmp_path: Path) -> None:
+    """The first copy's thermal network runs for the others; its mechanics, fed 100 K more,
+    go past what they accept (473 K) mid-run: the others are run again without it, the second
+    copy with a thermal network of its own, and each is still its run alone."""
+    offsets = [100.0, 0.0, 0.0]
+    plans = [make_plan(load_scenario(_heated(tmp_path, f"s{i}", 3000.0, o))) for i, o in enumerate(offsets)]
+    assert identities(plans)[0][0] == identities(plans)[1][0]  # one thermal network for all three
+    borrowed, results, opened = _placed(plans, SlotPool(per_key=3))
+    assert borrowed == {1: {}, 2: {"thermal": 1, "mechanics": 1}} and opened == 2
+    assert results[0] is None  # left to run alone
+    failed = Master(plans[0]).run()
+    assert failed.status == "failed" and "t_base" in str(failed.error) and 0 < failed.macro_steps < 720
+    for i in (1, 2):
+        _same(Master(plans[i]).run(), results[i])
+    # the instance that fails shared too: the second copy runs the first's mechanics, fails
+    # alone as well on its own, and the third, which shares only their thermal network, is run
+    twice = [plans[0], make_plan(load_scenario(_heated(tmp_path, "t", 3000.0, 100.0))), plans[1]]
+    ids = identities(twice)
+    assert ids[0] == ids[1] and ids[2][0] == ids[0][0] and ids[2][1] != ids[0][1]
+    borrowed, results, opened = _placed(twice, SlotPool(per_key=3))
+    assert borrowed == {2: {}} and opened == 2
+    assert results[0] is None and results[1] is None
+    _same(Master(twice[2]).run(), results[2])
 
 
 def test_plans_of_another_structure_or_with_events_are_refused(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ samples, byte for byte: where a sample runs is a matter of time, never of its fi
 from __future__ import annotations
 
 import importlib
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -95,3 +96,47 @@ def test_what_lives_before_the_samples_is_frozen_for_them_and_thawed_after(
     with pytest.raises(RuntimeError, match="a sample's bug"):
         main([*small, "--out", str(tmp_path / "b")])
     assert gc.get_freeze_count() == 0
+
+
+def test_prior_and_updated_sample_i_share_their_thermal_network_and_every_sample_is_as_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The default run's Monte Carlo (the shipped updated tester: prior and posterior samples)
+    pairs prior sample i with updated sample i in a batch, where their thermal network, which
+    the posterior does not touch, runs once; its samples are those of batches of one sample
+    each (every sample its run alone), byte for byte."""
+    import twin.cosim.batch as batch_module
+
+    opened: list[str] = []
+    real_open = batch_module.open_slots
+
+    def counted(plan: object, *args: object, **kwargs: object) -> object:
+        slots = real_open(plan, *args, **kwargs)
+        opened.extend(slot.name for slot in slots)
+        return slots
+
+    monkeypatch.setattr(batch_module, "open_slots", counted)
+    monkeypatch.setattr(run_module, "CLUSTER_START_S", 1e9)  # in process however loaded the machine
+    small = ["run", "--uncertainty", "20", "--set", 'scenario.duration="30 min"']
+    assert main([*small, "--out", str(tmp_path / "paired")]) == 0
+    assert sorted(Counter(opened).items()) == [("mechanics", 40), ("sensors", 40), ("thermal", 20)]
+    opened.clear()
+    monkeypatch.setattr(run_module, "IN_PROCESS_BATCH", 1)
+    assert main([*small, "--out", str(tmp_path / "alone")]) == 0
+    assert Counter(opened)["thermal"] == 40
+    paired = (tmp_path / "paired" / "uncertainty.csv").read_bytes()
+    assert paired.count(b"\n") == 1 + 40 and b",failed," not in paired
+    assert paired == (tmp_path / "alone" / "uncertainty.csv").read_bytes()
+
+
+@pytest.mark.parametrize(("prior", "updated"), [(200, 200), (200, 13), (30, 12), (30, 0), (4, 4), (0, 0)])
+def test_batches_hold_every_sample_once_and_prior_and_updated_sample_i_together(
+    prior: int, updated: int
+) -> None:
+    batches = run_module._batches(prior, updated)
+    size = max(1, min(run_module.IN_PROCESS_BATCH, (prior + updated) // 10))
+    assert sorted(i for b in batches for i in b) == list(range(prior + updated))
+    assert all(0 < len(b) <= size for b in batches)
+    if size > 1:  # a batch of one sample cannot hold two
+        where = {i: n for n, b in enumerate(batches) for i in b}
+        assert all(where[i] == where[prior + i] for i in range(updated))

@@ -5,25 +5,38 @@ profiles: the same instances, connections, periods and recorded columns (one
 :func:`structure`). Run one by one, every sample pays the master's Python around its FMU work
 (simpy's clock, a profile matrix and a row buffer per batch of ticks, the recorder) for a few
 milliseconds of stepping. Stepped together, the copies' instances are one array of slots for
-the stepper's one call per batch of ticks: copy ``c``'s instance ``i`` is slot ``c * M + i``,
-its connections read the slots of its own copy and its driven inputs the columns of its own
-copy. The copies share nothing and each one's FMUs are called in the same order with the same
-values as alone, so every copy's rows are bit for bit those of its run alone
-(tests/cosim/test_batch.py).
+the stepper's one call per batch of ticks: each copy's connections read the slots of its own
+copy's instances and its driven inputs the columns of its own copy.
+
+Copies often run some instance the same way: a Monte Carlo's updated sample is its prior
+sample with the tester's posterior set, which sets the mechanics' and the sensors' parameters
+only, so both samples' thermal networks make the very same calls. Such an instance (the same
+model, parameters, seeds, start values and driven profiles, fed only by instances that are
+the same in turn: :func:`identities`, from the plans' values, never from the model's name) is
+opened and stepped once, by the first copy that has it; the others read its slot where they
+would read their own, and their initialization reads what its initialization read. Every
+FMU is still called in the order and with the values of its run alone (the stepper gathers
+every input before any instance steps), so every copy's rows are bit for bit those of its run
+alone (tests/cosim/test_batch.py).
 
 What a batch does not do, it refuses (:func:`unbatchable`): scenario events, algebraic loops
 (the Python loop's). A copy whose FMUs fail in their set-up or while stepping
 is not run on: the caller runs it alone (:attr:`BatchRuns.alone`), where the master reports
-the failure as it would anyway, with everything recorded up to it.
+the failure as it would anyway, with everything recorded up to it; the others are opened and
+run again without it (a copy that borrowed its instance opens its own).
 """
 
 from __future__ import annotations
 
 import ctypes
+import dataclasses
+import marshal
 import time
+from collections import Counter
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -37,7 +50,7 @@ from twin.cosim.state import State, driven_every, driven_ticks, make_state
 from twin.cosim.stepping import final_tick
 from twin.errors import RunError
 from twin.fmu.pool import SlotPool
-from twin.fmu.slot import FMUSlot
+from twin.fmu.slot import FMUSlot, NativeHandles, RealPort
 from twin.signals.table import SignalTable
 
 __all__ = ["Batch", "BatchRuns", "run_batch", "structure", "unbatchable"]
@@ -86,8 +99,11 @@ class _Copy:
     index: int
     plan: Plan
     state: State
-    slots: list[FMUSlot]
+    slots: list[FMUSlot]  # the instances it opened (not those it borrows)
     loop: NativeLoop
+    #: the instances whose run another copy's same-named instance runs for it (its index ->
+    #: that copy, opened before it): :func:`identities`
+    borrowed: dict[int, _Copy] = field(default_factory=dict)
     #: after the run: the rows of every copy and this copy's place among them, and its
     #: macro steps and FMU steps
     rows: tuple[_Rows, int] | None = None
@@ -120,6 +136,7 @@ class Batch:
         self._attempted = False
         self._failed: int | None = None  # the copy whose FMU failed in the last attempt
         self._files: dict[str, Path] | None = None  # each model's .fmu (found at open)
+        self._identities = identities(self.plans)
 
     def open(self) -> Batch:
         """Load and initialize every copy; a copy an FMU refuses goes to :attr:`alone`."""
@@ -130,8 +147,9 @@ class Batch:
                 self._files = fmu_files(self.plans[0])
             except RunError:
                 self._files = None  # each copy finds it again, fails and runs alone (its error told)
+        sharing = _Sharing(self._identities)
         for index, plan in enumerate(self.plans):
-            copy = _open(index, plan, self.pool, self._files)
+            copy = _open(index, plan, self.pool, self._files, sharing)
             if copy is None:
                 self.alone.append(index)
             else:
@@ -153,8 +171,11 @@ class Batch:
                 close_slots(c.slots)
                 c.slots = []
             reopened = []
+            # shared again among those left: a copy that borrowed the failed one's instance
+            # opens its own (or another's), so that it runs as it would alone
+            sharing = _Sharing(self._identities)
             for c in (c for i, c in enumerate(self.copies) if i != failed):
-                again = _open(c.index, c.plan, self.pool, self._files)
+                again = _open(c.index, c.plan, self.pool, self._files, sharing)
                 if again is None:
                     self.alone.append(c.index)
                 else:
@@ -201,20 +222,193 @@ def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | Non
         return batch.results()
 
 
-def _open(index: int, plan: Plan, pool: SlotPool | None, files: Mapping[str, Path] | None) -> _Copy | None:
-    """Copy ``index``'s instances loaded and initialized (None: an FMU refused)."""
+def _open(
+    index: int, plan: Plan, pool: SlotPool | None, files: Mapping[str, Path] | None, sharing: _Sharing
+) -> _Copy | None:
+    """Copy ``index``'s instances loaded and initialized (None: an FMU refused), but those a
+    copy opened before runs for it (``sharing``): their initialization is replayed to it."""
+    ids = sharing.identities[index]
+    lent = {i: sharing.owners[ident] for i, ident in enumerate(ids) if ident in sharing.owners}
+    own = [i for i in range(len(plan.instances)) if i not in lent]
     # what an FMU's refusal raises; anything else is a bug and goes up
     try:
-        slots = open_slots(plan, pool, files=files)
+        # the instances it opens: a plan of those alone (open_slots reads their list only)
+        slots = open_slots(
+            dataclasses.replace(plan, instances=tuple(plan.instances[i] for i in own)) if lent else plan,
+            pool,
+            files=files,
+        )
     except RunError:
         return None
+    fmus: list[Any] = [None] * len(plan.instances)
+    for i, slot in zip(own, slots, strict=True):
+        fmus[i] = _Recorded(slot) if sharing.wanted(ids[i]) else slot
+    for i, (_, recorded) in lent.items():
+        fmus[i] = _Replayed(recorded)
     try:
         state = make_state(plan)
-        initialize(plan, state, slots)
-        return _Copy(index, plan, state, slots, NativeLoop(plan, state, slots))
+        initialize(plan, state, fmus)
+        copy = _Copy(index, plan, state, slots, NativeLoop(plan, state, fmus))
     except RunError:
         close_slots(slots)
         return None
+    copy.borrowed = {i: owner for i, (owner, _) in lent.items()}
+    for i in own:
+        if isinstance(fmus[i], _Recorded):
+            sharing.owners.setdefault(ids[i], (copy, fmus[i]))
+    return copy
+
+
+# ---------------------------------------------------------------- instances run once for many
+
+
+def identities(plans: Sequence[Plan]) -> list[list[int]]:
+    """Per plan, per instance: a number that two instances share only when their runs are the
+    same call for call, so that one run serves both: the same model, name and period, the
+    same parameters (the noise seed among them) and start values, each driven input driven
+    by the same column (its profile's data), each connected input fed from instances that
+    are the same in turn (their numbers equal), told apart by exact values (0.0 from -0.0).
+
+    The numbers are refined from what each instance is given to what feeds it until no class
+    splits: the coarsest partition in which every instance's sources are in its class's
+    sources' classes, so a cycle of delayed connections is shared whole or not at all."""
+    own: dict[object, int] = {}
+    ids = [[own.setdefault(_given(plan, i), len(own)) for i in range(len(plan.instances))] for plan in plans]
+    n = len(own)
+    while True:
+        refined: dict[object, int] = {}
+        ids = [
+            [
+                refined.setdefault(
+                    (ids[c][i], tuple(ids[c][p.src] for p in inst.inputs if p.kind != InputKind.DRIVEN)),
+                    len(refined),
+                )
+                for i, inst in enumerate(plan.instances)
+            ]
+            for c, plan in enumerate(plans)
+        ]
+        if len(refined) == n:
+            return ids
+        n = len(refined)
+
+
+def _given(plan: Plan, i: int) -> object:
+    """What the plan gives instance ``i`` but its connections' sources, as a key of exact
+    values: names compared as strings, numbers by their bits (:func:`_bits`)."""
+    inst = plan.instances[i]
+    return (
+        inst.name, inst.model, inst.period_ns, inst.period_ticks, inst.outputs, inst.out_vrs,
+        plan.scenario.start_ns,
+        tuple(name for name, _ in inst.parameters), _bits(tuple(v for _, v in inst.parameters)),
+        tuple((p.name, p.vr, int(p.kind), p.idx) for p in inst.inputs),
+        _bits(tuple((p.initial, p.factor, p.offset) for p in inst.inputs)),
+        tuple(_driven_spec(plan, p.src) for p in inst.inputs if p.kind == InputKind.DRIVEN),
+    )  # fmt: skip
+
+
+def _driven_spec(plan: Plan, column: int) -> object:
+    """How a driven column is driven, as a key of exact values: a profile by its data, not its
+    place in the scenario; its table (a sample's room: hundreds of points) by the float64
+    bits the profile evaluates."""
+    spec = plan.driven[column]
+    if spec[0] != "profile":
+        return _bits(spec)
+    profile = plan.scenario.profiles[int(spec[1])]
+    table = np.array(profile.table, dtype=np.float64)
+    params = sorted(profile.params.items())
+    return (
+        profile.target, profile.kind, profile.source, tuple(k for k, _ in params),
+        _bits(tuple(v for _, v in params)), table.shape, table.tobytes(),
+    )  # fmt: skip
+
+
+def _bits(values: tuple[Any, ...]) -> object:
+    """``values`` (numbers, strings, tuples of them) as a key equal to another's only when the
+    two are the same bit for bit: a float by its eight bytes (0.0 is not -0.0), an int, a
+    bool and a float told apart, one serialization (marshal's, which writes no references
+    to objects before version 3) of the values only, never read back. A value it cannot
+    write is a key equal to nothing else: its instance is never shared."""
+    try:
+        return marshal.dumps(values, 2)
+    except ValueError:
+        return object()
+
+
+class _Sharing:
+    """While a batch opens its copies: which instance a copy opened runs for the copies after
+    it (by :func:`identities`), with what its initialization read."""
+
+    def __init__(self, ids: Sequence[Sequence[int]]) -> None:
+        self.identities = ids
+        self.owners: dict[int, tuple[_Copy, _Recorded]] = {}
+        seen: Counter[int] = Counter(x for row in ids for x in row)
+        self._many = {x for x, k in seen.items() if k > 1}
+
+    def wanted(self, ident: int) -> bool:
+        """Whether another copy has an instance of this identity (its calls are recorded)."""
+        return ident in self._many
+
+
+class _Recorded:
+    """An opened instance whose initialization is recorded for the copies that borrow it:
+    every port it is given and every value read from it, in order."""
+
+    def __init__(self, slot: FMUSlot) -> None:
+        self.slot = slot
+        self.name = slot.name
+        self.calls: list[tuple[str, bytes, bytes]] = []
+
+    def enter_initialization(self) -> None:
+        self.slot.enter_initialization()
+
+    def exit_initialization(self) -> None:
+        self.slot.exit_initialization()
+
+    def write(self, port: RealPort) -> None:
+        self.slot.write(port)
+        self.calls.append(("write", bytes(port.vr), port.values[: port.n].tobytes()))
+
+    def read(self, port: RealPort) -> None:
+        self.slot.read(port)
+        self.calls.append(("read", bytes(port.vr), port.values[: port.n].tobytes()))
+
+    def native_handles(self) -> NativeHandles:
+        return self.slot.native_handles()
+
+
+class _Replayed:
+    """A borrowed instance as the borrowing copy's initialization sees it: its calls are
+    those the owner's were (the same plan's order, the same values: the same identity), so
+    each read gives what the owner's read gave. A call that is not the owner's next is a
+    :class:`~twin.errors.RunError`: the copy then runs alone, on an instance of its own."""
+
+    def __init__(self, recorded: _Recorded) -> None:
+        self.recorded = recorded
+        self.name = recorded.name
+        self.at = 0
+
+    def enter_initialization(self) -> None:
+        pass  # the owner's instance did
+
+    def exit_initialization(self) -> None:
+        pass
+
+    def _next(self, call: str, port: RealPort) -> bytes:
+        calls = self.recorded.calls
+        if self.at >= len(calls) or calls[self.at][:2] != (call, bytes(port.vr)):
+            raise RunError(f"instance {self.name} is not initialized as the one it borrows (a bug)")
+        self.at += 1
+        return calls[self.at - 1][2]
+
+    def write(self, port: RealPort) -> None:
+        if self._next("write", port) != port.values[: port.n].tobytes():
+            raise RunError(f"instance {self.name} is given other values than the one it borrows (a bug)")
+
+    def read(self, port: RealPort) -> None:
+        port.values[: port.n] = np.frombuffer(self._next("read", port), dtype=np.float64)
+
+    def native_handles(self) -> NativeHandles:
+        return self.recorded.native_handles()  # never stepped: the owner's slot runs for it
 
 
 class _Rows:
@@ -232,22 +426,12 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
     """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
     failed, else None (every copy's rows in ``copy.rows``)."""
     plan = copies[0].plan
-    m, n_driven, n_cols = len(plan.instances), max(len(plan.driven), 1), len(kept)
-    slots = (TwinSlot * (m * len(copies)))()
-    alive = []  # the per-copy source arrays the combined slots point at
-    for c, copy in enumerate(copies):
-        for i, inst in enumerate(plan.instances):
-            slots[c * m + i] = copy.loop.slots[i]  # a copy of the struct: pointers into copy's state
-            s = slots[c * m + i]  # shares the array's memory
-            src = np.array(
-                [p.src + (c * m if p.kind != InputKind.DRIVEN else c * n_driven) for p in inst.inputs] or [0],
-                dtype=np.int32,
-            )
-            alive.append(src)
-            s.in_src = src.ctypes.data
+    n_driven, n_cols = max(len(plan.driven), 1), len(kept)
+    placed = _Placed(copies, n_driven)
+    slots = placed.slots
     cols = (TwinColumn * max(n_cols * len(copies), 1))(
         *[
-            TwinColumn(c * m + col.instance, col.kind, col.idx, 0)
+            TwinColumn(placed.slot_of[c][col.instance], col.kind, col.idx, 0)
             for c in range(len(copies))
             for col in (plan.columns[j] for j in kept)
         ]
@@ -269,13 +453,76 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
         if status == Status.OVERFLOW:
             raise RunError("the stepper's row buffer was too small (a bug in the batch)")
         if status != Status.OK:
-            return int(counters.fail_slot) // m
+            return placed.copy_at[int(counters.fail_slot)]
         rows.done += int(counters.rows)
         k = k1
+    fmu_steps = _fmu_steps(plan)
     for c, copy in enumerate(copies):
-        copy.counters = (int(counters.macro_steps), int(counters.fmu_steps) // len(copies))
+        copy.counters = (int(counters.macro_steps), fmu_steps)
         copy.rows = (rows, c)
+        _take_over(copy)
     return None
+
+
+class _Placed:
+    """The stepper's slots for ``copies``: one per instance a copy opened (its borrowed ones
+    are its owners' slots), the connections of each reading the slots of its own copy's
+    sources and its driven inputs the columns of its own copy (``n_driven`` a copy)."""
+
+    def __init__(self, copies: Sequence[_Copy], n_driven: int) -> None:
+        plan = copies[0].plan
+        where = {id(copy): c for c, copy in enumerate(copies)}
+        #: per copy, per instance: the slot that runs it
+        self.slot_of: list[list[int]] = []
+        #: per slot: the copy (its place in ``copies``) that opened it, and its instance
+        mine: list[tuple[int, int]] = []
+        for c, copy in enumerate(copies):
+            row = []
+            for i in range(len(plan.instances)):
+                owner = copy.borrowed.get(i)
+                if owner is None:
+                    row.append(len(mine))
+                    mine.append((c, i))
+                else:  # opened before it: placed already
+                    row.append(self.slot_of[where[id(owner)]][i])
+            self.slot_of.append(row)
+        self.copy_at = [c for c, _ in mine]
+        self.slots = (TwinSlot * len(mine))()
+        self._alive = []  # the source arrays the slots point at
+        for n, (c, i) in enumerate(mine):
+            self.slots[n] = copies[c].loop.slots[i]  # a copy of the struct: pointers into copy c's state
+            s = self.slots[n]  # shares the array's memory
+            src = np.array(
+                [
+                    c * n_driven + p.src if p.kind == InputKind.DRIVEN else self.slot_of[c][p.src]
+                    for p in plan.instances[i].inputs
+                ]
+                or [0],
+                dtype=np.int32,
+            )
+            self._alive.append(src)
+            s.in_src = src.ctypes.data
+
+
+def _fmu_steps(plan: Plan) -> int:
+    """The FMU steps of a copy's run: each instance's, at the multiples of its period (as its
+    run alone counts them; a borrowed instance's are its owner's)."""
+    k0, end = plan.start_tick, plan.n_ticks
+    return sum(
+        len(range(-(-k0 // i.period_ticks) * i.period_ticks, end, i.period_ticks)) for i in plan.instances
+    )
+
+
+def _take_over(copy: _Copy) -> None:
+    """A borrowed instance's exchange state at the end is its owner's: the copy's last row
+    (:func:`twin.cosim.stepping.final_tick`) reads it as it reads its own instances'."""
+    for i, owner in copy.borrowed.items():
+        mine, theirs = copy.state.buffers[i], owner.state.buffers[i]
+        for name in ("delay_buf", "raw", "cur", "bias"):
+            np.copyto(getattr(mine, name), getattr(theirs, name))
+        np.copyto(mine.in_port.values, theirs.in_port.values)
+        np.copyto(mine.out_port.values, theirs.out_port.values)
+        copy.state.pending_at[i] = owner.state.pending_at[i]
 
 
 def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int) -> np.ndarray:

@@ -85,7 +85,8 @@ def run_samples(
     """The prepared run's Monte Carlo: per sample its room shape and figures, in sample order.
 
     Samples run in this process, :data:`IN_PROCESS_BATCH` at a time with their FMUs stepped
-    together (:func:`twin.pipeline.point.batch_tasks`), for as long as the samples left would
+    together (:func:`twin.pipeline.point.batch_tasks`; prior and updated sample ``i`` in one
+    batch: :func:`_batches`), for as long as the samples left would
     take less than a local cluster saves: then the rest go to Dask (:func:`_cluster_pays`).
     ``controls.stop`` answering a signal's name ends it after the samples done so far
     (``"interrupted"`` then names it); ``on_stop(name)`` is called then, before a cluster
@@ -99,7 +100,8 @@ def run_samples(
     updated = min(unc.samples, len(tester.draws)) if tester is not None else 0
     makers = {montecarlo.PRIOR: make}
     if tester is not None and updated:
-        makers[montecarlo.UPDATED] = montecarlo.updated_sampler(make, tester)
+        makers = _paired_draws(make, updated)
+        makers[montecarlo.UPDATED] = montecarlo.updated_sampler(makers[montecarlo.UPDATED], tester)
     total = unc.samples + updated
 
     def which(i: int) -> tuple[str, int]:
@@ -132,7 +134,7 @@ def run_samples(
     # collector's full passes, which would walk it again and again while the samples come and go
     gc.freeze()
     try:
-        left = _in_process(range(total), payload, controls, records, progress)
+        left = _in_process(_batches(unc.samples, updated), payload, controls, records, progress)
     finally:
         gc.unfreeze()
     threads = 1
@@ -208,25 +210,65 @@ def _others(busy0: float | None, busy1: float | None, cpu_s: float, wall_s: floa
     return max(0.0, (busy1 - busy0 - cpu_s) / wall_s)
 
 
+def _paired_draws(
+    make: Callable[[int], montecarlo.Draw], updated: int
+) -> dict[str, Callable[[int], montecarlo.Draw]]:
+    """Prior sample ``i``'s draw for the prior and for the updated prediction (what its updated
+    sample sets the posterior on): made once, kept from the prior sample to the updated one
+    (the two come in one batch: :func:`_batches`), made again where the prior's was not kept."""
+    kept: dict[int, montecarlo.Draw] = {}
+
+    def prior(i: int) -> montecarlo.Draw:
+        draw = make(i)
+        if i < updated:
+            kept[i] = draw
+        return draw
+
+    def again(i: int) -> montecarlo.Draw:
+        draw = kept.pop(i, None)
+        return make(i) if draw is None else draw
+
+    return {montecarlo.PRIOR: prior, montecarlo.UPDATED: again}
+
+
+def _batches(prior: int, updated: int) -> list[list[int]]:
+    """The Monte Carlo's samples (``prior`` ones, then ``updated`` ones: sample ``prior + i``
+    is prior sample ``i`` with the tester's posterior draw ``i`` set), batch by batch, at most
+    :data:`IN_PROCESS_BATCH` and a tenth of them a batch (the progress is told every tenth).
+
+    Prior sample ``i`` and updated sample ``i`` fall in one batch: the posterior sets some
+    FMUs' parameters only, so the others' runs are the same in both and a batch runs them
+    once (:func:`twin.cosim.batch.identities`)."""
+    size = max(1, min(IN_PROCESS_BATCH, (prior + updated) // 10))
+    pairs = min(size // 2, updated)
+    out: list[list[int]] = []
+    for j in range(0, updated if pairs else 0, max(pairs, 1)):
+        drawn = range(j, min(j + pairs, updated))
+        out.append([*drawn, *(prior + i for i in drawn)])
+    rest = list(range(updated, prior) if pairs else range(prior + updated))  # a batch of one: no pairs
+    out += [rest[j : j + size] for j in range(0, len(rest), size)]
+    return out
+
+
 def _in_process(
-    indices: range,
+    batches: list[list[int]],
     payload: Callable[[int], dict[str, Any]],
     controls: RunControls,
     records: dict[int, dict[str, Any]],
     progress: montecarlo.Progress,
 ) -> list[int]:
-    """Run the samples in this process, batch by batch, into ``records``, until none is left,
-    a signal stops it or a cluster pays for the rest (:func:`_cluster_pays`); returns the
-    samples left. A batch's ticks run (in a thread of their own) while the batch before is
-    evaluated: the FMUs' stepping and the error model's Python share the two cores."""
+    """Run the samples in this process, ``batches`` in turn, into ``records``, until none is
+    left, a signal stops it or a cluster pays for the rest (:func:`_cluster_pays`); returns
+    the samples left. A batch's ticks run (in a thread of their own) while the batch before
+    is evaluated: the FMUs' stepping and the error model's Python share the two cores."""
     from twin.fmu.pool import SlotPool
     from twin.pipeline.point import Tasks, abandon, finish_tasks, start_tasks
 
-    # a batch no larger than a tenth of the samples: the progress is told every tenth
-    size = max(1, min(IN_PROCESS_BATCH, len(indices) // 10))
+    size = max((len(b) for b in batches), default=1)
     pool = SlotPool(per_key=2 * size)  # two batches' instances at once
-    left = list(indices)
-    batches = 0
+    waiting = list(batches)
+    left = [i for b in batches for i in b]
+    batches_done = 0
     pending: Tasks | None = None
 
     def finish(tasks: Tasks) -> None:
@@ -235,11 +277,12 @@ def _in_process(
         progress.done(len(records))
 
     try:
-        while left and controls.stopped() is None:
+        while waiting and controls.stopped() is None:
             # its wall time and its CPU time (every thread's): a machine busy with other work
             # makes a sample slower in process and on a cluster alike
             t0, w0, b0 = time.process_time(), time.perf_counter(), _machine_busy_s()
-            batch, left = left[:size], left[size:]
+            batch = waiting.pop(0)
+            left = left[len(batch) :]
             items = [payload(i) for i in batch]
             records.update({r["index"]: r for r in items if "status" in r})
             started = start_tasks([p for p in items if "status" not in p], pool)
@@ -247,11 +290,11 @@ def _in_process(
                 finish(pending)
             pending = started
             # judged from the second batch on: the first also made the pool's instances
-            batches += 1
+            batches_done += 1
             cpu_s, wall_s = time.process_time() - t0, time.perf_counter() - w0
             others = _others(b0, _machine_busy_s(), cpu_s, wall_s)
             cpu, wall = cpu_s / len(batch), wall_s / len(batch)
-            if batches > 1 and _cluster_pays(len(left), wall, cpu, others=others):
+            if batches_done > 1 and _cluster_pays(len(left), wall, cpu, others=others):
                 break
         if pending is not None and controls.stopped() is None:
             finish(pending)
