@@ -4,6 +4,7 @@ samples, byte for byte: where a sample runs is a matter of time, never of its fi
 from __future__ import annotations
 
 import importlib
+import os
 from collections import Counter
 from pathlib import Path
 
@@ -140,3 +141,28 @@ def test_batches_hold_every_sample_once_and_prior_and_updated_sample_i_together(
     if size > 1:  # a batch of one sample cannot hold two
         where = {i: n for n, b in enumerate(batches) for i in b}
         assert all(where[i] == where[prior + i] for i in range(updated))
+
+
+def test_the_choice_of_a_cluster_weighs_every_batch_so_far_not_the_last_one() -> None:
+    """One batch that other work stretched (a burst on a loaded machine) does not send the
+    samples left to a cluster; batches that keep being slow with cores to spare do."""
+    pace = run_module._Pace()
+    assert not pace.cluster_pays(300)  # nothing measured yet
+    for _ in range(8):  # 20 samples a batch, two threads: 9 ms a sample for 13 ms of CPU
+        pace.add(20, 0.26, 0.18, 0.27)
+    assert not pace.cluster_pays(300)
+    burst = run_module._Pace(pace.samples, pace.cpu_s, pace.wall_s, pace.busy_s)
+    burst.add(20, 0.26, 1.2, 0.27)  # one batch stretched five-fold, the machine otherwise idle
+    alone = run_module._Pace()
+    alone.add(20, 0.26, 1.2, 0.27)
+    cores = os.cpu_count() or 1
+    if cores >= 2:  # the same batch judged alone would have gone to a cluster
+        assert alone.cluster_pays(300)
+    assert not burst.cluster_pays(300)
+    steady = run_module._Pace()
+    for _ in range(8):
+        steady.add(20, 0.26, 1.2, 0.27)
+    assert steady.cluster_pays(300) == alone.cluster_pays(300)
+    unknown = run_module._Pace()
+    unknown.add(20, 0.26, 0.18, None)  # no /proc/stat: every core counted free
+    assert unknown.busy_s is None and not unknown.cluster_pays(10)

@@ -250,6 +250,34 @@ def _batches(prior: int, updated: int) -> list[list[int]]:
     return out
 
 
+@dataclasses.dataclass
+class _Pace:
+    """The samples run in process so far (from the second batch: the first also made the
+    pool's instances), their CPU and wall seconds and the machine's busy seconds meanwhile,
+    summed: the choice of a cluster is made on them all, not on one batch that a burst of
+    other work (a compiler, another test) stretched, which once sent a loaded machine's last
+    samples to a cluster that had no free core either."""
+
+    samples: int = 0
+    cpu_s: float = 0.0
+    wall_s: float = 0.0
+    busy_s: float | None = 0.0  # None: the machine's busy time is not known
+
+    def add(self, samples: int, cpu_s: float, wall_s: float, busy_s: float | None) -> None:
+        self.samples += samples
+        self.cpu_s += cpu_s
+        self.wall_s += wall_s
+        self.busy_s = None if busy_s is None or self.busy_s is None else self.busy_s + busy_s
+
+    def cluster_pays(self, left: int) -> bool:
+        """Whether the ``left`` samples would finish sooner on a local cluster
+        (:func:`_cluster_pays` on the samples so far)."""
+        if not self.samples:
+            return False
+        others = _others(0.0, self.busy_s, self.cpu_s, self.wall_s) if self.busy_s is not None else 0.0
+        return _cluster_pays(left, self.wall_s / self.samples, self.cpu_s / self.samples, others=others)
+
+
 def _in_process(
     batches: list[list[int]],
     payload: Callable[[int], dict[str, Any]],
@@ -270,6 +298,7 @@ def _in_process(
     left = [i for b in batches for i in b]
     batches_done = 0
     pending: Tasks | None = None
+    pace = _Pace()
 
     def finish(tasks: Tasks) -> None:
         for record in finish_tasks(tasks):
@@ -291,10 +320,12 @@ def _in_process(
             pending = started
             # judged from the second batch on: the first also made the pool's instances
             batches_done += 1
-            cpu_s, wall_s = time.process_time() - t0, time.perf_counter() - w0
-            others = _others(b0, _machine_busy_s(), cpu_s, wall_s)
-            cpu, wall = cpu_s / len(batch), wall_s / len(batch)
-            if batches_done > 1 and _cluster_pays(len(left), wall, cpu, others=others):
+            b1 = _machine_busy_s()
+            if batches_done == 1:
+                continue
+            busy = b1 - b0 if b0 is not None and b1 is not None else None
+            pace.add(len(batch), time.process_time() - t0, time.perf_counter() - w0, busy)
+            if pace.cluster_pays(len(left)):
                 break
         if pending is not None and controls.stopped() is None:
             finish(pending)
