@@ -150,7 +150,17 @@ class RunSummary:
 
 def _flatten(data: Mapping[str, Any], prefix: str, out: dict[str, float]) -> None:
     for key, value in data.items():
-        if key in _NOT_FIGURES or isinstance(value, bool):
+        if key in _NOT_FIGURES:
+            continue
+        # most values are plain floats and dicts: taken before the abstract types' checks
+        kind = type(value)
+        if kind is float:
+            out[prefix + key] = value
+            continue
+        if kind is dict:
+            _flatten(value, f"{prefix}{key}.", out)
+            continue
+        if isinstance(value, bool):
             continue
         if isinstance(value, Mapping):
             _flatten(value, f"{prefix}{key}.", out)
