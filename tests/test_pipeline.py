@@ -81,6 +81,9 @@ def test_figures_are_flat_numbers_of_the_summary(folder_run: tuple[Path, RunSumm
     assert figures["timing.macro_steps"] == data["timing"]["macro_steps"] == 12_000  # 20 min at 0.1 s
     # the paper's values are the same in every run, which sensors were read is no figure
     assert not [k for k in figures if "paper" in k or k.startswith("sensors_used")]
+    # a sample's figures: the same numbers in the same order, without the run's time and timings
+    results = [(k, v) for k, v in figures.items() if not k.startswith("timing.") and k != "sim_end_s"]
+    assert list(summary.figures(timings=False).items()) == results
 
 
 def test_run_point_gives_the_runs_figures_and_writes_no_file(

@@ -137,3 +137,15 @@ def test_frechets_side_by_side_are_each_alone_to_the_bit(cells: int, monkeypatch
         got = credibility.discrete_frechets(ps, q)
         assert [v.hex() for v in got] == [alone(p).hex() for p in ps]
         assert got[0] == discrete_frechet(ps[0], q)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(1, 5000), scale=st.floats(-12, 3), seed=st.integers(0, 2**31 - 1))
+def test_the_residuals_rms_is_np_means_to_the_bit(n: int, scale: float, seed: int) -> None:
+    from twin.errormodel.evaluate import _rms
+
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=n).cumsum() * 10**scale
+    x[rng.integers(0, n, max(1, n // 10))] = rng.choice([0.0, -0.0], max(1, n // 10))
+    assert _rms(x).hex() == float(np.sqrt(np.mean(x**2))).hex()
+    assert _rms(x[::3]).hex() == float(np.sqrt(np.mean(x[::3] ** 2))).hex()  # a strided view too

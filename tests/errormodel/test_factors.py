@@ -336,3 +336,27 @@ def test_drifts_together_are_each_streams_drift_to_the_bit(
     short = factors_mod.EndLines(np.array([0.0, 1000.0]), 300.0)  # one row per window
     pairs = [y[:2] for y in ys[:3]]
     assert short.drifts(pairs) == [short.values(y)[1] - short.values(y)[0] for y in pairs]
+
+
+def test_samples_on_one_time_axis_share_its_lines_and_no_other_axis_does() -> None:
+    """A Monte Carlo's samples share their time axis: its lines are made once (end_lines gives
+    the same object back for the same times and window), and any other axis or window, or an
+    axis changed in place since, gets its own lines: each drift is the one its own lines give."""
+    from twin.errormodel.factors import EndLines, end_lines
+
+    rng = np.random.default_rng(3)
+    t = np.arange(2881) * 10.0
+    first = end_lines(t, 300.0)
+    assert end_lines(t.copy(), 300.0) is first
+    y = rng.normal(size=t.size).cumsum()
+    shifted = t + 5.0 * (t > 28000.0)  # the same length, other times at the end
+    others = [(shifted, 300.0), (t, 200.0), (t[:2000], 300.0), (t.astype(np.float32), 300.0)]
+    for axis, window in others:
+        lines = end_lines(axis, window)
+        assert lines is not first
+        n = len(axis)
+        assert lines.drifts([y[:n]]) == EndLines(axis, window).drifts([y[:n]])
+    changed = t.copy()
+    end_lines(changed, 300.0)
+    changed[-1] += 10.0  # the caller's array changed in place: not the lines kept
+    assert end_lines(changed, 300.0).drifts([y]) == EndLines(changed, 300.0).drifts([y])

@@ -311,3 +311,45 @@ def test_kept_coefficients_give_the_numbers_of_fresh_ones() -> None:
             kept, new = used.e_z_by_body(errors, motion), fresh.e_z_by_body(errors, motion)
             assert all(np.array_equal(kept[b], new[b]) for b in new)
     assert len(used.branches[0]._constant) == 4  # three angles (one the default), at 0.3 two slot sets
+
+
+def test_the_kept_terms_give_the_doubles_of_the_walk_over_the_branches(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An evaluation on constant ideal matrices takes each body's terms kept from the one
+    before (a Monte Carlo's samples): the same operations in the same order as walking the
+    branches and slots, so the same doubles, signed zeros included, for every mix of
+    parameters (arrays, scalars, zeros of either sign, a body on both branches)."""
+    rng = np.random.default_rng(17)
+    thermal = {b: {"p_dz": rng.normal(0, 1e-5, 50)} for b in BRANCH_1 + BRANCH_2}
+    cases: list[tuple[ErrorModel, dict, dict | None]] = [
+        (tester_model(), random_errors(rng, 1e-4, 50), None),
+        (tester_model(), random_errors(rng, 1e-4, None), {"angle": 0.4}),
+        (tester_model(), thermal, None),
+        (
+            tester_model(),
+            {"displacement_sensor": {"p_dz": -np.zeros(50)}, "contacting_clamp": {"p_ey": 0.0}},
+            None,
+        ),
+        (
+            tester_model(),
+            {"t_plate": {"p_dz": rng.choice([0.0, -0.0, 1e-6], 50), "s_ez": -0.0}},
+            {"angle": 0.0},
+        ),
+    ]
+    topo = Topology([Body(1, "base"), Body(2, "column", 1), Body(3, "left", 2), Body(4, "right", 2)])
+    joints = {2: Joint(rotation_y(0.2) @ translation(0, 0, -1.0)), 3: Joint(translation(0.1, 0, 0))}
+    shared = ErrorModel(topo, joints, ends=("left", "right"))
+    cases.append(
+        (shared, {"column": {"p_dz": rng.normal(size=50), "p_ex": -0.0}, "right": {"p_dz": 1e-3}}, None)
+    )
+    kept = [(model.e_z_by_body(e, m), model.e_z(e, m)) for model, e, m in cases]
+    kept_again = [(model.e_z_by_body(e, m), model.e_z(e, m)) for model, e, m in cases]
+    assert all(model._terms for model, _, _ in cases)  # the short way was taken
+    monkeypatch.setattr(ErrorModel, "_constant_terms", lambda self, c: None)
+    for (model, e, m), *got in zip(cases, kept, kept_again, strict=True):
+        walked_by_body, walked = model.e_z_by_body(e, m), model.e_z(e, m)
+        for by_body, total in got:
+            assert list(by_body) == list(walked_by_body)
+            assert all(by_body[b].tobytes() == walked_by_body[b].tobytes() for b in by_body)
+            assert total.shape == walked.shape and total.tobytes() == walked.tobytes()

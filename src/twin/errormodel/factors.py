@@ -53,6 +53,7 @@ __all__ = [
     "Factor",
     "FactorError",
     "Measured",
+    "end_lines",
     "endpoints",
     "factor",
     "factor_list",
@@ -107,6 +108,23 @@ class EndLines:
         solved on its own, as polyfit solves it), every stream's in one call per end."""
         starts, ends = self.start.values(ys), self.end.values(ys)
         return [end - start for start, end in zip(starts, ends, strict=True)]
+
+
+#: the last time axis and window :func:`end_lines` was asked for, and their lines
+_LAST_LINES: tuple[np.ndarray, float, EndLines] | None = None
+
+
+def end_lines(t: np.ndarray, window_s: float) -> EndLines:
+    """:class:`EndLines` of the time axis ``t``: those of the last call again when ``t`` holds
+    the same times and the window is the same (a Monte Carlo's samples share one time axis:
+    their lines are made once, not once per sample; they depend on the times alone)."""
+    global _LAST_LINES
+    last = _LAST_LINES  # one read: another thread may replace it meanwhile
+    if last is not None and last[1] == window_s and last[0].dtype == t.dtype and np.array_equal(last[0], t):
+        return last[2]
+    lines = EndLines(t, window_s)
+    _LAST_LINES = (np.array(t), window_s, lines)  # a copy: the caller's array may change
+    return lines
 
 
 def _raise_not_converged(err: object, flag: object) -> None:
@@ -245,7 +263,7 @@ class Measured:
     @functools.cached_property
     def _ends(self) -> EndLines:
         """The lines of :meth:`drift`, worked out once for every stream it is asked for."""
-        return EndLines(self.table.time, self.cfg.window_s)
+        return end_lines(self.table.time, self.cfg.window_s)
 
     def change(self, name: str) -> np.ndarray | None:
         """:meth:`sensor` relative to its first sample."""

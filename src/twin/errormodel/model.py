@@ -522,6 +522,7 @@ class ErrorModel:
         )
         # Bodies on either branch, branch 1 first; a body shared by both branches appears once.
         self.bodies: tuple[str, ...] = tuple(dict.fromkeys(self.branches[0].bodies + self.branches[1].bodies))
+        self._terms: dict[tuple[Any, ...], list[tuple[float, str, int, list[tuple[Any, int]]]]] = {}
 
     def _inputs(self, errors: Errors | None, motion: Motion | None) -> _Inputs:
         return _prepare(self.topology, self.branches, errors, motion, self.motion_defaults)
@@ -531,13 +532,49 @@ class ErrorModel:
 
     def _parts(self, c: _Chunk) -> dict[str, Array]:
         """First-order e_z per body on one chunk: +branch-1 contribution - branch-2 contribution."""
-        parts: dict[str, Array] = {}
+        terms = self._constant_terms(c)
+        parts: dict[str, Any] = {}
+        if terms is not None:
+            # the same operations as below in the same order, the coefficients looked up once
+            for sign, name, body, each in terms:
+                entries = c.errors.get(body, ())
+                total: Any = np.float64(0.0)
+                for i, (coefficient, position) in enumerate(each):
+                    x = coefficient * entries[position][2]
+                    total = 0.0 + x if i == 0 else total + x
+                parts[name] = parts.get(name, 0.0) + sign * total
+            return {k: np.asarray(v) for k, v in parts.items()}
         for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
             coef = branch._chunk_coefficients(c, (2,), branch._error_slots(c.errors))
             for body, value in branch._first_order(coef, c.errors).items():
                 name = self.topology.body(body).name
                 parts[name] = parts.get(name, 0.0) + sign * value[0]
         return {k: np.asarray(v) for k, v in parts.items()}
+
+    def _constant_terms(self, c: _Chunk) -> list[tuple[float, str, int, list[tuple[Any, int]]]] | None:
+        """For ideal matrices constant over the chunk ``c`` (None otherwise): per body of each
+        branch in turn, the branch's sign, the body's name and index, and per error parameter
+        of ``c`` its coefficient in e_z and its place among the body's parameters.
+
+        A model evaluated again and again with the same parameters (a Monte Carlo's samples)
+        finds its coefficients here instead of walking the branches and the slots anew; kept
+        per scalar motion and per set of parameters given."""
+        if any(v.ndim for v in c.motion.values()) or any(b._time_varying(c.motion) for b in self.branches):
+            return None
+        given = tuple((body, tuple((kind, q) for kind, q, _ in e)) for body, e in c.errors.items())
+        key = (tuple(sorted((k, float(v)) for k, v in c.motion.items())), given)
+        terms = self._terms.get(key)
+        if terms is None:
+            terms = []
+            for sign, branch in zip((1.0, -1.0), self.branches, strict=True):
+                coef = branch._chunk_coefficients(c, (2,), branch._error_slots(c.errors))
+                for j, body in enumerate(branch.chain[1:]):
+                    each = [
+                        (coef[2 * j + kind][0, q], i) for i, (kind, q, _) in enumerate(c.errors.get(body, ()))
+                    ]
+                    terms.append((sign, self.topology.body(body).name, body, each))
+            self._terms[key] = terms
+        return terms
 
     def e_z(self, errors: Errors | None, motion: Motion | None = None) -> Array:
         """First-order comprehensive error along Z, shape ``()`` or ``(N,)``."""

@@ -32,7 +32,8 @@ __all__ = ["Tasks", "abandon", "batch_tasks", "figures", "finish_tasks", "point_
 
 def figures(summary: RunSummary) -> dict[str, float]:
     """A point's figures: its summary's numbers, without the timings."""
-    return {k: v for k, v in summary.figures().items() if not k.startswith("timing.") and k != "sim_end_s"}
+    figures = summary.figures(timings=False)
+    return {k: v for k, v in figures.items() if not k.startswith("timing.") and k != "sim_end_s"}
 
 
 def _in_memory(prepared: PreparedRun) -> dict[str, float]:

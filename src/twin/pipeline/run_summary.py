@@ -116,7 +116,7 @@ class RunSummary:
             versions=dict(data["versions"]),
         )
 
-    def figures(self) -> dict[str, float]:
+    def figures(self, *, timings: bool = True) -> dict[str, float]:
         """The run's numbers as one flat dict: ``sim_end_s``, every number of the results by
         its dotted path (``drift_mm.predicted``, ``error_parts_mm.thermal``,
         ``compensation.residual_rms_um.after``, ``wear_mm.true``, ``temperature_rise_C.room``,
@@ -124,10 +124,15 @@ class RunSummary:
         missing (a real-time factor of a run that took no time); the paper's values and the
         sensors used are left out. A run whose error model did not run has only
         ``sim_end_s`` and the timings.
+
+        ``timings=False``: the results' numbers alone, neither ``sim_end_s`` nor the timings (a
+        Monte Carlo's sample, a sweep's point: what its row keeps; the timings are not flattened
+        only to be thrown away).
         """
-        flat = {"sim_end_s": float(self.sim_end_s)}
+        flat = {"sim_end_s": float(self.sim_end_s)} if timings else {}
         _flatten(self.results, "", flat)
-        _flatten(dataclasses.asdict(self.timing), "timing.", flat)
+        if timings:
+            _flatten(dataclasses.asdict(self.timing), "timing.", flat)
         return flat
 
     def line(self) -> str:
@@ -145,7 +150,17 @@ class RunSummary:
 
 def _flatten(data: Mapping[str, Any], prefix: str, out: dict[str, float]) -> None:
     for key, value in data.items():
-        if key in _NOT_FIGURES or isinstance(value, bool):
+        if key in _NOT_FIGURES:
+            continue
+        # most values are plain floats and dicts: taken before the abstract types' checks
+        kind = type(value)
+        if kind is float:
+            out[prefix + key] = value
+            continue
+        if kind is dict:
+            _flatten(value, f"{prefix}{key}.", out)
+            continue
+        if isinstance(value, bool):
             continue
         if isinstance(value, Mapping):
             _flatten(value, f"{prefix}{key}.", out)
