@@ -106,8 +106,48 @@ class RealPort:
     def __init__(self, vrs: Sequence[int]) -> None:
         self.n = len(vrs)
         self.vr = (ctypes.c_uint * max(self.n, 1))(*vrs)
-        self.values = np.zeros(max(self.n, 1), dtype=np.float64)
-        self.ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        # the values are a ctypes array seen by numpy: the array is what the FMI call is
+        # passed (ctypes takes an array of doubles for a double pointer), without the pointer
+        # object numpy's ``ctypes.data_as`` makes at twice the cost of the rest (a Monte
+        # Carlo's copies make a dozen ports each)
+        self.ptr = (ctypes.c_double * max(self.n, 1))()
+        self.values = np.frombuffer(self.ptr, dtype=np.float64)
+
+
+class _Kinds(NamedTuple):
+    """Variables set together (:meth:`FMUSlot.set_values`), by type: the places of the Reals,
+    Integers (and enumerations: FMI 2.0 sets them as integers) and Booleans among ``names``,
+    with their value references."""
+
+    names: tuple[str, ...]
+    reals: list[int]
+    port: RealPort  # the Reals' references; its values are set before each call
+    ints: list[int]
+    int_vrs: Any
+    bools: list[int]
+    bool_vrs: Any
+
+    @classmethod
+    def of(cls, variables: Mapping[str, Variable], names: tuple[str, ...]) -> _Kinds:
+        reals: list[int] = []
+        ints: list[int] = []
+        bools: list[int] = []
+        for j, name in enumerate(names):
+            kind = variables[name].type
+            if kind == "Boolean":
+                bools.append(j)
+            elif kind in ("Integer", "Enumeration"):
+                ints.append(j)
+            else:
+                reals.append(j)
+
+        def vrs(places: list[int]) -> Any:
+            return (ctypes.c_uint * max(len(places), 1))(
+                *[variables[names[j]].value_reference for j in places]
+            )
+
+        port = RealPort([variables[names[j]].value_reference for j in reals])
+        return cls(names, reals, port, ints, vrs(ints), bools, vrs(bools))
 
 
 class NativeHandles(NamedTuple):
@@ -280,19 +320,26 @@ class FMUSlot:
         self._set_real = dll.fmi2SetReal
         self._get_real = dll.fmi2GetReal
         self._do_step = dll.fmi2DoStep
+        self._dll = dll
         self._c = self._slave.component
+        self._handles: NativeHandles | None = None
+        self._kinds: _Kinds | None = None  # the names set last (set_values)
         self.pool_key: Any = None  # set by the SlotPool that made it (twin.fmu.pool)
         self._initialized = False  # fmi2Terminate is allowed only after initialization
 
     def native_handles(self) -> NativeHandles:
-        """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints."""
+        """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints
+        (worked out once: they are the instance's for its life, a reset one's too, and a
+        pooled instance is handed to many runs)."""
+        if self._handles is None:
 
-        def address(fn: Any) -> int:
-            return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
+            def address(fn: Any) -> int:
+                return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
 
-        return NativeHandles(
-            int(self._c or 0), address(self._set_real), address(self._get_real), address(self._do_step)
-        )
+            self._handles = NativeHandles(
+                int(self._c or 0), address(self._set_real), address(self._get_real), address(self._do_step)
+            )
+        return self._handles
 
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
@@ -318,41 +365,53 @@ class FMUSlot:
         """The value reference of variable ``name``."""
         return self.variables[name].value_reference
 
+    # The calls of every run's set-up go to the library's functions (typed by fmpy) directly,
+    # as the hot path's do: fmpy's wrappers add only their call logger, which the twin never
+    # gives them, and a Monte Carlo makes a dozen of these calls per sample.
+
+    def _check(self, call: str, status: int) -> None:
+        if status > 1:  # fmi2OK and fmi2Warning go on, as in fmpy
+            raise self.error(call, status)
+
     def setup(self, start_time: float = 0.0) -> None:
+        """fmi2SetupExperiment at ``start_time``, no tolerance, no stop time (as fmpy's
+        ``setupExperiment(startTime=...)``)."""
         self.time = start_time
-        self._call("fmi2SetupExperiment", lambda: self._slave.setupExperiment(startTime=start_time))
+        self._check("fmi2SetupExperiment", self._dll.fmi2SetupExperiment(self._c, 0, 0.0, start_time, 0, 0.0))
 
     def enter_initialization(self) -> None:
-        self._call("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
+        self._check("fmi2EnterInitializationMode", self._dll.fmi2EnterInitializationMode(self._c))
 
     def exit_initialization(self) -> None:
-        self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+        self._check("fmi2ExitInitializationMode", self._dll.fmi2ExitInitializationMode(self._c))
         self._initialized = True
 
     def set_values(self, items: Sequence[tuple[str, float | int | bool]]) -> None:
         """Set many variables: the Reals in one fmi2SetReal, the Integers (and enumerations) in
         one fmi2SetInteger, the Booleans in one fmi2SetBoolean (an instance's parameters: a
         hundred calls were most of its set-up). The FMU checks the whole request and names the
-        variable it refuses, as it does for one."""
-        reals: list[tuple[int, float]] = []
-        ints: list[tuple[int, int]] = []
-        bools: list[tuple[int, bool]] = []
-        for name, value in items:
-            v = self.variables[name]
-            if v.type == "Boolean":
-                bools.append((v.value_reference, bool(value)))
-            elif v.type in ("Integer", "Enumeration"):  # FMI 2.0 sets an enumeration as an integer
-                ints.append((v.value_reference, int(value)))
-            else:
-                reals.append((v.value_reference, float(value)))
-        if reals:
-            port = RealPort([vr for vr, _ in reals])
-            port.values[: port.n] = [x for _, x in reals]
+        variable it refuses, as it does for one.
+
+        Which names are of which type, and their value references, are worked out once for
+        the names set last: a pooled instance is given the same parameters, other values, by
+        every run of a Monte Carlo."""
+        names = tuple(name for name, _ in items)
+        kinds = self._kinds if self._kinds is not None and self._kinds.names == names else None
+        if kinds is None:
+            kinds = self._kinds = _Kinds.of(self.variables, names)
+        values = [value for _, value in items]
+        if kinds.reals:
+            port = kinds.port
+            port.values[: port.n] = [float(values[j]) for j in kinds.reals]
             self.write(port)
-        if ints:
-            self._call("fmi2SetInteger", lambda: self._slave.setInteger(*map(list, zip(*ints, strict=True))))
-        if bools:
-            self._call("fmi2SetBoolean", lambda: self._slave.setBoolean(*map(list, zip(*bools, strict=True))))
+        if kinds.ints:
+            n = len(kinds.ints)
+            ints = (ctypes.c_int * n)(*[int(values[j]) for j in kinds.ints])
+            self._check("fmi2SetInteger", self._dll.fmi2SetInteger(self._c, kinds.int_vrs, n, ints))
+        if kinds.bools:
+            n = len(kinds.bools)
+            bools = (ctypes.c_int * n)(*[bool(values[j]) for j in kinds.bools])
+            self._check("fmi2SetBoolean", self._dll.fmi2SetBoolean(self._c, kinds.bool_vrs, n, bools))
 
     def set_value(self, name: str, value: float | int | bool) -> None:
         v = self.variables[name]
@@ -418,9 +477,7 @@ class FMUSlot:
     def reset(self) -> bool:
         """``fmi2Reset``: back to the state after instantiation, every variable at its start
         value. False when the FMU refuses (the caller then frees it)."""
-        try:
-            self._call("fmi2Reset", self._slave.reset)
-        except FMUError:
+        if self._dll.fmi2Reset(self._c) > 1:
             return False
         self._initialized = False
         forget_logging(self.name)
