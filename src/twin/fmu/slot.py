@@ -186,14 +186,19 @@ def _built_description(path: Path) -> Description:
     """The description of an FMU the twin built: its modelDescription.xml is its sources' own,
     byte for byte (:func:`twin.fmu.build.build_fmu` copies it), so while the file is the
     build of the current sources (its name carries their hash) the description the scenario's
-    checks already read from the sources is the one in the zip, and the zip is not read again."""
+    checks already read from the sources is the one in the zip, and the zip is not read again.
+    A file :func:`twin.fmu.catalog.fmu` gave last as the build of a model's sources is that
+    build (:func:`~twin.fmu.catalog.built_model`); any other's name is checked against the
+    hash of the sources now."""
     from twin.fmu.build import source_hash
+    from twin.fmu.catalog import built_model, description
     from twin.fmu.sources import model_names
 
+    built = built_model(path)
+    if built is not None:
+        return description(built)
     name, _, digest = path.stem.rpartition("-")
     if name in model_names() and digest == source_hash(name):
-        from twin.fmu.catalog import description
-
         return description(name)
     return _description(file_key(path))
 
@@ -237,6 +242,47 @@ def _loaded(path: Path) -> Loaded:
     return Loaded(external.check(path).description, str(unpacked.folder), str(unpacked.library), foreign=True)
 
 
+#: a code object's flags for ``*args`` and ``**kwargs`` (inspect.CO_VARARGS, CO_VARKEYWORDS)
+_VARARGS = 0x04 | 0x08
+
+
+def fmi2_prototypes() -> dict[str, tuple[Any, Any, Any]] | None:
+    """What fmpy's loader gives each FMI 2.0 function, name -> (argnames, argtypes, restype),
+    read from its ``fmi2*`` methods' annotations without ``inspect``: the same rules (the
+    parameters after ``self`` in order, a union's first type, ``int`` and ``bytes`` returned
+    as ``c_int`` and ``c_char_p``), for a tenth of the time, which a fresh process spends on its
+    first instance. None when a method is not one these rules read as fmpy does (an argument
+    of another kind, a missing or textual annotation, a wrapped function): fmpy's own loader
+    then types the first instance (``tests/fmus/test_fresh_setup.py`` compares both)."""
+    import types
+    import typing
+
+    out: dict[str, tuple[Any, Any, Any]] = {}
+    for name in sorted(dir(FMU2Slave)):
+        if not name.startswith("fmi2"):
+            continue
+        fn = getattr(FMU2Slave, name)
+        code = getattr(fn, "__code__", None)
+        if not isinstance(fn, types.FunctionType) or code is None or hasattr(fn, "__wrapped__"):
+            return None
+        if code.co_flags & _VARARGS or code.co_kwonlyargcount or code.co_posonlyargcount:
+            return None
+        names = list(code.co_varnames[1 : code.co_argcount])
+        annotations = fn.__annotations__
+        if any(n not in annotations or isinstance(annotations[n], str) for n in [*names, "return"]):
+            return None
+        argtypes = [
+            typing.get_args(annotations[n])[0]
+            if isinstance(annotations[n], types.UnionType)
+            else annotations[n]
+            for n in names
+        ]
+        restype = annotations["return"]
+        restype = ctypes.c_char_p if restype is bytes else ctypes.c_int if restype is int else restype
+        out[name] = (names, argtypes, restype)
+    return out or None
+
+
 class FMU2SlaveTyped(FMU2Slave):
     """fmpy's FMU2Slave, with the prototypes of the FMI functions worked out once per process.
 
@@ -252,6 +298,8 @@ class FMU2SlaveTyped(FMU2Slave):
     _prototypes: dict[str, tuple[Any, Any, Any]] | None = None
 
     def _loadFunctions(self) -> None:  # fmpy's name for its loader
+        if FMU2SlaveTyped._prototypes is None:
+            FMU2SlaveTyped._prototypes = fmi2_prototypes()
         known = FMU2SlaveTyped._prototypes
         if known is None:
             super()._loadFunctions()
