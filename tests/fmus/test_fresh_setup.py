@@ -53,7 +53,7 @@ def test_an_instance_typed_by_the_annotations_runs_as_fmpy_typed_it() -> None:
     slot = FMUSlot(path, "probe-typed")
     try:
         for name, (names, argtypes, restype) in fmi2_prototypes().items():  # type: ignore[union-attr]
-            f = getattr(slot._slave.dll, name)
+            f = slot._slave._functions[name]
             assert (f.argnames, f.argtypes, f.restype) == (names, argtypes, restype), name
         slot.setup(0.0)
         slot.enter_initialization()

@@ -2,7 +2,7 @@
 
 The life cycle (instantiate, setup, initialization, terminate, free) goes through fmpy's
 :class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs)
-use the raw ctypes functions of the FMU's library (``FMU2Slave.dll``, typed by fmpy), with
+use the raw ctypes functions of the FMU's library (``FMU2Slave._functions``, typed at its load), with
 value-reference and value buffers allocated once, because fmpy's convenience wrappers
 allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to compiled code.
 Every status other than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the
@@ -310,7 +310,9 @@ class FMU2SlaveTyped(FMU2Slave):
                 }
             return
         for name, (argnames, argtypes, restype) in known.items():
-            c_fun = getattr(self.dll, name)
+            # by item, not attribute: the library object does not keep it as an attribute too
+            # (which costs as much as the rest); the typed functions are ``_functions``'
+            c_fun = self.dll[name]
             c_fun.argnames, c_fun.argtypes, c_fun.restype = argnames, argtypes, restype
             self._functions[name] = c_fun
 
@@ -364,11 +366,12 @@ class FMUSlot:
         self.time = 0.0
         self._slave = _load(Path(fmu_path), loaded, instance_name)
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
-        dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
-        self._set_real = dll.fmi2SetReal
-        self._get_real = dll.fmi2GetReal
-        self._do_step = dll.fmi2DoStep
-        self._dll = dll
+        # the FMU library's functions as typed when it was loaded (never the library object's
+        # attributes: an attribute not typed there would be a function without a prototype)
+        self._fns = fns = self._slave._functions
+        self._set_real = fns["fmi2SetReal"]
+        self._get_real = fns["fmi2GetReal"]
+        self._do_step = fns["fmi2DoStep"]
         self._c = self._slave.component
         self._handles: NativeHandles | None = None
         self._kinds: _Kinds | None = None  # the names set last (set_values)
@@ -425,13 +428,15 @@ class FMUSlot:
         """fmi2SetupExperiment at ``start_time``, no tolerance, no stop time (as fmpy's
         ``setupExperiment(startTime=...)``)."""
         self.time = start_time
-        self._check("fmi2SetupExperiment", self._dll.fmi2SetupExperiment(self._c, 0, 0.0, start_time, 0, 0.0))
+        self._check(
+            "fmi2SetupExperiment", self._fns["fmi2SetupExperiment"](self._c, 0, 0.0, start_time, 0, 0.0)
+        )
 
     def enter_initialization(self) -> None:
-        self._check("fmi2EnterInitializationMode", self._dll.fmi2EnterInitializationMode(self._c))
+        self._check("fmi2EnterInitializationMode", self._fns["fmi2EnterInitializationMode"](self._c))
 
     def exit_initialization(self) -> None:
-        self._check("fmi2ExitInitializationMode", self._dll.fmi2ExitInitializationMode(self._c))
+        self._check("fmi2ExitInitializationMode", self._fns["fmi2ExitInitializationMode"](self._c))
         self._initialized = True
 
     def set_values(self, items: Sequence[tuple[str, float | int | bool]]) -> None:
@@ -455,11 +460,11 @@ class FMUSlot:
         if kinds.ints:
             n = len(kinds.ints)
             ints = (ctypes.c_int * n)(*[int(values[j]) for j in kinds.ints])
-            self._check("fmi2SetInteger", self._dll.fmi2SetInteger(self._c, kinds.int_vrs, n, ints))
+            self._check("fmi2SetInteger", self._fns["fmi2SetInteger"](self._c, kinds.int_vrs, n, ints))
         if kinds.bools:
             n = len(kinds.bools)
             bools = (ctypes.c_int * n)(*[bool(values[j]) for j in kinds.bools])
-            self._check("fmi2SetBoolean", self._dll.fmi2SetBoolean(self._c, kinds.bool_vrs, n, bools))
+            self._check("fmi2SetBoolean", self._fns["fmi2SetBoolean"](self._c, kinds.bool_vrs, n, bools))
 
     def set_value(self, name: str, value: float | int | bool) -> None:
         v = self.variables[name]
@@ -525,7 +530,7 @@ class FMUSlot:
     def reset(self) -> bool:
         """``fmi2Reset``: back to the state after instantiation, every variable at its start
         value. False when the FMU refuses (the caller then frees it)."""
-        if self._dll.fmi2Reset(self._c) > 1:
+        if self._fns["fmi2Reset"](self._c) > 1:
             return False
         self._initialized = False
         forget_logging(self.name)
