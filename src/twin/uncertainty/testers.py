@@ -35,6 +35,7 @@ __all__ = [
     "Testers",
     "apply",
     "instance_of",
+    "key_parts",
     "load_prior",
     "load_room",
     "load_testers",
@@ -232,10 +233,10 @@ def _base(path: Path, base: str, where: str = "sweep") -> Scenario:
 
 
 @functools.lru_cache(maxsize=4096)
-def _key_parts(key: str) -> tuple[str | None, str | None]:
+def key_parts(key: str) -> tuple[str | None, str | None]:
     """The instance a key sets (:func:`instance_of`) and, for an ``fmu.<instance>.parameters.
-    <name>`` key, the parameter's name: a Monte Carlo's samples set the same keys, each
-    split once."""
+    <name>`` key, the parameter's name (else None): a Monte Carlo's samples set the same keys,
+    each split once."""
     parts = key.split(".")
     parameter = parts[3] if len(parts) == 4 and parts[0] == "fmu" and parts[2] == "parameters" else None
     return instance_of(key), parameter
@@ -249,7 +250,7 @@ def apply(scenario: Scenario, values: Mapping[str, Any]) -> Scenario:
     # scenario per value was most of a Monte Carlo sample's making
     grouped: dict[str, dict[str, Any]] = {}
     for key, value in values.items():
-        instance, parameter = _key_parts(key)
+        instance, parameter = key_parts(key)
         if instance in instances and parameter is not None:
             grouped.setdefault(instance, {})[parameter] = value
         elif instance in (None, *instances):
