@@ -285,8 +285,8 @@ class Scenario:
         variables = model_variables(spec.model)
         for name, raw in values.items():
             var = variables.get(name)
-            # a drawn value (a float for a Real parameter, in its range) is what every sample
-            # of a Monte Carlo sets about ninety times: it takes the short way, to the value
+            # a drawn value (a float for a Real parameter, in its range) is what a Monte Carlo
+            # sets for each drawn parameter of each sample: it takes the short way, to the value
             # parameter_value would return (float(raw) is raw); anything else its full check
             if (
                 type(raw) is float

@@ -91,8 +91,8 @@ _BUILDS: dict[str, Path] = {}
 
 def built_model(path: Path) -> str | None:
     """The model of the twin's whose build :func:`fmu` gave last as ``path`` (None: it gave
-    another file, or none in this process). An instance of it loads the description the sources give
-    (:func:`description`) without the sources' hash worked out again, moments after
-    :func:`fmu` worked it out to name the file."""
+    another file, or none in this process). An instance of it loads the description the
+    sources give (:func:`description`) without the sources' hash worked out again, moments
+    after :func:`fmu` worked it out to name the file."""
     name = Path(path).stem.rpartition("-")[0]
     return name if _BUILDS.get(name) == Path(path) else None

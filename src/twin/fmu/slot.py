@@ -2,9 +2,10 @@
 
 The life cycle (instantiate, setup, initialization, terminate, free) goes through fmpy's
 :class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs)
-use the raw ctypes functions of the FMU's library (``FMU2Slave._functions``, typed at its load), with
-value-reference and value buffers allocated once, because fmpy's convenience wrappers
-allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to compiled code.
+use the raw ctypes functions of the FMU's library (``FMU2Slave._functions``, typed at its
+load), with value-reference and value buffers allocated once, because fmpy's convenience
+wrappers allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to
+compiled code.
 Every status other than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the
 instance, the FMI call and the simulation time.
 
@@ -108,8 +109,8 @@ class RealPort:
         self.vr = (ctypes.c_uint * max(self.n, 1))(*vrs)
         # the values are a ctypes array seen by numpy: the array is what the FMI call is
         # passed (ctypes takes an array of doubles for a double pointer), without the pointer
-        # object numpy's ``ctypes.data_as`` makes at twice the cost of the rest (a Monte
-        # Carlo's copies make a dozen ports each)
+        # object numpy's ``ctypes.data_as`` makes, which cost more than the rest of a port (a
+        # Monte Carlo's copies make a dozen each)
         self.ptr = (ctypes.c_double * max(self.n, 1))()
         self.values = np.frombuffer(self.ptr, dtype=np.float64)
 
@@ -250,10 +251,11 @@ def fmi2_prototypes() -> dict[str, tuple[Any, Any, Any]] | None:
     """What fmpy's loader gives each FMI 2.0 function, name -> (argnames, argtypes, restype),
     read from its ``fmi2*`` methods' annotations without ``inspect``: the same rules (the
     parameters after ``self`` in order, a union's first type, ``int`` and ``bytes`` returned
-    as ``c_int`` and ``c_char_p``), for a tenth of the time, which a fresh process spends on its
-    first instance. None when a method is not one these rules read as fmpy does (an argument
-    of another kind, a missing or textual annotation, a wrapped function): fmpy's own loader
-    then types the first instance (``tests/fmus/test_fresh_setup.py`` compares both)."""
+    as ``c_int`` and ``c_char_p``) without fmpy's signature objects, which were most of a
+    fresh process's first instance's load. None when a method is not one these rules read as
+    fmpy does (an argument of another kind, a missing or textual annotation, a wrapped
+    function): fmpy's own loader then types the first instance
+    (``tests/fmus/test_fresh_setup.py`` compares both)."""
     import types
     import typing
 
