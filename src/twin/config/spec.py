@@ -284,9 +284,25 @@ class Scenario:
         params = dict(spec.parameters)
         variables = model_variables(spec.model)
         for name, raw in values.items():
-            value, why = parameter_value(spec.model, name, raw, variables)
-            if why is not None or value is None:
-                raise ConfigError(why or "", source=self.source_path, key=f"fmu.{instance}.parameters.{name}")
+            var = variables.get(name)
+            # a drawn value (a float for a Real parameter, in its range) is what a Monte Carlo
+            # sets for each drawn parameter of each sample: it takes the short way, to the value
+            # parameter_value would return (float(raw) is raw); anything else its full check
+            if (
+                type(raw) is float
+                and var is not None
+                and var.type == "Real"
+                and var.causality == "parameter"
+                and var.min <= raw <= var.max
+                and math.isfinite(raw)
+            ):
+                value: ParameterValue | None = raw
+            else:
+                value, why = parameter_value(spec.model, name, raw, variables)
+                if why is not None or value is None:
+                    raise ConfigError(
+                        why or "", source=self.source_path, key=f"fmu.{instance}.parameters.{name}"
+                    )
             params[name] = Parameter(value, source)
         changed = dataclasses.replace(spec, parameters=_frozen(params))
         return dataclasses.replace(self, fmus=tuple(changed if f.name == instance else f for f in self.fmus))

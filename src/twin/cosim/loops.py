@@ -31,11 +31,12 @@ initialized instance), and at last every instance's outputs become visible.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from twin.config.spec import NS_PER_S
-from twin.cosim.plan import InputKind, Plan, PlannedInput, PlannedLoop, VarIndex
+from twin.cosim.plan import InputKind, Plan, PlannedInput, PlannedLoop, VarIndex, shared
 from twin.cosim.state import Buffers, State
 from twin.cosim.stepping import Gather, non_finite
 from twin.errors import RunError
@@ -151,15 +152,61 @@ def _connected(i: PlannedInput, buffers: Sequence[Buffers]) -> float:
     return v * i.factor + i.offset if i.factor != 1.0 or i.offset != 0.0 else v
 
 
-class _Variables:
-    """Some inputs or outputs of the instances, set or read in one call per instance."""
+class _Groups(NamedTuple):
+    """Variables (instance, index) by instance, in the instances' order, each instance's in
+    the order given."""
 
-    def __init__(self, plan: Plan, state: State, slots: Sequence[FMUSlot], refs: Sequence[VarIndex]) -> None:
-        self.plan, self.state = plan, state
+    groups: tuple[tuple[int, list[int]], ...]
+
+    @classmethod
+    def of(cls, refs: Sequence[VarIndex]) -> _Groups:
         groups: dict[int, list[int]] = {}
         for i, k in refs:
             groups.setdefault(i, []).append(k)
-        self.groups = [(i, slots[i], ks) for i, ks in sorted(groups.items())]
+        return cls(tuple(sorted(groups.items())))
+
+
+class _Order(NamedTuple):
+    """What :func:`initialize` does, in its order, for any run of a plan's structure: the
+    inputs known before anything is read, then per stage the inputs it sets, the instances
+    that leave initialization mode, the outputs it reads and its cycles."""
+
+    known: _Groups
+    stages: tuple[tuple[_Groups, list[int], _Groups, tuple[PlannedLoop, ...]], ...]
+
+
+def _order(plan: Plan) -> _Order:
+    """The plan's :class:`_Order`, worked out once for the plans that share its stages and
+    inputs (:func:`twin.cosim.plan.shared`: a Monte Carlo's samples)."""
+    owners = (plan.init_stages, *(inst.inputs for inst in plan.instances))
+    return shared("initialization order", owners, lambda: _make_order(plan))
+
+
+def _make_order(plan: Plan) -> _Order:
+    known = [
+        (inst.index, j)
+        for inst in plan.instances
+        for j, i in enumerate(inst.inputs)
+        if i.kind != InputKind.CONNECTION
+    ]
+    return _Order(
+        _Groups.of(known),
+        tuple(
+            (_Groups.of(stage.inputs), sorted(leaving), _Groups.of(stage.outputs), stage.cycles)
+            for stage, leaving in zip(plan.init_stages, _leaving(plan), strict=True)
+        ),
+    )
+
+
+class _Variables:
+    """Some inputs or outputs of the instances, set or read in one call per instance."""
+
+    def __init__(
+        self, plan: Plan, state: State, slots: Sequence[FMUSlot], refs: Sequence[VarIndex] | _Groups
+    ) -> None:
+        self.plan, self.state = plan, state
+        grouped = refs if isinstance(refs, _Groups) else _Groups.of(refs)
+        self.groups = [(i, slots[i], ks) for i, ks in grouped.groups]
         self.ports: list[RealPort] = []
 
     def _port(self, n: int, vrs: Sequence[int]) -> RealPort:
@@ -280,14 +327,14 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
     that works out its initial state for an output read in initialization mode works it out
     again when it leaves it (FMI 2.0 lets fmi2GetReal read an initialized instance's outputs
     at the start time, and lets the others be still in initialization mode)."""
+    order = _order(plan)
     drow = state.driven.row(plan.scenario.start_ns / NS_PER_S)
     for slot in slots:
         slot.enter_initialization()
-    known = []  # driven inputs and delayed ones (their initial value): known before anything is read
     for inst in plan.instances:
         Gather(inst, state.buffers).drive(drow)
-        known += [(inst.index, j) for j, i in enumerate(inst.inputs) if i.kind != InputKind.CONNECTION]
-    _Variables(plan, state, slots, known).set_inputs(connected=False)
+    # driven inputs and delayed ones (their initial value): known before anything is read
+    _Variables(plan, state, slots, order.known).set_inputs(connected=False)
     left: set[int] = set()
 
     def leave(i: int) -> None:
@@ -295,12 +342,13 @@ def initialize(plan: Plan, state: State, slots: Sequence[FMUSlot]) -> None:
         slots[i].exit_initialization()
         left.add(i)
 
-    for stage, leaving in zip(plan.init_stages, _leaving(plan), strict=True):
-        _Variables(plan, state, slots, stage.inputs).set_inputs(connected=True)
-        for i in sorted(leaving - left):
-            leave(i)
-        _Variables(plan, state, slots, stage.outputs).read_outputs()
-        for cycle in stage.cycles:
+    for inputs, leaving, outputs, cycles in order.stages:
+        _Variables(plan, state, slots, inputs).set_inputs(connected=True)
+        for i in leaving:
+            if i not in left:
+                leave(i)
+        _Variables(plan, state, slots, outputs).read_outputs()
+        for cycle in cycles:
             _initial_cycle(plan, state, slots, cycle)
     for i, (slot, buf) in enumerate(zip(slots, state.buffers, strict=True)):
         if i not in left:

@@ -13,6 +13,7 @@ import ctypes
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from twin.cosim.layout import (
     entry,
     entry_argtypes,
 )
-from twin.cosim.plan import InputKind, Plan
+from twin.cosim.plan import InputKind, Plan, shared
 from twin.cosim.state import State, driven_every
 from twin.cosim.stepping import non_finite
 from twin.errors import FMUError, RunError
@@ -63,8 +64,53 @@ def stepper() -> ctypes.CDLL:
     return lib
 
 
-def _address(a: np.ndarray | ctypes.Array) -> int:
-    return ctypes.addressof(a) if isinstance(a, ctypes.Array) else int(a.ctypes.data)
+@lru_cache(maxsize=1)
+def _entry_point() -> Any:
+    """The stepper's typed entry point (built on first use): looked up once, not per run."""
+    return getattr(stepper(), entry()[0])
+
+
+class _Structure(NamedTuple):
+    """What the stepper reads of a plan's structure, the same for every run of it: each
+    instance's input kinds, sources and indices (int32) and factors and offsets (float64), the
+    instances a connection reads, and the recorded columns. C reads them, never writes them."""
+
+    inputs: list[tuple[np.ndarray, ...]]
+    affine: list[tuple[np.ndarray, ...]]
+    read: frozenset[int]
+    cols: ctypes.Array
+
+
+def _structure(plan: Plan) -> _Structure:
+    """The plan's :class:`_Structure`, made once for every plan that shares its inputs and
+    columns (:func:`twin.cosim.plan.shared`: a Monte Carlo's samples)."""
+    owners = (plan.columns, *(inst.inputs for inst in plan.instances))
+    return shared("stepper arrays", owners, lambda: _make_structure(plan))
+
+
+def _make_structure(plan: Plan) -> _Structure:
+    return _Structure(
+        [
+            tuple(
+                np.array([getattr(i, a) for i in inst.inputs] or [0], dtype=np.int32)
+                for a in ("kind", "src", "idx")
+            )
+            for inst in plan.instances
+        ],
+        [
+            tuple(
+                np.array([getattr(i, a) for i in inst.inputs] or [v], dtype=np.float64)
+                for a, v in (("factor", 1.0), ("offset", 0.0))
+            )
+            for inst in plan.instances
+        ],
+        # the instances a connection reads (the others' outputs are fetched only where a row,
+        # or Python between two batches, can see them: stepper.c, fetch_needed)
+        frozenset(i.src for inst in plan.instances for i in inst.inputs if i.kind != InputKind.DRIVEN),
+        (TwinColumn * max(len(plan.columns), 1))(
+            *[TwinColumn(c.instance, c.kind, c.idx, 0) for c in plan.columns]
+        ),
+    )
 
 
 class NativeLoop:
@@ -74,34 +120,13 @@ class NativeLoop:
         self.plan = plan
         self.state = state
         self.fmus = list(slots)
-        self._run = getattr(stepper(), entry()[0])  # built (first use) before the clock starts
-        # the plan's per-input kinds, sources and indices as the int32 arrays C reads (kept
-        # alive with the loop)
-        self._inputs = [
-            tuple(
-                np.array([getattr(i, a) for i in inst.inputs] or [0], dtype=np.int32)
-                for a in ("kind", "src", "idx")
-            )
-            for inst in plan.instances
-        ]
-        self._affine = [
-            tuple(
-                np.array([getattr(i, a) for i in inst.inputs] or [v], dtype=np.float64)
-                for a, v in (("factor", 1.0), ("offset", 0.0))
-            )
-            for inst in plan.instances
-        ]
-        # the instances a connection reads (the others' outputs are fetched only where a row,
-        # or Python between two batches, can see them: stepper.c, fetch_needed)
-        self._read = {i.src for inst in plan.instances for i in inst.inputs if i.kind != InputKind.DRIVEN}
+        self._run = _entry_point()  # built (first use) before the clock starts
+        # the structure's arrays, shared with the other runs of it (kept alive with the loop)
+        self._inputs, self._affine, self._read, self.cols = _structure(plan)
         self.driven_every = driven_every(plan)
         self.slots = (TwinSlot * len(plan.instances))()
         for i, s in enumerate(self.slots):
             self._point(i, s)
-        cols = plan.columns
-        self.cols = (TwinColumn * max(len(cols), 1))(
-            *[TwinColumn(c.instance, c.kind, c.idx, 0) for c in cols]
-        )
 
     def _point(self, i: int, s: TwinSlot) -> None:
         inst, buf = self.plan.instances[i], self.state.buffers[i]
@@ -109,12 +134,14 @@ class NativeLoop:
         s.period_ticks, s.period_ns = inst.period_ticks, inst.period_ns
         s.n_in, s.n_out = len(inst.inputs), len(inst.outputs)
         s.read_always = int(i in self._read)
-        s.in_vr, s.out_vr = _address(buf.in_port.vr), _address(buf.out_port.vr)
-        s.in_val, s.out_pending = _address(buf.in_port.values), _address(buf.out_port.values)
-        s.in_kind, s.in_src, s.in_idx = map(_address, self._inputs[i])
-        s.in_factor, s.in_offset = map(_address, self._affine[i])
-        s.delay_buf, s.out_raw, s.out_cur, s.bias = map(_address, (buf.delay_buf, buf.raw, buf.cur, buf.bias))
-        s.pending_at = _address(self.state.pending_at) + i * self.state.pending_at.itemsize
+        s.in_vr, s.out_vr = ctypes.addressof(buf.in_port.vr), ctypes.addressof(buf.out_port.vr)
+        s.in_val, s.out_pending = buf.in_port.values.ctypes.data, buf.out_port.values.ctypes.data
+        s.in_kind, s.in_src, s.in_idx = (a.ctypes.data for a in self._inputs[i])
+        s.in_factor, s.in_offset = (a.ctypes.data for a in self._affine[i])
+        s.delay_buf, s.out_raw, s.out_cur, s.bias = (
+            a.ctypes.data for a in (buf.delay_buf, buf.raw, buf.cur, buf.bias)
+        )
+        s.pending_at = self.state.pending_at.ctypes.data + i * self.state.pending_at.itemsize
 
     def ticks(self, k0: int, k1: int, driven: np.ndarray, rows: np.ndarray) -> None:
         plan, c = self.plan, self.state.counters

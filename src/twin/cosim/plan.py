@@ -22,10 +22,11 @@ outputs, variable by variable (:attr:`Plan.init_stages`).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Any
+from typing import Any, TypeVar
 
 from twin.config.loops import Cycle, check_loops, initialization_stages
 from twin.config.spec import NS_PER_S, Connection, Event, FMUSpec, ParameterValue, Scenario
@@ -430,6 +431,37 @@ def make_plan(scenario: Scenario, like: Plan | None = None) -> Plan:
     )
 
 
+T = TypeVar("T")
+
+#: what :func:`shared` made, by what it is and its owners' ids: (the owners, the value)
+_SHARED: dict[tuple[str, tuple[int, ...]], tuple[tuple[object, ...], Any]] = {}
+_SHARED_KEPT = 16
+_SHARED_LOCK = threading.Lock()
+
+
+def shared(what: str, owners: tuple[object, ...], make: Callable[[], T]) -> T:
+    """``make()``, made once for as long as ``owners`` (parts of a plan: its columns, its
+    instances' inputs) are the same objects, and given again after that.
+
+    A plan made ``like`` another (:func:`make_plan`: a Monte Carlo's samples, a sweep's points)
+    holds the other's parts themselves, so what a run derives from those parts alone (the
+    arrays the stepper reads, the order of initialization) is derived once for all of them
+    instead of once per run. The owners are kept with the value: their ids cannot be taken by
+    other objects while it is here. ``make`` must derive its value from the owners alone, and
+    the value must not be changed by those who are given it (they share it, across threads)."""
+    key = (what, tuple(map(id, owners)))
+    with _SHARED_LOCK:
+        hit = _SHARED.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], owners, strict=True)):
+        return hit[1]
+    value = make()
+    with _SHARED_LOCK:
+        while len(_SHARED) >= _SHARED_KEPT:
+            del _SHARED[next(iter(_SHARED))]
+        _SHARED[key] = (owners, value)
+    return value
+
+
 __all__ = [
     "BATCH_TICKS",
     "Column",
@@ -443,4 +475,5 @@ __all__ = [
     "PlannedLoop",
     "PlannedStage",
     "make_plan",
+    "shared",
 ]

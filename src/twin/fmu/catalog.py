@@ -26,6 +26,7 @@ __all__ = [
     "Description",
     "Model",
     "Variable",
+    "built_model",
     "describe",
     "fmu",
     "inspectable",
@@ -79,4 +80,19 @@ def fmu(name: str) -> Path:
     external FMU's own file, hashed again (it must be the file that was checked)."""
     if external.is_external(name):
         return external.verified_path(name)
-    return ensure_fmu(name)
+    path = ensure_fmu(name)
+    _BUILDS[name] = path
+    return path
+
+
+#: the .fmu :func:`fmu` gave last for each model of the twin's: the build of its sources then
+_BUILDS: dict[str, Path] = {}
+
+
+def built_model(path: Path) -> str | None:
+    """The model of the twin's whose build :func:`fmu` gave last as ``path`` (None: it gave
+    another file, or none in this process). An instance of it loads the description the
+    sources give (:func:`description`) without the sources' hash worked out again, moments
+    after :func:`fmu` worked it out to name the file."""
+    name = Path(path).stem.rpartition("-")[0]
+    return name if _BUILDS.get(name) == Path(path) else None

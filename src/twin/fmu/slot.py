@@ -2,9 +2,10 @@
 
 The life cycle (instantiate, setup, initialization, terminate, free) goes through fmpy's
 :class:`~fmpy.fmi2.FMU2Slave`; the calls made every step (set inputs, doStep, get outputs)
-use the raw ctypes functions of the FMU's library (``FMU2Slave.dll``, typed by fmpy), with
-value-reference and value buffers allocated once, because fmpy's convenience wrappers
-allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to compiled code.
+use the raw ctypes functions of the FMU's library (``FMU2Slave._functions``, typed at its
+load), with value-reference and value buffers allocated once, because fmpy's convenience
+wrappers allocate per call. :meth:`FMUSlot.native_handles` hands the same functions to
+compiled code.
 Every status other than fmi2OK/fmi2Warning raises :class:`~twin.errors.FMUError` naming the
 instance, the FMI call and the simulation time.
 
@@ -106,8 +107,48 @@ class RealPort:
     def __init__(self, vrs: Sequence[int]) -> None:
         self.n = len(vrs)
         self.vr = (ctypes.c_uint * max(self.n, 1))(*vrs)
-        self.values = np.zeros(max(self.n, 1), dtype=np.float64)
-        self.ptr = self.values.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        # the values are a ctypes array seen by numpy: the array is what the FMI call is
+        # passed (ctypes takes an array of doubles for a double pointer), without the pointer
+        # object numpy's ``ctypes.data_as`` makes, which cost more than the rest of a port (a
+        # Monte Carlo's copies make a dozen each)
+        self.ptr = (ctypes.c_double * max(self.n, 1))()
+        self.values = np.frombuffer(self.ptr, dtype=np.float64)
+
+
+class _Kinds(NamedTuple):
+    """Variables set together (:meth:`FMUSlot.set_values`), by type: the places of the Reals,
+    Integers (and enumerations: FMI 2.0 sets them as integers) and Booleans among ``names``,
+    with their value references."""
+
+    names: tuple[str, ...]
+    reals: list[int]
+    port: RealPort  # the Reals' references; its values are set before each call
+    ints: list[int]
+    int_vrs: Any
+    bools: list[int]
+    bool_vrs: Any
+
+    @classmethod
+    def of(cls, variables: Mapping[str, Variable], names: tuple[str, ...]) -> _Kinds:
+        reals: list[int] = []
+        ints: list[int] = []
+        bools: list[int] = []
+        for j, name in enumerate(names):
+            kind = variables[name].type
+            if kind == "Boolean":
+                bools.append(j)
+            elif kind in ("Integer", "Enumeration"):
+                ints.append(j)
+            else:
+                reals.append(j)
+
+        def vrs(places: list[int]) -> Any:
+            return (ctypes.c_uint * max(len(places), 1))(
+                *[variables[names[j]].value_reference for j in places]
+            )
+
+        port = RealPort([variables[names[j]].value_reference for j in reals])
+        return cls(names, reals, port, ints, vrs(ints), bools, vrs(bools))
 
 
 class NativeHandles(NamedTuple):
@@ -146,14 +187,19 @@ def _built_description(path: Path) -> Description:
     """The description of an FMU the twin built: its modelDescription.xml is its sources' own,
     byte for byte (:func:`twin.fmu.build.build_fmu` copies it), so while the file is the
     build of the current sources (its name carries their hash) the description the scenario's
-    checks already read from the sources is the one in the zip, and the zip is not read again."""
+    checks already read from the sources is the one in the zip, and the zip is not read again.
+    A file :func:`twin.fmu.catalog.fmu` gave last as the build of a model's sources is that
+    build (:func:`~twin.fmu.catalog.built_model`); any other's name is checked against the
+    hash of the sources now."""
     from twin.fmu.build import source_hash
+    from twin.fmu.catalog import built_model, description
     from twin.fmu.sources import model_names
 
+    built = built_model(path)
+    if built is not None:
+        return description(built)
     name, _, digest = path.stem.rpartition("-")
     if name in model_names() and digest == source_hash(name):
-        from twin.fmu.catalog import description
-
         return description(name)
     return _description(file_key(path))
 
@@ -197,6 +243,48 @@ def _loaded(path: Path) -> Loaded:
     return Loaded(external.check(path).description, str(unpacked.folder), str(unpacked.library), foreign=True)
 
 
+#: a code object's flags for ``*args`` and ``**kwargs`` (inspect.CO_VARARGS, CO_VARKEYWORDS)
+_VARARGS = 0x04 | 0x08
+
+
+def fmi2_prototypes() -> dict[str, tuple[Any, Any, Any]] | None:
+    """What fmpy's loader gives each FMI 2.0 function, name -> (argnames, argtypes, restype),
+    read from its ``fmi2*`` methods' annotations without ``inspect``: the same rules (the
+    parameters after ``self`` in order, a union's first type, ``int`` and ``bytes`` returned
+    as ``c_int`` and ``c_char_p``) without fmpy's signature objects, which were most of a
+    fresh process's first instance's load. None when a method is not one these rules read as
+    fmpy does (an argument of another kind, a missing or textual annotation, a wrapped
+    function): fmpy's own loader then types the first instance
+    (``tests/fmus/test_fresh_setup.py`` compares both)."""
+    import types
+    import typing
+
+    out: dict[str, tuple[Any, Any, Any]] = {}
+    for name in sorted(dir(FMU2Slave)):
+        if not name.startswith("fmi2"):
+            continue
+        fn = getattr(FMU2Slave, name)
+        code = getattr(fn, "__code__", None)
+        if not isinstance(fn, types.FunctionType) or code is None or hasattr(fn, "__wrapped__"):
+            return None
+        if code.co_flags & _VARARGS or code.co_kwonlyargcount or code.co_posonlyargcount:
+            return None
+        names = list(code.co_varnames[1 : code.co_argcount])
+        annotations = fn.__annotations__
+        if any(n not in annotations or isinstance(annotations[n], str) for n in [*names, "return"]):
+            return None
+        argtypes = [
+            typing.get_args(annotations[n])[0]
+            if isinstance(annotations[n], types.UnionType)
+            else annotations[n]
+            for n in names
+        ]
+        restype = annotations["return"]
+        restype = ctypes.c_char_p if restype is bytes else ctypes.c_int if restype is int else restype
+        out[name] = (names, argtypes, restype)
+    return out or None
+
+
 class FMU2SlaveTyped(FMU2Slave):
     """fmpy's FMU2Slave, with the prototypes of the FMI functions worked out once per process.
 
@@ -212,6 +300,8 @@ class FMU2SlaveTyped(FMU2Slave):
     _prototypes: dict[str, tuple[Any, Any, Any]] | None = None
 
     def _loadFunctions(self) -> None:  # fmpy's name for its loader
+        if FMU2SlaveTyped._prototypes is None:
+            FMU2SlaveTyped._prototypes = fmi2_prototypes()
         known = FMU2SlaveTyped._prototypes
         if known is None:
             super()._loadFunctions()
@@ -222,7 +312,9 @@ class FMU2SlaveTyped(FMU2Slave):
                 }
             return
         for name, (argnames, argtypes, restype) in known.items():
-            c_fun = getattr(self.dll, name)
+            # by item, not attribute: the library object does not keep it as an attribute too
+            # (which costs as much as the rest); the typed functions are ``_functions``'
+            c_fun = self.dll[name]
             c_fun.argnames, c_fun.argtypes, c_fun.restype = argnames, argtypes, restype
             self._functions[name] = c_fun
 
@@ -276,23 +368,31 @@ class FMUSlot:
         self.time = 0.0
         self._slave = _load(Path(fmu_path), loaded, instance_name)
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
-        dll = self._slave.dll  # the FMU's library: fmpy typed these functions when loading it
-        self._set_real = dll.fmi2SetReal
-        self._get_real = dll.fmi2GetReal
-        self._do_step = dll.fmi2DoStep
+        # the FMU library's functions as typed when it was loaded (never the library object's
+        # attributes: an attribute not typed there would be a function without a prototype)
+        self._fns = fns = self._slave._functions
+        self._set_real = fns["fmi2SetReal"]
+        self._get_real = fns["fmi2GetReal"]
+        self._do_step = fns["fmi2DoStep"]
         self._c = self._slave.component
+        self._handles: NativeHandles | None = None
+        self._kinds: _Kinds | None = None  # the names set last (set_values)
         self.pool_key: Any = None  # set by the SlotPool that made it (twin.fmu.pool)
         self._initialized = False  # fmi2Terminate is allowed only after initialization
 
     def native_handles(self) -> NativeHandles:
-        """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints."""
+        """The component pointer and the fmi2SetReal/fmi2GetReal/fmi2DoStep addresses, as ints
+        (worked out once: they are the instance's for its life, a reset one's too, and a
+        pooled instance is handed to many runs)."""
+        if self._handles is None:
 
-        def address(fn: Any) -> int:
-            return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
+            def address(fn: Any) -> int:
+                return int(ctypes.cast(fn, ctypes.c_void_p).value or 0)
 
-        return NativeHandles(
-            int(self._c or 0), address(self._set_real), address(self._get_real), address(self._do_step)
-        )
+            self._handles = NativeHandles(
+                int(self._c or 0), address(self._set_real), address(self._get_real), address(self._do_step)
+            )
+        return self._handles
 
     # -- logging: keep the FMU's messages so an error can say why ---------------------------
 
@@ -318,41 +418,55 @@ class FMUSlot:
         """The value reference of variable ``name``."""
         return self.variables[name].value_reference
 
+    # The calls of every run's set-up go to the library's functions (typed by fmpy) directly,
+    # as the hot path's do: fmpy's wrappers add only their call logger, which the twin never
+    # gives them, and a Monte Carlo makes a dozen of these calls per sample.
+
+    def _check(self, call: str, status: int) -> None:
+        if status > 1:  # fmi2OK and fmi2Warning go on, as in fmpy
+            raise self.error(call, status)
+
     def setup(self, start_time: float = 0.0) -> None:
+        """fmi2SetupExperiment at ``start_time``, no tolerance, no stop time (as fmpy's
+        ``setupExperiment(startTime=...)``)."""
         self.time = start_time
-        self._call("fmi2SetupExperiment", lambda: self._slave.setupExperiment(startTime=start_time))
+        self._check(
+            "fmi2SetupExperiment", self._fns["fmi2SetupExperiment"](self._c, 0, 0.0, start_time, 0, 0.0)
+        )
 
     def enter_initialization(self) -> None:
-        self._call("fmi2EnterInitializationMode", self._slave.enterInitializationMode)
+        self._check("fmi2EnterInitializationMode", self._fns["fmi2EnterInitializationMode"](self._c))
 
     def exit_initialization(self) -> None:
-        self._call("fmi2ExitInitializationMode", self._slave.exitInitializationMode)
+        self._check("fmi2ExitInitializationMode", self._fns["fmi2ExitInitializationMode"](self._c))
         self._initialized = True
 
     def set_values(self, items: Sequence[tuple[str, float | int | bool]]) -> None:
         """Set many variables: the Reals in one fmi2SetReal, the Integers (and enumerations) in
         one fmi2SetInteger, the Booleans in one fmi2SetBoolean (an instance's parameters: a
         hundred calls were most of its set-up). The FMU checks the whole request and names the
-        variable it refuses, as it does for one."""
-        reals: list[tuple[int, float]] = []
-        ints: list[tuple[int, int]] = []
-        bools: list[tuple[int, bool]] = []
-        for name, value in items:
-            v = self.variables[name]
-            if v.type == "Boolean":
-                bools.append((v.value_reference, bool(value)))
-            elif v.type in ("Integer", "Enumeration"):  # FMI 2.0 sets an enumeration as an integer
-                ints.append((v.value_reference, int(value)))
-            else:
-                reals.append((v.value_reference, float(value)))
-        if reals:
-            port = RealPort([vr for vr, _ in reals])
-            port.values[: port.n] = [x for _, x in reals]
+        variable it refuses, as it does for one.
+
+        Which names are of which type, and their value references, are worked out once for
+        the names set last: a pooled instance is given the same parameters, other values, by
+        every run of a Monte Carlo."""
+        names = tuple(name for name, _ in items)
+        kinds = self._kinds if self._kinds is not None and self._kinds.names == names else None
+        if kinds is None:
+            kinds = self._kinds = _Kinds.of(self.variables, names)
+        values = [value for _, value in items]
+        if kinds.reals:
+            port = kinds.port
+            port.values[: port.n] = [float(values[j]) for j in kinds.reals]
             self.write(port)
-        if ints:
-            self._call("fmi2SetInteger", lambda: self._slave.setInteger(*map(list, zip(*ints, strict=True))))
-        if bools:
-            self._call("fmi2SetBoolean", lambda: self._slave.setBoolean(*map(list, zip(*bools, strict=True))))
+        if kinds.ints:
+            n = len(kinds.ints)
+            ints = (ctypes.c_int * n)(*[int(values[j]) for j in kinds.ints])
+            self._check("fmi2SetInteger", self._fns["fmi2SetInteger"](self._c, kinds.int_vrs, n, ints))
+        if kinds.bools:
+            n = len(kinds.bools)
+            bools = (ctypes.c_int * n)(*[bool(values[j]) for j in kinds.bools])
+            self._check("fmi2SetBoolean", self._fns["fmi2SetBoolean"](self._c, kinds.bool_vrs, n, bools))
 
     def set_value(self, name: str, value: float | int | bool) -> None:
         v = self.variables[name]
@@ -418,9 +532,7 @@ class FMUSlot:
     def reset(self) -> bool:
         """``fmi2Reset``: back to the state after instantiation, every variable at its start
         value. False when the FMU refuses (the caller then frees it)."""
-        try:
-            self._call("fmi2Reset", self._slave.reset)
-        except FMUError:
+        if self._fns["fmi2Reset"](self._c) > 1:
             return False
         self._initialized = False
         forget_logging(self.name)

@@ -47,7 +47,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -59,7 +59,7 @@ from twin.seeds import Key, generator, scenario_seed
 from twin.uncertainty import rooms
 from twin.uncertainty.shares import NOISE, ROOM, THERMAL_NETWORK, variance_shares
 from twin.uncertainty.spreads import calibrated_rows, merge_rows
-from twin.uncertainty.testers import Testers, apply, load_prior, load_room, with_rests
+from twin.uncertainty.testers import Testers, apply, key_parts, load_prior, load_room, with_rests
 from twin.uncertainty.updated import UpdatedTester
 
 __all__ = [
@@ -156,7 +156,14 @@ class Draw(NamedTuple):
     inputs: dict[str, float]
 
 
-def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Callable[[int], Draw]]:
+class Maker(Protocol):
+    """Sample ``i``'s draw; with a ``posterior``, the updated sample ``i``: prior sample ``i``
+    with those values set (:func:`updated_sampler`)."""
+
+    def __call__(self, i: int, posterior: Mapping[str, float] | None = None) -> Draw: ...
+
+
+def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Maker]:
     """The varied keys with their input groups (the room's and the noise's last), and sample
     ``i``'s draw."""
     prior = load_prior(unc.spreads, scenario)
@@ -168,23 +175,56 @@ def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Calla
     # every sample's draw at once (each from its own stream: the same numbers one by one)
     draws = testers.draw_many(range(unc.samples))
 
-    def make(i: int) -> Draw:
+    def make(i: int, posterior: Mapping[str, float] | None = None) -> Draw:
         profile, name, mean = _room(unc, scenario, target, i)
         drawn = dict(draws[i]) if i < len(draws) else testers.draw(i)
-        sample = apply(scenario, with_rests(scenario, drawn, prior.rests)).with_input(profile)
+        values = with_rests(scenario, drawn, prior.rests)
         shape = float(unc.room_shapes.index(name)) if name in unc.room_shapes else 0.0
         inputs = drawn | dict(zip(ROOM_INPUTS, (shape, mean), strict=True))
-        return Draw(sample.with_seed(scenario_seed(unc.seed, Key.RUN, Key.SAMPLE, i)), name, inputs)
+        seed = scenario_seed(unc.seed, Key.RUN, Key.SAMPLE, i)
+        if posterior is not None:
+            at_once = _with_posterior(scenario, values, posterior)
+            if at_once is not None:
+                return Draw(at_once.with_input(profile).with_seed(seed), name, inputs | posterior)
+        draw = Draw(apply(scenario, values).with_input(profile).with_seed(seed), name, inputs)
+        if posterior is None:
+            return draw
+        return Draw(apply(draw.scenario, posterior), name, draw.inputs | posterior)
 
     return groups, make
 
 
-def updated_sampler(make: Callable[[int], Draw], tester: UpdatedTester) -> Callable[[int], Draw]:
+def _with_posterior(
+    scenario: Scenario, values: Mapping[str, Any], posterior: Mapping[str, float]
+) -> Scenario | None:
+    """``scenario`` with the prior's ``values`` and then the ``posterior``'s set in one pass, as
+    setting them one after the other sets them (an updated sample is its prior sample with the
+    posterior set: making the prior sample again first was half of its making), or None where
+    one pass might not give what two give, and the caller takes two: a posterior value other
+    than an instance's parameter (a profile's, the seed: set before the room's profile
+    replaces it), or a value either pass refuses (two passes refuse the first in their order,
+    the prior's values checked before the posterior replaces some of them)."""
+    instances = {f.name for f in scenario.fmus}
+    overridden: dict[str, dict[str, Any]] = {}
+    for key in posterior:
+        instance, parameter = key_parts(key)
+        if instance not in instances or parameter is None:
+            return None
+        if key in values:
+            overridden.setdefault(instance, {})[parameter] = values[key]
+    try:
+        for instance, replaced in overridden.items():
+            scenario.with_parameters(instance, replaced)  # the prior's values the first pass checks
+        return apply(scenario, {**values, **posterior})
+    except ConfigError:
+        return None
+
+
+def updated_sampler(make: Maker, tester: UpdatedTester) -> Callable[[int], Draw]:
     """Updated sample ``i``: prior sample ``i`` with the tester's posterior draw ``i`` set."""
 
     def make_updated(i: int) -> Draw:
-        draw, values = make(i), tester.draw(i)
-        return Draw(apply(draw.scenario, values), draw.room_shape, draw.inputs | values)
+        return make(i, tester.draw(i))
 
     return make_updated
 

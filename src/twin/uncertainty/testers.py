@@ -14,6 +14,7 @@ same numbers), so a spread means what it means to ``twin sweep``.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ __all__ = [
     "Testers",
     "apply",
     "instance_of",
+    "key_parts",
     "load_prior",
     "load_room",
     "load_testers",
@@ -230,6 +232,16 @@ def _base(path: Path, base: str, where: str = "sweep") -> Scenario:
         raise ConfigError(f"{base}: {exc.message}", source=str(path), key=f"{where}.base") from None
 
 
+@functools.lru_cache(maxsize=4096)
+def key_parts(key: str) -> tuple[str | None, str | None]:
+    """The instance a key sets (:func:`instance_of`) and, for an ``fmu.<instance>.parameters.
+    <name>`` key, the parameter's name (else None): a Monte Carlo's samples set the same keys,
+    each split once."""
+    parts = key.split(".")
+    parameter = parts[3] if len(parts) == 4 and parts[0] == "fmu" and parts[2] == "parameters" else None
+    return instance_of(key), parameter
+
+
 def apply(scenario: Scenario, values: Mapping[str, Any]) -> Scenario:
     """``scenario`` as the tester of ``values`` (keys of
     :meth:`~twin.config.spec.Scenario.with_value`): each value whose instance the scenario has."""
@@ -238,10 +250,9 @@ def apply(scenario: Scenario, values: Mapping[str, Any]) -> Scenario:
     # scenario per value was most of a Monte Carlo sample's making
     grouped: dict[str, dict[str, Any]] = {}
     for key, value in values.items():
-        instance = instance_of(key)
-        parts = key.split(".")
-        if instance in instances and len(parts) == 4 and parts[2] == "parameters":
-            grouped.setdefault(instance, {})[parts[3]] = value
+        instance, parameter = key_parts(key)
+        if instance in instances and parameter is not None:
+            grouped.setdefault(instance, {})[parameter] = value
         elif instance in (None, *instances):
             scenario = scenario.with_value(key, value)
     for instance, params in grouped.items():
