@@ -16,7 +16,7 @@ import gc
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +29,7 @@ from twin.pipeline.cluster import bounded_logs, execute, failed, one_line, open_
 from twin.pipeline.prepare import PreparedRun, prepare_scenario
 from twin.pipeline.run_summary import RunSummary
 from twin.pipeline.stages import run_into_folder
+from twin.uncertainty.testers import apply
 
 __all__ = ["mark_interrupted", "run", "run_samples"]
 
@@ -210,23 +211,26 @@ def _others(busy0: float | None, busy1: float | None, cpu_s: float, wall_s: floa
     return max(0.0, (busy1 - busy0 - cpu_s) / wall_s)
 
 
-def _paired_draws(
-    make: Callable[[int], montecarlo.Draw], updated: int
-) -> dict[str, Callable[[int], montecarlo.Draw]]:
+def _paired_draws(make: montecarlo.Maker, updated: int) -> dict[str, montecarlo.Maker]:
     """Prior sample ``i``'s draw for the prior and for the updated prediction (what its updated
     sample sets the posterior on): made once, kept from the prior sample to the updated one
-    (the two come in one batch: :func:`_batches`), made again where the prior's was not kept."""
+    (the two come in one batch: :func:`_batches`), which sets the posterior on it; made again,
+    with the posterior at once, where the prior's was not kept."""
     kept: dict[int, montecarlo.Draw] = {}
 
-    def prior(i: int) -> montecarlo.Draw:
-        draw = make(i)
+    def prior(i: int, posterior: Mapping[str, float] | None = None) -> montecarlo.Draw:
+        draw = make(i, posterior)
         if i < updated:
             kept[i] = draw
         return draw
 
-    def again(i: int) -> montecarlo.Draw:
+    def again(i: int, posterior: Mapping[str, float] | None = None) -> montecarlo.Draw:
         draw = kept.pop(i, None)
-        return make(i) if draw is None else draw
+        if draw is None:
+            return make(i, posterior)
+        if posterior is None:
+            return draw
+        return montecarlo.Draw(apply(draw.scenario, posterior), draw.room_shape, draw.inputs | posterior)
 
     return {montecarlo.PRIOR: prior, montecarlo.UPDATED: again}
 
