@@ -46,6 +46,10 @@ def run(
     samples' cluster is closed after summary.json says "interrupted": the run's own outputs
     are complete); a signal that comes after the run's own outputs, before its Monte Carlo,
     makes it "interrupted" too: a summary never says "completed" of a command a signal ended."""
+    # the samples' draws before the run (the prior file read, every tester drawn, scipy's
+    # special functions loaded): this process is done with its own outputs before the plot
+    # helper has drawn (it imports matplotlib meanwhile), and would otherwise wait for it
+    sampling = _sampling(prepared) if prepared.uncertainty is not None else None
     summary = run_into_folder(prepared, controls)
     if prepared.plots is not None:
         prepared.plots.close()  # the plots are drawn: the helper ends before the samples' workers start
@@ -66,7 +70,7 @@ def run(
     if prepared.uncertainty is None:
         return summary
     stopped: list[RunSummary] = []
-    mc = run_samples(prepared, controls, lambda name: stopped.append(interrupted(name)))
+    mc = run_samples(prepared, controls, lambda name: stopped.append(interrupted(name)), sampling)
     if stopped:
         return stopped[0]
     montecarlo.write_samples(prepared.folder.file(UNCERTAINTY_CSV), mc["rows"])
@@ -80,8 +84,18 @@ def run(
     return RunSummary.from_dict(data)
 
 
+def _sampling(prepared: PreparedRun) -> tuple[dict[str, str], montecarlo.Maker]:
+    """The Monte Carlo's input groups and its sampler (:func:`montecarlo.sampler`): the prior
+    is drawn around the scenario before an updated tester's values were set."""
+    assert prepared.uncertainty is not None
+    return montecarlo.sampler(prepared.uncertainty, prepared.prior_scenario or prepared.scenario)
+
+
 def run_samples(
-    prepared: PreparedRun, controls: RunControls, on_stop: Callable[[str], Any] | None = None
+    prepared: PreparedRun,
+    controls: RunControls,
+    on_stop: Callable[[str], Any] | None = None,
+    sampling: tuple[dict[str, str], montecarlo.Maker] | None = None,
 ) -> dict[str, Any]:
     """The prepared run's Monte Carlo: per sample its room shape and figures, in sample order.
 
@@ -91,12 +105,12 @@ def run_samples(
     take less than a local cluster saves: then the rest go to Dask (:func:`_cluster_pays`).
     ``controls.stop`` answering a signal's name ends it after the samples done so far
     (``"interrupted"`` then names it); ``on_stop(name)`` is called then, before a cluster
-    closes (closing it takes seconds the command may not be given)."""
+    closes (closing it takes seconds the command may not be given); ``sampling``, its sampler
+    made already (:func:`_sampling`)."""
     unc = prepared.uncertainty
     assert unc is not None
-    # the prior is drawn around the scenario before an updated tester's values were set; the
-    # updated prediction's sample i is prior sample i with the tester's posterior draw i set
-    groups, make = montecarlo.sampler(unc, prepared.prior_scenario or prepared.scenario)
+    # the updated prediction's sample i is prior sample i with the tester's posterior draw i set
+    groups, make = sampling if sampling is not None else _sampling(prepared)
     tester = prepared.tester
     updated = min(unc.samples, len(tester.draws)) if tester is not None else 0
     makers = {montecarlo.PRIOR: make}
