@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from twin.pipeline.montecarlo import SAMPLE_COLUMNS, write_samples
+from twin.pipeline.montecarlo import SAMPLE_COLUMNS, _csv_column, write_samples
 
 
 def _pandas_way(path: Path, rows: list[dict]) -> None:
@@ -86,3 +86,26 @@ def test_no_pandas_import(tmp_path: Path) -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "False"]
     assert (tmp_path / "u.csv").read_text().splitlines()[1].endswith(",0.1")
+
+
+def test_a_float_cell_is_numpy_s_text_of_the_double() -> None:
+    """Python's shortest repr, which the cells take, is numpy's text of a float64 (pandas'):
+    the same digits and the same notation, over every exponent and the edge cases."""
+    rng = np.random.default_rng(32)
+    values = rng.standard_normal(20_000) * 10.0 ** rng.integers(-320, 308, 20_000)
+    edges = [
+        0.0,
+        -0.0,
+        math.inf,
+        -math.inf,
+        1e16,
+        9.999999999999998e15,
+        1e-5,
+        1e-4,
+        5e-324,
+        1.7976931348623157e308,
+        0.1,
+        1 / 3,
+    ]
+    values = np.concatenate([values, edges])
+    assert _csv_column([float(v) for v in values]) == values.astype(str).tolist()

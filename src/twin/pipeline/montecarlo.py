@@ -371,8 +371,9 @@ def _csv_column(values: Sequence[Any]) -> list[str]:
     if present and all(isinstance(v, int | float | np.integer) and not isinstance(v, bool) for v in present):
         if not any(missing) and all(isinstance(v, int | np.integer) for v in present):
             return [str(int(v)) for v in values]
-        floats = np.array([math.nan if m else float(v) for v, m in zip(values, missing, strict=True)])
-        return ["" if m else t for m, t in zip(missing, floats.astype(str).tolist(), strict=True)]
+        # Python's shortest repr of a double is numpy's (both round-trip, same notation: tested
+        # against numpy's text), at half its cost
+        return ["" if m else repr(float(v)) for v, m in zip(values, missing, strict=True)]
     if present and not any(missing) and all(isinstance(v, bool | np.bool_) for v in present):
         return [str(bool(v)) for v in values]
     return ["" if m else str(v) for v, m in zip(values, missing, strict=True)]
