@@ -135,31 +135,54 @@ def test_identities_tell_apart_what_is_equal_but_not_the_same_bits() -> None:
     assert same[0][1:] == same[1][1:] and same[0][1:] != same[2][1:]
 
 
-def _heated(tmp_path: Path, name: str, watts: float, offset: float = 0.0) -> Path:
+def _heated(
+    tmp_path: Path,
+    name: str,
+    watts: float,
+    offset: float = 0.0,
+    clock: tuple[str, ...] = ("10 s", "10 s", "10 s"),
+) -> Path:
+    """A thermal network heated by ``watts`` (a constant, or a ramp up to them) feeding the
+    mechanics; ``clock``: the master's step, the thermal network's and the mechanics' periods,
+    and when they differ the output interval (5 s), a ramp, and a load the mechanics read."""
+    step, thermal, mechanics = clock
+    even = len(set(clock)) == 1
+    heat = (
+        f'profile = "constant"\nvalue = {watts}'
+        if even
+        else f'profile = "ramp"\nstart = 0.0\nend = {watts}\nduration = "7 min"'
+    )
+    load = (
+        ""
+        if even
+        else (
+            '[input.mechanics.radial_load]\nprofile = "sine"\nmean = 1000.0\namplitude = 500.0\nperiod = "77 s"\n'
+            'source = "test: a load the mechanics read at their own exchanges"\n'
+        )
+    )
     path = tmp_path / f"{name}.toml"
     path.write_text(f"""
 [scenario]
 name = "{name}"
-duration = "2 h"
-step = "10 s"
-output_interval = "10 s"
+duration = "{"2 h" if even else "10 min"}"
+step = "{step}"
+output_interval = "{"10 s" if even else "5 s"}"
 seed = 3
 [fmu.thermal]
 model = "ThermalNetwork"
-period = "10 s"
-parameters = {{ solver_step = 10.0 }}
+period = "{thermal}"
+parameters = {{ solver_step = {10.0 if even else 1.0} }}
 unconnected = "a test system: the inputs nothing feeds keep their start values"
 [fmu.mechanics]
 model = "FixtureMechanics"
-period = "10 s"
+period = "{mechanics}"
 unconnected = "a test system: the inputs nothing feeds keep their start values"
 [connections]
 "thermal.t_oil" = {{ to = "mechanics.t_base", offset = {offset} }}
 [input.thermal.q_hydraulic]
-profile = "constant"
-value = {watts}
+{heat}
 source = "test: a heat input (all into the oil by default); a megawatt takes the oil past what the mechanics accept (473 K)"
-""")
+{load}""")
     return path
 
 
@@ -237,39 +260,7 @@ def test_plans_of_another_structure_or_with_events_are_refused(tmp_path: Path) -
 def _uneven(tmp_path: Path, watts: float) -> Scenario:
     """Instances whose periods (4 s, 6 s) and output interval (5 s) share no tick pattern with
     the master's 1 s: most ticks do nothing, the driven inputs are read every second tick."""
-    path = tmp_path / f"uneven-{watts}.toml"
-    path.write_text(f"""
-[scenario]
-name = "uneven"
-duration = "10 min"
-step = "1 s"
-output_interval = "5 s"
-seed = 3
-[fmu.thermal]
-model = "ThermalNetwork"
-period = "4 s"
-parameters = {{ solver_step = 1.0 }}
-unconnected = "a test system: the inputs nothing feeds keep their start values"
-[fmu.mechanics]
-model = "FixtureMechanics"
-period = "6 s"
-unconnected = "a test system: the inputs nothing feeds keep their start values"
-[connections]
-"thermal.t_oil" = "mechanics.t_base"
-[input.thermal.q_hydraulic]
-profile = "ramp"
-start = 0.0
-end = {watts}
-duration = "7 min"
-source = "test: a heat input rising"
-[input.mechanics.radial_load]
-profile = "sine"
-mean = 1000.0
-amplitude = 500.0
-period = "77 s"
-source = "test: a load the mechanics read at their own exchanges"
-""")
-    return load_scenario(path)
+    return load_scenario(_heated(tmp_path, f"uneven-{watts}", watts, clock=("1 s", "4 s", "6 s")))
 
 
 def test_ticks_where_nothing_happens_are_counted_not_changed(tmp_path: Path) -> None:

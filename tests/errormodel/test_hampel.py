@@ -9,18 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from twin.errormodel import sources
-from twin.errormodel.sources import hampel, moving_median
+from twin.errormodel.sources import hampel
 
-
-def everywhere(
-    x: np.ndarray, half_window: int, n_sigmas: float, floor: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The filter as it was: the median and the MAD of every window."""
-    med = moving_median(x, half_window)
-    deviation = np.abs(x - med)
-    mad = moving_median(deviation, half_window)
-    spikes = deviation > np.maximum(n_sigmas * 1.4826 * mad, floor)
-    return np.where(spikes, med, x), spikes
+#: the filter as it was: the median and the MAD of every window (what it falls back on)
+everywhere = sources._hampel_everywhere
 
 
 def probe_like(rng: np.random.Generator, n: int, spikes: int = 3) -> np.ndarray:
