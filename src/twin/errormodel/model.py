@@ -165,6 +165,11 @@ def _add_cm(a: Array, b: Array | float) -> Array:
     return a + b
 
 
+#: the sets of kept terms a model holds at most (:meth:`ErrorModel._constant_terms`): a Monte
+#: Carlo needs one; a long record evaluated in chunks of scalar motion would add one a chunk
+_TERMS_KEPT = 64
+
+
 class BranchModel:
     """One branch: the chain of joints from the base to an end body and a point on that body.
 
@@ -573,6 +578,8 @@ class ErrorModel:
                         (coef[2 * j + kind][0, q], i) for i, (kind, q, _) in enumerate(c.errors.get(body, ()))
                     ]
                     terms.append((sign, self.topology.body(body).name, body, each))
+            if len(self._terms) >= _TERMS_KEPT:  # a long record's chunks, each its own motion
+                self._terms.clear()
             self._terms[key] = terms
         return terms
 
