@@ -368,6 +368,11 @@ def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path, monkeypatch: p
     monkeypatch.chdir(tmp_path)
     assert main(["identify", "--quiet"]) == 0
     assert default_path().read_bytes() == committed
+    # the committed file is what identify makes now: an FMU or a calibration experiment changed
+    # without regenerating it (its source stamps, its coefficients) fails here
+    assert (tmp_path / "identified.toml").read_bytes() == committed, (
+        "scenarios/calibration/identified.toml is stale: twin identify --out scenarios/calibration/identified.toml"
+    )
     c = load_coefficients(tmp_path / "identified.toml")
     assert list(c.coefficients) == list(coefficient_units())
     for name, x in c.coefficients.items():
