@@ -91,6 +91,19 @@ def test_the_shipped_tester_is_current_and_converged() -> None:
     assert identified["overrides"] == tester.overrides(coefficients=False)
 
 
+@pytest.mark.slow
+def test_the_shipped_testers_coefficients_are_what_identify_makes_of_it_now(tmp_path) -> None:
+    # the coefficients file the shipped tester names is made by a program: an FMU, a calibration
+    # experiment or the fit changed without regenerating it fails here
+    tester = load_updated(SHIPPED)
+    assert tester.coefficients is not None
+    out = tmp_path / "identified.toml"
+    assert main(["identify", "--tester", str(SHIPPED), "--out", str(out), "--quiet"]) == 0
+    assert out.read_bytes() == tester.coefficients.read_bytes(), (
+        f"{tester.coefficients} is stale: twin identify --tester {SHIPPED} --out {tester.coefficients}"
+    )
+
+
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory) -> dict:
     """The default ``twin run``: the paper's experiment, its updated tester, both predictives."""
