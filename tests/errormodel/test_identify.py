@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.identified_files import assert_made_now
 from tests.runs import run_into
 from twin.calibration.identify import identify, run_experiment
 from twin.config.load import load_scenario, scenarios_dir
@@ -368,10 +369,11 @@ def test_identify_on_the_twin_writes_a_valid_file(tmp_path: Path, monkeypatch: p
     monkeypatch.chdir(tmp_path)
     assert main(["identify", "--quiet"]) == 0
     assert default_path().read_bytes() == committed
-    # the committed file is what identify makes now: an FMU or a calibration experiment changed
-    # without regenerating it (its source stamps, its coefficients) fails here
-    assert (tmp_path / "identified.toml").read_bytes() == committed, (
-        "scenarios/calibration/identified.toml is stale: twin identify --out scenarios/calibration/identified.toml"
+    # the committed file is what identify makes now (its stamps, its coefficients)
+    assert_made_now(
+        tmp_path / "identified.toml",
+        default_path(),
+        "twin identify --out scenarios/calibration/identified.toml",
     )
     c = load_coefficients(tmp_path / "identified.toml")
     assert list(c.coefficients) == list(coefficient_units())
