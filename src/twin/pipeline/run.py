@@ -46,9 +46,9 @@ def run(
     samples' cluster is closed after summary.json says "interrupted": the run's own outputs
     are complete); a signal that comes after the run's own outputs, before its Monte Carlo,
     makes it "interrupted" too: a summary never says "completed" of a command a signal ended."""
-    # the samples' draws before the run (the prior file read, every tester drawn, scipy's
-    # special functions loaded): this process is done with its own outputs before the plot
-    # helper has drawn (it imports matplotlib meanwhile), and would otherwise wait for it
+    # the samples' draws before the run (the prior file read, every tester drawn): this
+    # process is done with its own outputs before the plot helper has drawn (it imports
+    # matplotlib meanwhile), and would otherwise wait for it
     sampling = _sampling(prepared) if prepared.uncertainty is not None else None
     summary = run_into_folder(prepared, controls)
     if prepared.plots is not None:

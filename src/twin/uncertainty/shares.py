@@ -91,8 +91,10 @@ def first_order(x: np.ndarray, y: np.ndarray, harmonics: int = HARMONICS) -> flo
     and down the odd), ``compute_first_order`` (scipy.signal's periodogram: the mean taken out,
     scaled by the boxcar window's ``1 / sqrt(n)``, scipy.fft's real FFT, squared magnitudes
     doubled but for the first and an even length's last; the first ``harmonics`` over all but
-    the first) and ``unskew_S1`` (Tissot & Prieur's correction)."""
-    from scipy.fft import rfft
+    the first) and ``unskew_S1`` (Tissot & Prieur's correction). The real FFT is numpy's: the
+    same pocketfft as scipy.fft's, the same bits (tested), without scipy's import (a fifth of
+    a CPU second of a default run)."""
+    rfft = np.fft.rfft
 
     order = np.argsort(x)
     permuted = y[np.concatenate([order[::2], order[1::2][::-1]])]

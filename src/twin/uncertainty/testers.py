@@ -9,15 +9,18 @@ Its spreads are resolved around a base scenario's values (:mod:`twin.uncertainty
 tester ``i`` is drawn from :func:`twin.seeds.generator` with key ``(TESTER, i)`` alone: the
 same tester whatever the number of testers, workers or the order they finish in. Its values
 map through the inverse CDFs of SALib's :func:`~SALib.util.scale_samples` (:func:`scale`: the
-same numbers), so a spread means what it means to ``twin sweep``.
+same numbers, within 1e-14 relative), so a spread means what it means to
+``twin sweep``.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from statistics import NormalDist
 from typing import Any
 
 import numpy as np
@@ -39,6 +42,7 @@ __all__ = [
     "load_prior",
     "load_room",
     "load_testers",
+    "normal_quantile",
     "scale",
     "with_rests",
 ]
@@ -87,32 +91,44 @@ _OWN = {"norm", "lognorm", "unif"}
 
 
 def scale(unit: np.ndarray, rows: Sequence[Row]) -> np.ndarray:
-    """The unit draws ``unit`` (one column per row) mapped through each row's inverse CDF: the
-    numbers of SALib's :func:`~SALib.util.scale_samples`, to the last bit.
+    """The unit draws ``unit`` (one column per row) mapped through each row's inverse CDF: SALib's
+    :func:`~SALib.util.scale_samples` maps, each value within 1e-14 of SALib's, relative
+    (tests/uncertainty/test_scale.py).
 
     SALib's module imports pandas and all of scipy.stats (about half a second and a hundred MB,
     a third of a default run's) for three one-line maps: a normal's quantile is
-    ``ndtri(q) * sigma + mean`` in scipy.stats (the ``scipy.special`` function its normal's ppf
-    calls, then the same product and sum), a lognormal's its exponential, a uniform's
-    ``q * (high - low) + low``. Those three are computed here with the same arithmetic; a row of
-    any other distribution (triangular, log-uniform, truncated normal: no prior file uses them
-    yet) sends the whole draw to SALib."""
+    ``ndtri(q) * sigma + mean`` in scipy.stats, a lognormal's its exponential, a uniform's
+    ``q * (high - low) + low``. Those three are computed here with the same arithmetic, the
+    standard normal's quantile by the standard library's (:func:`normal_quantile`): scipy's
+    ``ndtri`` alone cost a default run a fifth of a CPU second to import (scipy.special loads
+    its own BLAS and starts its thread). A uniform's values are SALib's to the last bit. A row
+    of any other distribution (triangular, log-uniform, truncated normal: no prior file uses
+    them yet) sends the whole draw to SALib."""
     if any(r[1] not in _OWN for r in rows):
         from SALib.util import scale_samples
 
         return np.asarray(scale_samples(unit, problem(list(rows))))
-    from scipy.special import ndtri
-
     out = np.empty_like(unit)
     for i, (_, dist, bounds) in enumerate(rows):
         b1, b2 = bounds[0], bounds[1]
         if dist == "unif":
             out[:, i] = unit[:, i] * (b2 - b1) + b1
         elif dist == "norm":
-            out[:, i] = ndtri(unit[:, i]) * b2 + b1
+            out[:, i] = normal_quantile(unit[:, i]) * b2 + b1
         else:
-            out[:, i] = np.exp(ndtri(unit[:, i]) * b2 + b1)
+            out[:, i] = np.exp(normal_quantile(unit[:, i]) * b2 + b1)
     return out
+
+
+def normal_quantile(q: np.ndarray) -> np.ndarray:
+    """The standard normal's quantile of each ``q``, as scipy's ``ndtri`` gives it (within a few
+    units in the last place: Wichura's AS 241, :meth:`statistics.NormalDist.inv_cdf`): minus
+    infinity at 0 and below, infinity at 1 and above, NaN for NaN (a unit draw is in [0, 1))."""
+    inv_cdf = NormalDist().inv_cdf
+    return np.array(
+        [-math.inf if v <= 0.0 else math.inf if v >= 1.0 else v if v != v else inv_cdf(v) for v in q.tolist()],
+        dtype=float,
+    )
 
 
 @dataclass(frozen=True)
