@@ -126,7 +126,10 @@ def normal_quantile(q: np.ndarray) -> np.ndarray:
     infinity at 0 and below, infinity at 1 and above, NaN for NaN (a unit draw is in [0, 1))."""
     inv_cdf = NormalDist().inv_cdf
     return np.array(
-        [-math.inf if v <= 0.0 else math.inf if v >= 1.0 else v if v != v else inv_cdf(v) for v in q.tolist()],
+        [
+            -math.inf if v <= 0.0 else math.inf if v >= 1.0 else v if v != v else inv_cdf(v)
+            for v in q.tolist()
+        ],
         dtype=float,
     )
 
