@@ -14,9 +14,22 @@ typedef struct {
 
 #define INTERNAL_STEP_VR VR_solver_step
 
-/* trigonometry of angles that change with the temperatures or not at all (the block's tilt,
- * the probe's tilt, the runout's phase), asked for at every output (model.h, Memo) */
-enum { MEMO_TILT_COS, MEMO_TILT_SIN, MEMO_RUNOUT_PHASE, MEMO_PROBE_TILT, FM_MEMOS };
+/* libm calls whose arguments change with the temperatures or not at all (model.h, Memo): the
+ * trigonometry of the block's tilt, the probe's tilt, the runout's phase and the swing angle
+ * (constant while the transmission is off), asked for at every output; the creep's gain, the
+ * same every internal step; the running-in's exponential of -s/s0 (constant while nothing
+ * slides, and one step's end is the next step's start and the outputs') */
+enum {
+    MEMO_TILT_COS,
+    MEMO_TILT_SIN,
+    MEMO_RUNOUT_PHASE,
+    MEMO_PROBE_TILT,
+    MEMO_ANGLE_COS,
+    MEMO_RUNOUT_COS,
+    MEMO_CREEP_GAIN,
+    MEMO_RUNNING_IN,
+    FM_MEMOS
+};
 #define MODEL_MEMOS FM_MEMOS
 
 #endif

@@ -85,17 +85,25 @@ fmi2Status model_initialize(ModelInstance *comp) {
     return fmi2OK;
 }
 
+/* f(x) for the libm function f, from the memo when it holds x (the same bits as the call) */
+static double kept(Memo *memo, double (*f)(double), double x) {
+    return memo_hit(memo, x, 0.0) ? memo->value : memo_keep(memo, x, 0.0, f(x));
+}
+
 fmi2Status model_step(ModelInstance *comp, double h) {
     const double *r = comp->v.r;
     ModelState *m = &comp->v.m;
+    Memo *memo = comp->memo;
     double ds = r[VR_sliding_speed] * h, s0 = r[VR_running_in_distance];
     /* exact integral of k(s) p ds over [s, s + ds] */
-    double running_in = r[VR_running_in_factor] * s0 * (exp(-m->sliding_distance / s0) - exp(-(m->sliding_distance + ds) / s0));
+    double running_in = r[VR_running_in_factor] * s0 *
+                        (kept(&memo[MEMO_RUNNING_IN], exp, -m->sliding_distance / s0) -
+                         kept(&memo[MEMO_RUNNING_IN], exp, -(m->sliding_distance + ds) / s0));
     double elastic = liner_elastic(comp);
     m->wear += r[VR_wear_rate] * r[VR_contact_pressure] * (ds + running_in);
     m->sliding_distance += ds;
     /* creep: first-order approach to ratio x elastic compression, exact for the held load */
-    m->creep += (r[VR_liner_creep_ratio] * elastic - m->creep) * -expm1(-h / r[VR_liner_creep_time]);
+    m->creep += (r[VR_liner_creep_ratio] * elastic - m->creep) * -kept(&memo[MEMO_CREEP_GAIN], expm1, -h / r[VR_liner_creep_time]);
     m->liner_play = liner_play(comp, elastic);
     return fmi2OK;
 }
@@ -163,13 +171,14 @@ static double bearing_branch(ModelInstance *comp, const double *dt, const double
      * that changes with the swing angle */
     r[VR_dz_liner_creep] = comp->v.m.creep;
     r[VR_dz_loading] = liner_play(comp, liner_elastic(comp)) + comp->v.m.creep +
-                       r[VR_compliance_structure] * (1.0 + r[VR_compliance_angle_factor] * (1.0 - cos(r[VR_angle]))) *
+                       r[VR_compliance_structure] *
+                           (1.0 + r[VR_compliance_angle_factor] * (1.0 - kept(&comp->memo[MEMO_ANGLE_COS], cos, r[VR_angle]))) *
                            r[VR_radial_load];
     phase = r[VR_runout_phase];
     cos_phase = memo_hit(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0)
                     ? comp->memo[MEMO_RUNOUT_PHASE].value
                     : memo_keep(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0, cos(phase));
-    r[VR_dz_runout] = r[VR_spindle_runout] * (cos(r[VR_angle] - r[VR_runout_phase]) - cos_phase);
+    r[VR_dz_runout] = r[VR_spindle_runout] * (kept(&comp->memo[MEMO_RUNOUT_COS], cos, r[VR_angle] - r[VR_runout_phase]) - cos_phase);
     r[VR_dz_vibration] = r[VR_vibration_z];
     r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
     r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_bearing_block_tilt] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
@@ -261,7 +270,8 @@ void model_outputs(ModelInstance *comp) {
     pole_contact(r, z_t);
     probe_reading(comp->memo, r);
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
-                          (1.0 + r[VR_running_in_factor] * exp(-comp->v.m.sliding_distance / r[VR_running_in_distance]));
+                          (1.0 + r[VR_running_in_factor] *
+                                     kept(&comp->memo[MEMO_RUNNING_IN], exp, -comp->v.m.sliding_distance / r[VR_running_in_distance]));
 }
 
 /* A state handed back: each reference temperature the one initialization takes (the input's
