@@ -125,13 +125,15 @@ def normal_quantile(q: np.ndarray) -> np.ndarray:
     units in the last place: Wichura's AS 241, :meth:`statistics.NormalDist.inv_cdf`): minus
     infinity at 0 and below, infinity at 1 and above, NaN for NaN (a unit draw is in [0, 1))."""
     inv_cdf = NormalDist().inv_cdf
-    return np.array(
-        [
-            -math.inf if v <= 0.0 else math.inf if v >= 1.0 else v if v != v else inv_cdf(v)
-            for v in q.tolist()
-        ],
-        dtype=float,
-    )
+
+    def one(p: float) -> float:
+        if math.isnan(p):
+            return p
+        if p <= 0.0:
+            return -math.inf
+        return math.inf if p >= 1.0 else inv_cdf(p)
+
+    return np.array([one(p) for p in q.tolist()], dtype=float)
 
 
 @dataclass(frozen=True)
