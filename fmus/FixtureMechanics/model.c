@@ -85,11 +85,6 @@ fmi2Status model_initialize(ModelInstance *comp) {
     return fmi2OK;
 }
 
-/* f(x) for the libm function f, from the memo when it holds x (the same bits as the call) */
-static double kept(Memo *memo, double (*f)(double), double x) {
-    return memo_hit(memo, x, 0.0) ? memo->value : memo_keep(memo, x, 0.0, f(x));
-}
-
 fmi2Status model_step(ModelInstance *comp, double h) {
     const double *r = comp->v.r;
     ModelState *m = &comp->v.m;
@@ -97,13 +92,13 @@ fmi2Status model_step(ModelInstance *comp, double h) {
     double ds = r[VR_sliding_speed] * h, s0 = r[VR_running_in_distance];
     /* exact integral of k(s) p ds over [s, s + ds] */
     double running_in = r[VR_running_in_factor] * s0 *
-                        (kept(&memo[MEMO_RUNNING_IN], exp, -m->sliding_distance / s0) -
-                         kept(&memo[MEMO_RUNNING_IN], exp, -(m->sliding_distance + ds) / s0));
+                        (memo_call(&memo[MEMO_RUNNING_IN], exp, -m->sliding_distance / s0) -
+                         memo_call(&memo[MEMO_RUNNING_IN], exp, -(m->sliding_distance + ds) / s0));
     double elastic = liner_elastic(comp);
     m->wear += r[VR_wear_rate] * r[VR_contact_pressure] * (ds + running_in);
     m->sliding_distance += ds;
     /* creep: first-order approach to ratio x elastic compression, exact for the held load */
-    m->creep += (r[VR_liner_creep_ratio] * elastic - m->creep) * -kept(&memo[MEMO_CREEP_GAIN], expm1, -h / r[VR_liner_creep_time]);
+    m->creep += (r[VR_liner_creep_ratio] * elastic - m->creep) * -memo_call(&memo[MEMO_CREEP_GAIN], expm1, -h / r[VR_liner_creep_time]);
     m->liner_play = liner_play(comp, elastic);
     return fmi2OK;
 }
@@ -114,14 +109,7 @@ fmi2Status model_step(ModelInstance *comp, double h) {
 /* The paper's characteristic matrices are 4x4 homogeneous transforms (row-major here). A body's
  * small rotation A about X (the paper's A axis) about a pivot p: T = Trans(p) Rot_x(A) Trans(-p). */
 static void rotation_about_x(Memo *memo, double a, const double pivot[3], double t[16]) {
-    double c, s;
-    if (memo_hit(&memo[MEMO_TILT_COS], a, 0.0) && memo_hit(&memo[MEMO_TILT_SIN], a, 0.0)) {
-        c = memo[MEMO_TILT_COS].value;
-        s = memo[MEMO_TILT_SIN].value;
-    } else {
-        c = memo_keep(&memo[MEMO_TILT_COS], a, 0.0, cos(a));
-        s = memo_keep(&memo[MEMO_TILT_SIN], a, 0.0, sin(a));
-    }
+    double c = memo_call(&memo[MEMO_TILT_COS], cos, a), s = memo_call(&memo[MEMO_TILT_SIN], sin, a);
     double rot[16] = {1, 0, 0, 0, 0, c, -s, 0, 0, s, c, 0, 0, 0, 0, 1};
     int i;
     memcpy(t, rot, sizeof rot);
@@ -172,13 +160,11 @@ static double bearing_branch(ModelInstance *comp, const double *dt, const double
     r[VR_dz_liner_creep] = comp->v.m.creep;
     r[VR_dz_loading] = liner_play(comp, liner_elastic(comp)) + comp->v.m.creep +
                        r[VR_compliance_structure] *
-                           (1.0 + r[VR_compliance_angle_factor] * (1.0 - kept(&comp->memo[MEMO_ANGLE_COS], cos, r[VR_angle]))) *
+                           (1.0 + r[VR_compliance_angle_factor] * (1.0 - memo_call(&comp->memo[MEMO_ANGLE_COS], cos, r[VR_angle]))) *
                            r[VR_radial_load];
     phase = r[VR_runout_phase];
-    cos_phase = memo_hit(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0)
-                    ? comp->memo[MEMO_RUNOUT_PHASE].value
-                    : memo_keep(&comp->memo[MEMO_RUNOUT_PHASE], phase, 0.0, cos(phase));
-    r[VR_dz_runout] = r[VR_spindle_runout] * (kept(&comp->memo[MEMO_RUNOUT_COS], cos, r[VR_angle] - r[VR_runout_phase]) - cos_phase);
+    cos_phase = memo_call(&comp->memo[MEMO_RUNOUT_PHASE], cos, phase);
+    r[VR_dz_runout] = r[VR_spindle_runout] * (memo_call(&comp->memo[MEMO_RUNOUT_COS], cos, r[VR_angle] - r[VR_runout_phase]) - cos_phase);
     r[VR_dz_vibration] = r[VR_vibration_z];
     r[VR_wear_depth_true] = comp->v.m.wear + r[VR_wear_offset];
     r[VR_z_t_plate] = r[VR_dz_bearing_block] + r[VR_dz_bearing_block_tilt] + r[VR_dz_spindle] + r[VR_dz_bearing] + r[VR_dz_t_plate] + r[VR_dz_loading] +
@@ -247,9 +233,7 @@ static void probe_reading(Memo *memo, double *r) {
     double rotation = r[VR_tplate_rotation_compliance] * r[VR_friction_torque];
     double relative = r[VR_z_clamp] - r[VR_z_sensor];
     double tilt = r[VR_sensor_tilt] + r[VR_frame_tilt];
-    double cos_tilt = memo_hit(&memo[MEMO_PROBE_TILT], tilt, 0.0)
-                          ? memo[MEMO_PROBE_TILT].value
-                          : memo_keep(&memo[MEMO_PROBE_TILT], tilt, 0.0, cos(tilt));
+    double cos_tilt = memo_call(&memo[MEMO_PROBE_TILT], cos, tilt);
     double measured = (relative + r[VR_abbe_offset] * rotation) * cos_tilt;
     r[VR_tplate_rotation] = rotation;
     r[VR_dz_positioning] = measured - relative;
@@ -271,7 +255,7 @@ void model_outputs(ModelInstance *comp) {
     probe_reading(comp->memo, r);
     r[VR_wear_rate_now] = r[VR_wear_rate] * r[VR_contact_pressure] * r[VR_sliding_speed] *
                           (1.0 + r[VR_running_in_factor] *
-                                     kept(&comp->memo[MEMO_RUNNING_IN], exp, -comp->v.m.sliding_distance / r[VR_running_in_distance]));
+                                     memo_call(&comp->memo[MEMO_RUNNING_IN], exp, -comp->v.m.sliding_distance / r[VR_running_in_distance]));
 }
 
 /* A state handed back: each reference temperature the one initialization takes (the input's

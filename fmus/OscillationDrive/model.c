@@ -97,8 +97,7 @@ static double friction_coefficient(ModelInstance *comp) {
         f_p = HUGE_VAL; /* no load: clipped to mu_max */
     }
     a = -r[VR_mu_temp_coeff] * (r[VR_t_bearing] - r[VR_t_ref]);
-    f_t = memo_hit(&memo[MEMO_TEMPERATURE], a, 0.0) ? memo[MEMO_TEMPERATURE].value
-                                                   : memo_keep(&memo[MEMO_TEMPERATURE], a, 0.0, exp(a));
+    f_t = memo_call(&memo[MEMO_TEMPERATURE], exp, a);
     mu = r[VR_mu_ref] > 0.0 ? r[VR_mu_ref] * f_p * f_t : 0.0;
     if (mu < r[VR_mu_min]) mu = r[VR_mu_min];
     if (mu > r[VR_mu_max]) mu = r[VR_mu_max];

@@ -113,6 +113,11 @@ static inline double memo_keep(Memo *m, double x, double y, double value) {
     return value;
 }
 
+/* f(x) for a libm function f of one argument: from m when it holds x, else computed and kept */
+static inline double memo_call(Memo *m, double (*f)(double), double x) {
+    return memo_hit(m, x, 0.0) ? m->value : memo_keep(m, x, 0.0, f(x));
+}
+
 typedef struct ModelInstance {
     char *instance_name;
     fmi2CallbackLogger logger;
