@@ -13,7 +13,7 @@ import pytest
 from twin.cli import main
 from twin.errormodel.sources import DEFAULT_TEMPERATURES
 from twin.outputs import plots
-from twin.signals.decimate import LIMIT, extreme_rows, plot_rows
+from twin.signals.decimate import BUCKETS, LIMIT, extreme_rows, plot_rows
 
 READING = "probe reading change\n(wear + errors)"
 #: the two spikes injected into the lab's probe reading (m): far beyond its +-2 µm signal
@@ -119,6 +119,41 @@ def test_the_rows_kept_hold_every_buckets_extremes_and_picking_again_changes_not
     for k in range(0, n // 1000, 17):
         sl = slice(k * 1000, (k + 1) * 1000)
         assert {int(np.argmin(a[sl])) + k * 1000, int(np.argmax(a[sl])) + k * 1000} <= set(kept.tolist())
+
+
+def test_each_curve_of_a_long_record_is_drawn_through_its_own_extremes() -> None:
+    # eight noisy columns: the union of their bucket extremes is most of the plot's rows,
+    # while each curve needs only its own (about four a bucket)
+    from .sample import make_table
+
+    table = make_table(rows=40_000)
+    columns = _sample_columns()
+    fig = plots.budget_figure(table, columns, "sample")
+    drawn = plots.drawn_rows(table, columns.budget_names())
+    assert drawn.size > 2 * LIMIT
+    t_s = table.time[drawn]
+    hours = t_s / 3600.0
+    bucket = np.clip(((t_s - t_s[0]) / (t_s[-1] - t_s[0]) * BUCKETS).astype(np.int64), 0, BUCKETS - 1)
+    starts = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])  # as plot_rows buckets them
+
+    def extremes(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per bucket of the plot's rows: the smallest and largest y drawn there."""
+        at = np.searchsorted(x, hours[starts])
+        return np.minimum.reduceat(y, at), np.maximum.reduceat(y, at)
+
+    drift, budget, _ = fig.axes
+    e_z = table[columns.predicted][drawn] * 1e6
+    for ax, label in ((drift, "predicted error e_z"), (budget, "sum: e_z")):
+        (line,) = [ln for ln in ax.get_lines() if ln.get_label() == label]
+        x, y = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+        assert len(x) <= LIMIT < drawn.size  # its own rows, not the union of every curve's
+        assert np.isin(x, hours).all()  # rows the plot draws, with their values
+        mine, theirs = extremes(x, y), extremes(hours, e_z)
+        np.testing.assert_array_equal(mine[0], theirs[0])  # in every bucket its lowest value
+        np.testing.assert_array_equal(mine[1], theirs[1])  # and its highest
+    for area in budget.collections:
+        (path,) = area.get_paths()
+        assert len(path.vertices) < drawn.size  # each area through its own edges' extremes
 
 
 def test_a_short_record_is_drawn_whole_and_a_record_without_outliers_keeps_its_own_scale() -> None:

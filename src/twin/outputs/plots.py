@@ -10,8 +10,9 @@ it includes, and the legends sit to the right of the panels, outside the curves.
 are in µm.
 
 Honest at any length: a long record is drawn from the rows :func:`twin.signals.decimate.plot_rows`
-keeps, every bucket's extremes among them, so a spike between two drawn rows is never lost;
-and an axis is scaled to where its curves mostly are (a single -12 µm spike no longer squashes
+keeps, every bucket's extremes among them, so a spike between two drawn rows is never lost,
+and each curve (an area: its two edges) is drawn through those of its own (:func:`_own_rows`);
+an axis is scaled to where its curves mostly are (a single -12 µm spike no longer squashes
 a +-2 µm signal to a line): samples beyond it are drawn as triangles on its edge, and the
 legend says how many and how far they reach (:func:`_robust_limits`).
 
@@ -208,17 +209,35 @@ def _legend_outside(ax: Axes) -> None:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
 
 
-def _stacked(ax: Axes, t: np.ndarray, parts: Mapping[str, np.ndarray]) -> None:
+def _stacked(ax: Axes, t: np.ndarray, t_s: np.ndarray, parts: Mapping[str, np.ndarray]) -> None:
     """The parts as stacked areas: positive values stacked up from zero, negative ones down
-    (a plain stack of mixed signs would hide a part under its neighbour)."""
+    (a plain stack of mixed signs would hide a part under its neighbour). Each area is drawn
+    through its own edges' extremes (:func:`_own_rows`, on the times ``t_s`` in seconds)."""
     up = np.zeros_like(t)
     down = np.zeros_like(t)
     for (label, values), color in zip(parts.items(), itertools.cycle(_PART_COLORS)):
         v = np.nan_to_num(values)
         pos, neg = np.clip(v, 0.0, None), np.clip(v, None, 0.0)
-        ax.fill_between(t, up, up + pos, color=color, alpha=0.75, linewidth=0, label=label)
-        ax.fill_between(t, down, down + neg, color=color, alpha=0.75, linewidth=0)
+        for lower, upper, name in ((up, up + pos, label), (down, down + neg, None)):
+            r = _own_rows(t_s, lower, upper)
+            ax.fill_between(t[r], lower[r], upper[r], color=color, alpha=0.75, linewidth=0, label=name)
         up, down = up + pos, down + neg
+
+
+def _own_rows(t_s: np.ndarray, *curves: np.ndarray) -> np.ndarray:
+    """Of a plot's rows (times ``t_s`` in seconds), those one curve (an area: its two edges) is
+    drawn through: every bucket's extremes of its own values, all of them up to
+    :data:`~twin.signals.decimate.LIMIT` rows. The plot's rows hold every column's extremes;
+    a line through its own keeps each spike of its own at a fraction of the vertices (a long
+    run's panel of sixteen curves drew all of its 13,000 rows for each). Picked from the plot's
+    rows, so a plot drawn from them (:func:`twin.outputs.plot_process.thinned`) draws the same."""
+    return plot_rows(t_s, curves)
+
+
+def _line(ax: Axes, t: np.ndarray, t_s: np.ndarray, values: np.ndarray, **style: Any) -> Any:
+    """``values`` against ``t`` through their own extremes (:func:`_own_rows`); the line."""
+    r = _own_rows(t_s, values)
+    return ax.plot(t[r], values[r], **style)[0]
 
 
 def drawn_rows(table: SignalTable, names: Sequence[str]) -> np.ndarray:
@@ -276,7 +295,8 @@ def budget_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Fig
 
 def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figure:
     rows = drawn_rows(table, columns.budget_names())
-    t, t_label = _time_axis(table.time[rows])
+    t_s = table.time[rows]
+    t, t_label = _time_axis(t_s)
 
     def um(name: str) -> np.ndarray:
         return table[name][rows] * _UM_PER_M
@@ -296,12 +316,12 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
         },
     )
     fig.suptitle(title)
-    _draw_drift(drift, t, um, columns)
+    _draw_drift(drift, t, t_s, um, columns)
 
     parts = {label: um(column) for label, column in columns.parts.items()}
-    _stacked(budget, t, parts)
+    _stacked(budget, t, t_s, parts)
     e_z = um(columns.predicted)
-    budget.plot(t, e_z, color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
+    _line(budget, t, t_s, e_z, color="tab:red", linewidth=1.0, linestyle="--", label="sum: e_z")
     budget.axhline(0.0, color="0.3", linewidth=0.6)
     budget.set_ylabel("error part (µm)")
     off = f" ({', '.join(columns.disabled)} switched off)" if columns.disabled else ""
@@ -313,8 +333,9 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
 
     rises = []
     for name, column in columns.temperature_columns().items():
-        (line,) = temps.plot(t, _rise(table[column][rows]), linewidth=1.0, label=name)
-        rises.append((line.get_ydata(), line.get_color()))
+        rise = _rise(table[column][rows])
+        line = _line(temps, t, t_s, rise, linewidth=1.0, label=name)
+        rises.append((rise, line.get_color()))
     _robust_limits(temps, t, rises, unit="K")
     temps.set_ylabel("temperature rise (K)")
     temps.set_title("temperature rises at the measuring points", fontsize="medium", y=1.0)
@@ -327,7 +348,7 @@ def _draw_budget(table: SignalTable, columns: BudgetColumns, title: str) -> Figu
     return fig
 
 
-def _draw_drift(ax: Axes, t: np.ndarray, um: Any, columns: BudgetColumns) -> None:
+def _draw_drift(ax: Axes, t: np.ndarray, t_s: np.ndarray, um: Any, columns: BudgetColumns) -> None:
     """The probe reading's change (all it includes: the wear and every error), the predicted
     error, the compensated wear, and a replayed experiment's measured drift."""
     curves = [
@@ -337,7 +358,7 @@ def _draw_drift(ax: Axes, t: np.ndarray, um: Any, columns: BudgetColumns) -> Non
     if columns.compensated:
         curves.append((um(columns.compensated), "tab:green", 1.2, "compensated wear\n(reading change − e_z)"))
     for values, color, width, label in curves:
-        ax.plot(t, values, color=color, linewidth=width, label=label)
+        _line(ax, t, t_s, values, color=color, linewidth=width, label=label)
     also = [0.0]
     if columns.measured_drift_m is not None and t.size:
         measured = columns.measured_drift_m * _UM_PER_M
@@ -365,27 +386,30 @@ def wear_figure(table: SignalTable, columns: BudgetColumns, title: str) -> Figur
         fig = _new_figure(WEAR_FIGSIZE_IN)
         ax = fig.subplots(gridspec_kw={"left": 0.08, "right": 0.71, "top": 0.9, "bottom": 0.12})
         n = table[cycles][rows]
-        ax.plot(n, _rise(table[true_wear][rows]) * _UM_PER_M, color="black", linewidth=1.8, label="true wear")
-        ax.plot(
-            n,
-            _rise(table[columns.reading][rows]) * _UM_PER_M,
-            color="0.55",
-            linewidth=1.0,
-            label="probe reading change\n(wear + errors)",
-        )
-        ax.plot(
-            n,
-            table[compensated][rows] * _UM_PER_M,
-            color="tab:green",
-            linewidth=1.4,
-            label="compensated wear\n(reading change − e_z)",
-        )
+        t_s = table.time[rows]
+        curves = []
+        for values, color, width, label in (
+            (_rise(table[true_wear][rows]) * _UM_PER_M, "black", 1.8, "true wear"),
+            (
+                _rise(table[columns.reading][rows]) * _UM_PER_M,
+                "0.55",
+                1.0,
+                "probe reading change\n(wear + errors)",
+            ),
+            (
+                table[compensated][rows] * _UM_PER_M,
+                "tab:green",
+                1.4,
+                "compensated wear\n(reading change − e_z)",
+            ),
+        ):
+            _line(ax, n, t_s, values, color=color, linewidth=width, label=label)
+            curves.append((values, color))
         if columns.wear_limit_m is not None:
             limit = columns.wear_limit_m * _UM_PER_M
             ax.axhline(
                 limit, color="tab:red", linestyle="--", linewidth=1.2, label=f"wear limit ({limit:g} µm)"
             )
-        curves = [(np.asarray(ln.get_ydata(), dtype=float), ln.get_color()) for ln in ax.get_lines()[:3]]
         _robust_limits(ax, np.asarray(n, dtype=float), curves)
         ax.set_xlabel("swing cycles completed")
         ax.set_ylabel("wear depth (µm)")
