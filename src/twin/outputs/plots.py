@@ -217,11 +217,11 @@ def _stacked(ax: Axes, t: np.ndarray, t_s: np.ndarray, parts: Mapping[str, np.nd
     down = np.zeros_like(t)
     for (label, values), color in zip(parts.items(), itertools.cycle(_PART_COLORS)):
         v = np.nan_to_num(values)
-        pos, neg = np.clip(v, 0.0, None), np.clip(v, None, 0.0)
-        for lower, upper, name in ((up, up + pos, label), (down, down + neg, None)):
+        top, bottom = up + np.clip(v, 0.0, None), down + np.clip(v, None, 0.0)
+        for lower, upper, name in ((up, top, label), (down, bottom, None)):
             r = _own_rows(t_s, lower, upper)
             ax.fill_between(t[r], lower[r], upper[r], color=color, alpha=0.75, linewidth=0, label=name)
-        up, down = up + pos, down + neg
+        up, down = top, bottom
 
 
 def _own_rows(t_s: np.ndarray, *curves: np.ndarray) -> np.ndarray:
