@@ -236,27 +236,96 @@ static void augmented(const ModelInstance *comp, double h, double *aug) {
     for (i = 0; i < (int)(N * N); i++) aug[i] *= h;
 }
 
+/* out = x y + add (+ add2), an n x n times n x c product of row-major blocks, each sum over the
+ * n products in order, then the blocks added (add, add2 may be NULL). */
+static void block_product(int n, int c, const double *x, const double *y, const double *add, const double *add2,
+                          double *out) {
+    int i, j, k;
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < c; j++) {
+            double s = 0.0;
+            for (k = 0; k < n; k++) s += x[i * n + k] * y[k * c + j];
+            if (add) s += add[i * c + j];
+            if (add2) s += add2[i * c + j];
+            out[i * c + j] = s;
+        }
+    }
+}
+
+/* The exponential of the augmented matrix aug = [A 0 B; I 0 0; 0 0 0] h in its four blocks
+ * [phi . gamma; psi . lambda]: the doubles la_expm(TN_AUG, aug, ...) gives there, bit for bit,
+ * at a fifth of its work (it is most of an instance's set-up, once per Monte Carlo sample).
+ *
+ * la_expm scales aug, sums the Taylor terms term_k = term_(k-1) aug / k and squares the sum.
+ * Every term (k >= 1) and every partial sum keeps aug's zero blocks, so each of their products
+ * is a sum of the same nonzero products in the same order as the full product's, whose other
+ * products are zeros, which leave a sum unchanged: a term's blocks are [T . U; W . V] with
+ * T' = T a, U' = T b, W' = W a, V' = W b (a, b the scaled A h, B h; the first term is the scaled
+ * matrix itself, W = I h); a square of [E . G; P I L] is E' = E E, G' = E G + G,
+ * P' = P E + P, L' = (P G + L) + L, its identity blocks staying the identity. */
+static int expm_blocks(const double *aug, ModelState *m) {
+    enum { n = TN_NODES, q = TN_INPUTS, N = TN_AUG };
+    double a[n * n], b[n * q], t[n * n], u[n * q], w[n * n], v[n * q];
+    double t2[n * n], u2[n * q], w2[n * n], v2[n * q];
+    double *e = m->phi, *g = m->gamma, *p = m->psi, *l = m->lambda;
+    double scale;
+    int squarings = la_expm_squarings(N, aug), i, j, k;
+    if (squarings < 0) return -1;
+    scale = ldexp(1.0, -squarings);
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++) a[i * n + j] = aug[i * N + j] * scale;
+        for (j = 0; j < q; j++) b[i * q + j] = aug[i * N + 2 * n + j] * scale;
+    }
+    /* the first term (k = 1): the scaled matrix, added to the identity */
+    memcpy(t, a, sizeof t);
+    memcpy(u, b, sizeof u);
+    memset(w, 0, sizeof w);
+    memset(v, 0, sizeof v);
+    for (i = 0; i < n; i++) w[i * n + i] = aug[(n + i) * N + i] * scale;
+    for (i = 0; i < n * n; i++) e[i] = (i % (n + 1) == 0 ? 1.0 : 0.0) + t[i];
+    for (i = 0; i < n * q; i++) g[i] = 0.0 + u[i];
+    for (i = 0; i < n * n; i++) p[i] = 0.0 + w[i];
+    for (i = 0; i < n * q; i++) l[i] = 0.0 + v[i];
+    for (k = 2; k <= 20; k++) {
+        block_product(n, n, t, a, NULL, NULL, t2);
+        block_product(n, q, t, b, NULL, NULL, u2);
+        block_product(n, n, w, a, NULL, NULL, w2);
+        block_product(n, q, w, b, NULL, NULL, v2);
+        for (i = 0; i < n * n; i++) {
+            t[i] = t2[i] / (double)k;
+            w[i] = w2[i] / (double)k;
+            e[i] += t[i];
+            p[i] += w[i];
+        }
+        for (i = 0; i < n * q; i++) {
+            u[i] = u2[i] / (double)k;
+            v[i] = v2[i] / (double)k;
+            g[i] += u[i];
+            l[i] += v[i];
+        }
+    }
+    for (k = 0; k < squarings; k++) {
+        block_product(n, n, e, e, NULL, NULL, t2);
+        block_product(n, q, e, g, g, NULL, u2);
+        block_product(n, n, p, e, p, NULL, w2);
+        block_product(n, q, p, g, l, l, v2);
+        memcpy(e, t2, sizeof t2);
+        memcpy(g, u2, sizeof u2);
+        memcpy(p, w2, sizeof w2);
+        memcpy(l, v2, sizeof v2);
+    }
+    return 0;
+}
+
 /* Builds the step matrices for step h from the parameters. */
 static fmi2Status make_step_matrices(ModelInstance *comp, double h) {
     ModelState *m = &comp->v.m;
-    static const size_t N = TN_AUG;
-    double aug[TN_AUG * TN_AUG], e[TN_AUG * TN_AUG], work[3 * TN_AUG * TN_AUG];
-    int i, j;
+    double aug[TN_AUG * TN_AUG];
 
     augmented(comp, h, aug);
-    if (la_expm(N, aug, e, work) != 0) {
+    if (expm_blocks(aug, m) != 0) {
         log_error(comp, "thermal network matrix is not finite: check capacities and conductances");
         return fmi2Error;
-    }
-    for (i = 0; i < TN_NODES; i++) {
-        for (j = 0; j < TN_NODES; j++) {
-            m->phi[i * TN_NODES + j] = e[i * N + j];
-            m->psi[i * TN_NODES + j] = e[(TN_NODES + i) * N + j];
-        }
-        for (j = 0; j < TN_INPUTS; j++) {
-            m->gamma[i * TN_INPUTS + j] = e[i * N + 2 * TN_NODES + j];
-            m->lambda[i * TN_INPUTS + j] = e[(TN_NODES + i) * N + 2 * TN_NODES + j];
-        }
     }
     keep_structure(m, h);
     m->phi_h = h;
