@@ -71,6 +71,31 @@ def test_kept_columns_only_and_the_same_values() -> None:
             assert table[name].tobytes() == alone[name].tobytes()
 
 
+def test_rows_kept_near_the_ends_only_are_those_of_every_row() -> None:
+    # a Monte Carlo's samples record the rows their figures read: those near either end
+    plans = []
+    for i in range(3):
+        plans.append(make_plan(_paper(120).with_seed(40 + i)))
+    keep = {"sensors.probe_meas", "sensors.t_base_meas", "thermal.t_base"}
+    whole = run_batch(plans, keep)
+    ends_s = 5 * 60.0 + 0.5  # the rows from 0 to 300 s and from 6900 to 7200 s
+    ends = run_batch(plans, keep, ends_s=ends_s)
+    assert whole.alone == ends.alone == []
+    for i in range(3):
+        a, b = whole.results[i].table, ends.results[i].table
+        near = (a.time <= a.time[0] + ends_s) | (a.time >= a.time[-1] - ends_s)
+        assert 0 < near.sum() < len(a.time) // 10  # most rows were not recorded
+        assert b.time.tobytes() == a.time[near].tobytes()
+        for name in keep:
+            assert b[name].tobytes() == a[name][near].tobytes(), name
+        # every tick was stepped all the same: the FMUs' own counts, and the run's end
+        assert whole.results[i].macro_steps == ends.results[i].macro_steps
+        assert whole.results[i].end_ns == ends.results[i].end_ns
+    # ends that meet keep every row
+    met = run_batch(plans[:1], keep, ends_s=3600.0)
+    assert met.results[0].table.time.tobytes() == whole.results[0].table.time.tobytes()
+
+
 def _placed(plans: list, pool: SlotPool) -> tuple[dict[int, dict[str, int]], dict[int, object], int]:
     """Run ``plans`` as one batch: per copy the instances it borrowed (name -> the copy that ran
     it), its results, and the instances the batch opened (after its retries)."""

@@ -19,6 +19,11 @@ FMU is still called in the order and with the values of its run alone (the stepp
 every input before any instance steps), so every copy's rows are bit for bit those of its run
 alone (tests/cosim/test_batch.py).
 
+A batch may record only the rows within some seconds of either end of its runs (``ends_s``:
+what a Monte Carlo's sample reports is read off there, :func:`twin.errormodel.evaluate.end_reach_s`):
+the ticks in between are stepped as every other, with no row recorded and no output fetched
+for one (an FMU's outputs are computed when read, so that changes none of the rows kept).
+
 What a batch does not do, it refuses (:func:`unbatchable`): scenario events, algebraic loops
 (the Python loop's). A copy whose FMUs fail in their set-up or while stepping
 is not run on: the caller runs it alone (:attr:`BatchRuns.alone`), where the master reports
@@ -31,6 +36,7 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import marshal
+import math
 import time
 from collections import Counter
 from collections.abc import Collection, Mapping, Sequence
@@ -117,9 +123,17 @@ class Batch:
     compiled stepper: the interpreter's lock is released while it runs), :meth:`results` gives
     each completed copy's result with the ``keep`` columns of every row. :meth:`close` gives
     the instances back to ``pool`` (a pool that keeps as many idle instances per FMU as a batch
-    has copies reuses them all); a batch is a context manager that closes."""
+    has copies reuses them all); a batch is a context manager that closes. With ``ends_s``, each
+    result holds only the rows within that many seconds of either end of its run
+    (:func:`_stretches`)."""
 
-    def __init__(self, plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> None:
+    def __init__(
+        self,
+        plans: Sequence[Plan],
+        keep: Collection[str],
+        pool: SlotPool | None = None,
+        ends_s: float | None = None,
+    ) -> None:
         if plans:
             first = structure(plans[0])
             for plan in plans:
@@ -129,6 +143,7 @@ class Batch:
                         f"plan of {plan.scenario.name!r} cannot join the batch: {why or 'another structure'}"
                     )
         self.plans, self.pool = list(plans), pool
+        self.stretches = _stretches(plans[0], ends_s) if plans else []
         self.kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep] if plans else []
         self.copies: list[_Copy] = []
         self.alone: list[int] = []
@@ -189,7 +204,7 @@ class Batch:
         :meth:`step`."""
         start = time.perf_counter()
         self._attempted = True
-        self._failed = _step(self.copies, self.kept) if self.copies else None
+        self._failed = _step(self.copies, self.kept, self.stretches) if self.copies else None
         self.step_s += time.perf_counter() - start
 
     def results(self) -> BatchRuns:
@@ -215,9 +230,11 @@ class Batch:
         self.close()
 
 
-def run_batch(plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None) -> BatchRuns:
+def run_batch(
+    plans: Sequence[Plan], keep: Collection[str], pool: SlotPool | None = None, ends_s: float | None = None
+) -> BatchRuns:
     """Step the runs of ``plans`` together (:class:`Batch`: open, step, results, close)."""
-    with Batch(plans, keep, pool) as batch:
+    with Batch(plans, keep, pool, ends_s) as batch:
         batch.open().step()
         return batch.results()
 
@@ -412,19 +429,47 @@ class _Replayed:
 
 
 class _Rows:
-    """Every recorded row of every copy (the kept columns), filled batch by batch."""
+    """Every recorded row of every copy (the kept columns), filled batch by batch, and the
+    output rows (the run's ``k``-th output tick: row ``k``) they are."""
 
-    def __init__(self, plan: Plan, n_copies: int, n_cols: int) -> None:
-        k0, n, every = plan.start_tick, plan.n_ticks, plan.out_every
-        self.first = -(-k0 // every)
-        total = max(0, n // every - self.first + 1)  # the end's row included when it is one
-        self.values = np.zeros((total, n_copies * max(n_cols, 1)))
+    def __init__(self, plan: Plan, n_copies: int, n_cols: int, stretches: Sequence[_Stretch]) -> None:
+        every = plan.out_every
+        self.numbers = np.concatenate(
+            [
+                np.arange(-(-k0 // every), -(-k1 // every), dtype=np.int64)
+                for k0, k1, kept in stretches
+                if kept
+            ]
+            or [np.zeros(0, dtype=np.int64)]
+        )
+        self.values = np.zeros((len(self.numbers), n_copies * max(n_cols, 1)))
         self.done = 0
 
 
-def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
+#: a stretch of a run's ticks: its first tick, the tick after its last, whether its rows are kept
+_Stretch = tuple[int, int, bool]
+#: the stepper's output interval for a stretch whose rows are not kept: an output tick past any
+#: run's end, so that it records no row and fetches no output for one
+_NO_ROWS = 1 << 62
+
+
+def _stretches(plan: Plan, ends_s: float | None) -> list[_Stretch]:
+    """The run's ticks in stretches whose rows are kept or not: every row kept, or with
+    ``ends_s`` those of the ticks within ``ends_s`` of either end (the run's start, its end)."""
+    k0, n, step = plan.start_tick, plan.n_ticks, plan.step_ns
+    if ends_s is None:
+        return [(k0, n, True)]
+    reach = math.ceil(ends_s * NS_PER_S)
+    head = min(n, (k0 * step + reach) // step + 1)  # the ticks at most reach after the start
+    tail = -(-(n * step - reach) // step)  # the ticks at least reach before the end
+    if tail <= head:
+        return [(k0, n, True)]
+    return [(k0, head, True), (head, tail, False), (tail, n, True)]
+
+
+def _step(copies: list[_Copy], kept: Sequence[int], stretches: Sequence[_Stretch]) -> int | None:
     """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
-    failed, else None (every copy's rows in ``copy.rows``)."""
+    failed, else None (every copy's rows, those of the ``stretches`` kept, in ``copy.rows``)."""
     plan = copies[0].plan
     n_driven, n_cols = max(len(plan.driven), 1), len(kept)
     placed = _Placed(copies, n_driven)
@@ -436,26 +481,30 @@ def _step(copies: list[_Copy], kept: Sequence[int]) -> int | None:
             for col in (plan.columns[j] for j in kept)
         ]
     )
-    rows = _Rows(plan, len(copies), n_cols)
+    rows = _Rows(plan, len(copies), n_cols, stretches)
     run = getattr(stepper(), entry()[0])
-    k, end, step = plan.start_tick, plan.n_ticks, plan.step_ns
+    step = plan.step_ns
     counters = TwinCounters()
     every = driven_every(plan)
-    while k < end:
-        k1 = min(k + BATCH_TICKS, end)
-        driven = _driven(copies, k, k1, every, n_driven)
-        view = rows.values[rows.done :]
-        counters.rows = 0
-        status = run(
-            slots, len(slots), k, k1, step, plan.out_every, driven.ctypes.data, driven.shape[1], every,
-            view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
-        )  # fmt: skip
-        if status == Status.OVERFLOW:
-            raise RunError("the stepper's row buffer was too small (a bug in the batch)")
-        if status != Status.OK:
-            return placed.copy_at[int(counters.fail_slot)]
-        rows.done += int(counters.rows)
-        k = k1
+    for k, end, kept_rows in stretches:
+        out_every = plan.out_every if kept_rows else _NO_ROWS
+        while k < end:
+            k1 = min(k + BATCH_TICKS, end)
+            driven = _driven(copies, k, k1, every, n_driven)
+            view = rows.values[rows.done :]
+            counters.rows = 0
+            status = run(
+                slots, len(slots), k, k1, step, out_every, driven.ctypes.data, driven.shape[1], every,
+                view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
+            )  # fmt: skip
+            if status == Status.OVERFLOW:
+                raise RunError("the stepper's row buffer was too small (a bug in the batch)")
+            if status != Status.OK:
+                return placed.copy_at[int(counters.fail_slot)]
+            rows.done += int(counters.rows)
+            k = k1
+    if rows.done != len(rows.numbers):
+        raise RunError(f"the stepper recorded {rows.done} rows, not {len(rows.numbers)} (a bug in the batch)")
     fmu_steps = _fmu_steps(plan)
     for c, copy in enumerate(copies):
         copy.counters = (int(counters.macro_steps), fmu_steps)
@@ -540,13 +589,13 @@ def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int
 
 
 def _result(copy: _Copy, kept: Sequence[int], cosim_s: float, setup_s: float) -> RunResult:
-    """Copy's run as the master gives it: its kept columns of every row (the end's too)."""
+    """Copy's run as the master gives it: its kept columns of every row recorded (the end's too)."""
     plan = copy.plan
     assert copy.rows is not None
     rows, c = copy.rows
     n_cols = len(kept)
     values = rows.values[: rows.done, c * n_cols : (c + 1) * n_cols]
-    times = (rows.first + np.arange(rows.done, dtype=np.int64)) * plan.scenario.output_interval_ns / NS_PER_S
+    times = rows.numbers * plan.scenario.output_interval_ns / NS_PER_S
     last = final_tick(plan, copy.state)
     if last is not None:
         times = np.concatenate([times, last[0]])

@@ -19,6 +19,7 @@ plain mean. A factor whose sensor is absent from the table contributes zero.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,9 +33,12 @@ from twin.errormodel.tester import tester_model
 from twin.signals.table import Signal, SignalTable
 
 __all__ = [
+    "END_FIGURES",
     "PARTS",
     "Evaluation",
     "compensation_summary",
+    "end_figures",
+    "end_reach_s",
     "endpoints",
     "evaluate",
     "evaluate_rows",
@@ -44,6 +48,32 @@ __all__ = [
 
 #: the Frechet distance is computed on at most this many points per curve (evenly decimated)
 FRECHET_POINTS = 800
+
+#: the summary's figures (by group) that read a record at its ends alone: the drifts, the
+#: temperature rises and the parts' drifts (lines through its first and last drift windows)
+#: and the wear (its first and last rows); the others (the parts' rms, the spikes, the
+#: compensation's residuals) read every row
+END_FIGURES = ("drift_mm", "temperature_rise_C", "error_parts_mm", "thermal_parts_mm", "wear_mm")
+
+
+def end_reach_s(cfg: EvaluationConfig, interval_s: float) -> float | None:
+    """How far from either end of a record (a row every ``interval_s``) its
+    :data:`END_FIGURES` read it, s; None where they read every row.
+
+    A row's numbers depend on that row, the first row and the load's history
+    (:func:`evaluate_rows`), its cleaned reading on the rows the robust filter reaches
+    (:attr:`~twin.errormodel.settings.EvaluationConfig.filter_reach`): the drift window, that
+    reach beyond it, and a row more (the record's first row may come up to an interval after
+    its start). With the loading factor on, the liner creeps under the load's whole history."""
+    if not cfg.evaluate or cfg.factor_on("loading"):
+        return None
+    return cfg.window_s + (cfg.filter_reach + 1) * interval_s
+
+
+def end_figures(figures: Mapping[str, float]) -> dict[str, float]:
+    """The figures (dotted names, :meth:`~twin.pipeline.run_summary.RunSummary.figures`) of
+    :data:`END_FIGURES`."""
+    return {k: v for k, v in figures.items() if k.split(".", 1)[0] in END_FIGURES}
 
 
 def evaluation_signals(*, with_true_wear: bool) -> list[Signal]:

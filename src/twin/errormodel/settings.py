@@ -40,6 +40,12 @@ class EvaluationConfig(Columns):
     #: drift and its parts, so they leave them out
     credibility: bool = True
 
+    @property
+    def filter_reach(self) -> int:
+        """The rows either side of a reading that its cleaned value depends on: the robust
+        filter takes a moving median of the deviations from a moving median, two half windows."""
+        return 2 * self.spike_half_window
+
     def factor_on(self, name: str) -> bool:
         """Whether the factor ``name`` is evaluated (else it contributes zero)."""
         return self.factors is None or name in self.factors

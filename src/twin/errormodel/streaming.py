@@ -138,7 +138,7 @@ class StreamingEvaluation:
         self.chunk_rows = max(1, chunk_rows)
         self.with_wear = bool(cfg.true_wear) and cfg.true_wear in self.signals
         self.outputs = evaluation_signals(with_true_wear=self.with_wear)
-        self._reach = 2 * cfg.spike_half_window  # rows either side a cleaned sample depends on
+        self._reach = cfg.filter_reach  # rows either side a cleaned sample depends on
         self._pending: list[Block] = []
         self._pending_rows = 0
         self._buffer: Block | None = None  # rows filtered but not final, and their context

@@ -35,7 +35,11 @@ explains: :mod:`twin.uncertainty.shares`), and ``drift_mm.updated``, the updated
 (the same figures); ``drift_mm.interval_90`` and ``sigma`` beside the nominal figures (of the
 run's own twin: the updated one where there is a tester), and ``drift_mm.uncertainty`` with the
 same for the error model's predicted drift and the medians per room shape; ``uncertainty.csv``
-holds every sample (``predictive``: prior or updated) with its drawn inputs. What a measured
+holds every sample (``predictive``: prior or updated) with its figures and its drawn inputs.
+A sample's figures are those read off the ends of its record
+(:data:`twin.errormodel.evaluate.END_FIGURES`: the drifts, the rises, the wear at the end), and
+its FMUs, stepped over the whole run, record only the rows those read
+(:func:`twin.errormodel.evaluate.end_reach_s`). What a measured
 experiment makes of them is its report's (:mod:`twin.pipeline.report`).
 """
 

@@ -5,7 +5,10 @@ A point is a :class:`~twin.pipeline.prepare.PreparedRun` without a folder (a swe
 Monte Carlo's sample); its figures are the numbers of its summary's results, flattened to
 dotted names (``compensation.residual_rms_um.after``; :meth:`RunSummary.figures`), timings
 left out. A sweep that asks for run folders gets each point's folder back as bytes, so a
-worker on another machine can send them.
+worker on another machine can send them. A point whose payload has ``end_figures_s`` (a Monte
+Carlo's sample) reports the figures read off its record's ends alone
+(:data:`twin.errormodel.evaluate.END_FIGURES`), and a batch records only the rows they read: those within
+``end_figures_s`` of either end (None: every row).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.cosim.batch import Batch, structure, unbatchable
+from twin.errormodel.evaluate import end_figures
 from twin.errors import RunError
 from twin.fmu.pool import SlotPool, sweep_pool
 from twin.pipeline.cluster import Payload, Record, one_line, peak_rss_mb
@@ -61,8 +65,9 @@ def _with_folder(prepared: PreparedRun) -> tuple[dict[str, float], dict[str, byt
 
 
 def point_task(payload: Payload) -> Record:
-    """What a worker runs for one point (``payload``: its ``index``, the prepared ``run`` and
-    whether it wants its ``folders``): never raises, a failure is a failed record.
+    """What a worker runs for one point (``payload``: its ``index``, the prepared ``run``,
+    whether it wants its ``folders`` and whether it reports its ``end_figures_s`` only): never
+    raises, a failure is a failed record.
 
     Returns the figures, the run folder's files when asked, and for the benchmark the seconds
     the point took and the worker process's peak resident memory.
@@ -81,6 +86,8 @@ def point_task(payload: Payload) -> Record:
             record["figures"], record["files"] = _with_folder(payload["run"])
         else:
             record["figures"] = _in_memory(payload["run"])
+        if "end_figures_s" in payload:
+            record["figures"] = end_figures(record["figures"])
     except Exception as exc:
         record.update(status="failed", error=one_line(exc))
     record["point_s"] = time.perf_counter() - start
@@ -115,12 +122,13 @@ def start_tasks(payloads: list[Payload], pool: SlotPool) -> Tasks:
         if payload.get("folders") or unbatchable(plan) is not None:
             tasks.records[payload["index"]] = point_task(payload)
         else:
-            groups.setdefault(structure(plan), []).append(payload)
+            ends = ("end_figures_s" in payload, payload.get("end_figures_s"))
+            groups.setdefault((structure(plan), ends), []).append(payload)
     try:
-        for group in groups.values():
+        for (_, (_, ends_s)), group in groups.items():
             runs: list[PreparedRun] = [p["run"] for p in group]
             keep = set().union(*(run.keep() for run in runs))
-            batch = Batch([run.plan for run in runs], keep, pool)
+            batch = Batch([run.plan for run in runs], keep, pool, ends_s)
             thread = threading.Thread(target=_attempt, args=(batch, tasks.errors))
             tasks.batches.append((batch, group, thread))
             batch.open()
@@ -161,6 +169,8 @@ def finish_tasks(tasks: Tasks) -> list[Record]:
                     record["figures"] = figures(
                         summarize(simulation, evaluate_run(simulation, columns=False))
                     )
+                    if "end_figures_s" in payload:  # the others were read off the rows kept
+                        record["figures"] = end_figures(record["figures"])
                 except Exception as exc:
                     record.update(status="failed", error=one_line(exc))
                 record["point_s"] = each
