@@ -15,6 +15,8 @@ from twin.config.spec import NS_PER_S, Event, Scenario
 from twin.cosim import make_plan
 from twin.cosim.batch import Batch, identities, run_batch, structure, unbatchable
 from twin.cosim.master import Master
+from twin.errormodel.config import evaluation_config
+from twin.errormodel.evaluate import end_reach_s
 from twin.errors import FMUError
 from twin.fmu.pool import SlotPool
 from twin.uncertainty.rooms import shaped, smooth_drift
@@ -94,6 +96,27 @@ def test_rows_kept_near_the_ends_only_are_those_of_every_row() -> None:
     # ends that meet keep every row
     met = run_batch(plans[:1], keep, ends_s=3600.0)
     assert met.results[0].table.time.tobytes() == whole.results[0].table.time.tobytes()
+
+
+def test_the_rows_an_end_figure_reads_are_kept_when_the_run_ends_between_two_rows() -> None:
+    # 7205 s at a row every 10 s: the last row (7200 s) comes 5 s before the run's end, which
+    # is where the kept stretches are measured from; end_reach_s's extra row covers it
+    paper = _paper(120)
+    plan = make_plan(dataclasses.replace(paper, duration_ns=paper.duration_ns + 5 * NS_PER_S))
+    evaluation = evaluation_config(paper)  # the paper's: no loading factor, ends only
+    interval = plan.scenario.output_interval_ns / NS_PER_S
+    ends_s = end_reach_s(evaluation, interval)
+    assert ends_s == evaluation.window_s + (evaluation.filter_reach + 1) * interval
+    t = run_batch([plan], {"sensors.probe_meas"}, ends_s=ends_s).results[0].table.time
+    assert t[-1] == 7200.0
+    # every row a drift line or the robust filter reads: within the window and the filter's
+    # reach (in rows) of the first and the last row
+    reach = evaluation.window_s + evaluation.filter_reach * interval
+    every = np.arange(0.0, 7200.0 + interval / 2, interval)
+    needed = every[(every <= t[0] + reach) | (every >= t[-1] - reach)]
+    assert set(needed) <= set(t.tolist())
+    with pytest.raises(ValueError, match="ends_s"):
+        run_batch([plan], {"sensors.probe_meas"}, ends_s=-1.0)
 
 
 def _placed(plans: list, pool: SlotPool) -> tuple[dict[int, dict[str, int]], dict[int, object], int]:

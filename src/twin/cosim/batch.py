@@ -459,6 +459,8 @@ def _stretches(plan: Plan, ends_s: float | None) -> list[_Stretch]:
     k0, n, step = plan.start_tick, plan.n_ticks, plan.step_ns
     if ends_s is None:
         return [(k0, n, True)]
+    if not ends_s >= 0.0:
+        raise ValueError(f"ends_s must be a number of seconds >= 0, got {ends_s}")
     reach = math.ceil(ends_s * NS_PER_S)
     head = min(n, (k0 * step + reach) // step + 1)  # the ticks at most reach after the start
     tail = -(-(n * step - reach) // step)  # the ticks at least reach before the end

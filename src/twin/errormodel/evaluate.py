@@ -63,8 +63,9 @@ def end_reach_s(cfg: EvaluationConfig, interval_s: float) -> float | None:
     A row's numbers depend on that row, the first row and the load's history
     (:func:`evaluate_rows`), its cleaned reading on the rows the robust filter reaches
     (:attr:`~twin.errormodel.settings.EvaluationConfig.filter_reach`): the drift window, that
-    reach beyond it, and a row more (the record's first row may come up to an interval after
-    its start). With the loading factor on, the liner creeps under the load's whole history."""
+    reach beyond it, and a row more, measured from the run's start and end: a run whose length
+    is not a multiple of its output interval ends up to an interval after its last row. With
+    the loading factor on, the liner creeps under the load's whole history."""
     if not cfg.evaluate or cfg.factor_on("loading"):
         return None
     return cfg.window_s + (cfg.filter_reach + 1) * interval_s

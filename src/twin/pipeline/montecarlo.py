@@ -38,8 +38,9 @@ same for the error model's predicted drift and the medians per room shape; ``unc
 holds every sample (``predictive``: prior or updated) with its figures and its drawn inputs.
 A sample's figures are those read off the ends of its record
 (:data:`twin.errormodel.evaluate.END_FIGURES`: the drifts, the rises, the wear at the end), and
-its FMUs, stepped over the whole run, record only the rows those read
-(:func:`twin.errormodel.evaluate.end_reach_s`). What a measured
+in process its FMUs, stepped over the whole run, record only the rows those read
+(:func:`twin.errormodel.evaluate.end_reach_s`: every row where the loading factor's creep
+reads them all). What a measured
 experiment makes of them is its report's (:mod:`twin.pipeline.report`).
 """
 
