@@ -88,6 +88,22 @@ def _source_files(xml_path: Path) -> list[str]:
     return [f.get("name", "") for f in root.iterfind("CoSimulation/SourceFiles/File")]
 
 
+def model_tree(model: str, work: Path) -> list[Path]:
+    """Lay out what a C program compiled with ``model``'s sources needs in ``work``: the
+    model's and the common C files, the FMI headers and its generated ``model_vars.h``; returns
+    the C files its FMU compiles (as its modelDescription.xml lists them), in ``work``."""
+    src = fmu_sources_dir()
+    work.mkdir(parents=True, exist_ok=True)
+    for p in [*(src / "common").iterdir(), *(src / model).iterdir()]:
+        if p.suffix in {".c", ".h"}:
+            shutil.copyfile(p, work / p.name)
+    for p in _fmi_headers().glob("fmi2*.h"):
+        shutil.copyfile(p, work / p.name)
+    xml = src / model / "modelDescription.xml"
+    (work / "model_vars.h").write_text(generate_vars_header(describe(xml), str(xml)))
+    return [work / name for name in _source_files(xml)]
+
+
 def build_harness(
     model: str, out_dir: Path, *, optimize: str = "-O1", extra: list[str] | None = None
 ) -> Path:
@@ -95,19 +111,9 @@ def build_harness(
     cc = compiler()
     if not cc:
         raise SanitizerBuildError("no C compiler")
-    src = fmu_sources_dir()
     work = out_dir / model
-    work.mkdir(parents=True, exist_ok=True)
-    for p in [*(src / "common").iterdir(), *(src / model).iterdir()]:
-        if p.suffix in {".c", ".h"}:
-            shutil.copyfile(p, work / p.name)
-    headers = _fmi_headers()
-    for p in headers.glob("fmi2*.h"):
-        shutil.copyfile(p, work / p.name)
-    xml = src / model / "modelDescription.xml"
-    (work / "model_vars.h").write_text(generate_vars_header(describe(xml), str(xml)))
+    sources = [str(p) for p in model_tree(model, work)]
     exe = out_dir / f"fuzz_{model}"
-    sources = [str(work / name) for name in _source_files(xml)]
     cmd = [cc, optimize, "-g", *SANITIZE, *WARNINGS, *(extra or []), "-I", str(work), str(HARNESS), *sources]
     proc = subprocess.run([*cmd, "-o", str(exe), "-lm"], capture_output=True, text=True, check=False)
     if proc.returncode != 0:

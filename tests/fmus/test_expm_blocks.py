@@ -8,15 +8,12 @@ random networks and steps, built as the FMU is built (-O3) and without optimizat
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.fmus.sanitized import WARNINGS, _fmi_headers, _source_files, compiler
-from twin.fmu.build import fmu_sources_dir, generate_vars_header
-from twin.fmu.catalog import describe
+from tests.fmus.sanitized import WARNINGS, compiler, model_tree
 
 CHECK = Path(__file__).resolve().parent / "expm" / "expm_blocks_check.c"
 
@@ -25,18 +22,9 @@ def _build(tmp_path: Path, optimize: str) -> Path:
     cc = compiler()
     if cc is None:
         pytest.fail("no C compiler: the FMUs cannot be built here either (apt-get install -y gcc)")
-    src = fmu_sources_dir()
     work = tmp_path / "src"
-    work.mkdir(exist_ok=True)
-    for p in [*(src / "common").iterdir(), *(src / "ThermalNetwork").iterdir()]:
-        if p.suffix in {".c", ".h"}:
-            shutil.copyfile(p, work / p.name)
-    for p in _fmi_headers().glob("fmi2*.h"):
-        shutil.copyfile(p, work / p.name)
-    xml = src / "ThermalNetwork" / "modelDescription.xml"
-    (work / "model_vars.h").write_text(generate_vars_header(describe(xml), str(xml)))
     # the model's files but model.c, which the check includes for its static functions
-    sources = [str(work / f) for f in _source_files(xml) if f != "model.c"]
+    sources = [str(p) for p in model_tree("ThermalNetwork", work) if p.name != "model.c"]
     exe = tmp_path / f"check{optimize}"
     cmd = [cc, optimize, *WARNINGS, "-I", str(work), str(CHECK), *sources, "-o", str(exe), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
