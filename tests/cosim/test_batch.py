@@ -15,6 +15,7 @@ from twin.config.spec import NS_PER_S, Event, Scenario
 from twin.cosim import make_plan
 from twin.cosim.batch import Batch, identities, run_batch, structure, unbatchable
 from twin.cosim.master import Master
+from twin.cosim.state import driven_every, driven_ticks
 from twin.errormodel.config import evaluation_config
 from twin.errormodel.evaluate import end_reach_s
 from twin.errors import FMUError
@@ -331,3 +332,46 @@ def test_ticks_where_nothing_happens_are_counted_not_changed(tmp_path: Path) -> 
     event = Event(at_ns=13 * NS_PER_S, action="bias", target="thermal.t_oil", value=0.5)
     plan = make_plan(dataclasses.replace(sc, events=(event,)))
     _same(Master(plan, loop="python").run(), Master(plan, loop="fast").run())
+
+
+@pytest.mark.parametrize("ahead_bytes", [None, 0, 1])
+def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budget(
+    monkeypatch: pytest.MonkeyPatch, ahead_bytes: int | None
+) -> None:
+    # the stepping thread of a Monte Carlo's batch computes no driven rows (their numpy calls
+    # would wait for the interpreter's lock), but beyond the budget; either way every row is
+    # the run's alone
+    import twin.cosim.batch as batch_module
+
+    monkeypatch.setattr(batch_module, "BATCH_TICKS", 1000)  # the 2 h replay in 8 calls
+    plans = [make_plan(_paper(120).with_seed(60 + i)) for i in range(2)]
+    if ahead_bytes is not None:
+        # 0: none ahead; 1: the first call's rows (every copy's driven columns) and no more
+        k0 = plans[0].start_tick
+        rows = len(driven_ticks(k0, k0 + 1000, driven_every(plans[0])))
+        monkeypatch.setattr(
+            batch_module, "DRIVEN_AHEAD_BYTES", ahead_bytes * rows * len(plans[0].driven) * 2 * 8
+        )
+    where: list[str] = []
+    original = batch_module._driven
+
+    def driven(*args: object) -> np.ndarray:
+        where.append(threading.current_thread().name)
+        return original(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(batch_module, "_driven", driven)
+    keep = {c.meta.name for c in plans[0].columns}
+    with Batch(plans, keep) as batch:
+        batch.open()
+        opened = len(where)
+        thread = threading.Thread(target=batch.attempt, name="stepping")
+        thread.start()
+        thread.join()
+        batch.step()
+        results = batch.results()
+    assert len(where) == 8
+    expected = {None: 8, 0: 0, 1: 1}[ahead_bytes]
+    assert opened == expected and where[:opened] == [threading.current_thread().name] * opened
+    assert where[opened:] == ["stepping"] * (8 - opened)
+    for i, plan in enumerate(plans):
+        _same(Master(plan).run(), results.results[i])

@@ -39,7 +39,7 @@ import marshal
 import math
 import time
 from collections import Counter
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -119,8 +119,9 @@ class _Copy:
 class Batch:
     """Runs of ``plans`` (one :func:`structure`, none :func:`unbatchable`) stepped together, in
     three parts so that a caller may step one batch while it works on another:
-    :meth:`open` loads and initializes every copy (Python), :meth:`step` runs every tick (the
-    compiled stepper: the interpreter's lock is released while it runs), :meth:`results` gives
+    :meth:`open` loads and initializes every copy and computes the driven inputs' rows ahead
+    (Python: :func:`_driven_ahead`), :meth:`step` runs every tick (the compiled stepper: the
+    interpreter's lock is released while it runs), :meth:`results` gives
     each completed copy's result with the ``keep`` columns of every row. :meth:`close` gives
     the instances back to ``pool`` (a pool that keeps as many idle instances per FMU as a batch
     has copies reuses them all); a batch is a context manager that closes. With ``ends_s``, each
@@ -147,6 +148,9 @@ class Batch:
         self.kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep] if plans else []
         self.copies: list[_Copy] = []
         self.alone: list[int] = []
+        #: the driven rows of the first batches of ticks, computed by the opening thread
+        #: (:func:`_driven_ahead`), by (first tick, tick after the last)
+        self._ahead: dict[tuple[int, int], np.ndarray] = {}
         self.setup_s = self.step_s = 0.0
         self._attempted = False
         self._failed: int | None = None  # the copy whose FMU failed in the last attempt
@@ -169,6 +173,7 @@ class Batch:
                 self.alone.append(index)
             else:
                 self.copies.append(copy)
+        self._ahead = _driven_ahead(self.copies, self.stretches)
         self.setup_s = time.perf_counter() - start
         return self
 
@@ -196,6 +201,7 @@ class Batch:
                 else:
                     reopened.append(again)
             self.copies = reopened
+            self._ahead = _driven_ahead(self.copies, self.stretches)  # the copies' columns changed
             self.attempt()
 
     def attempt(self) -> None:
@@ -204,7 +210,8 @@ class Batch:
         :meth:`step`."""
         start = time.perf_counter()
         self._attempted = True
-        self._failed = _step(self.copies, self.kept, self.stretches) if self.copies else None
+        ahead, self._ahead = self._ahead, {}
+        self._failed = _step(self.copies, self.kept, self.stretches, ahead) if self.copies else None
         self.step_s += time.perf_counter() - start
 
     def results(self) -> BatchRuns:
@@ -219,6 +226,7 @@ class Batch:
 
     def close(self) -> None:
         """Give every copy's instances back to the pool (idempotent)."""
+        self._ahead = {}
         for copy in self.copies:
             close_slots(copy.slots, self.pool)
             copy.slots = []
@@ -469,9 +477,56 @@ def _stretches(plan: Plan, ends_s: float | None) -> list[_Stretch]:
     return [(k0, head, True), (head, tail, False), (tail, n, True)]
 
 
-def _step(copies: list[_Copy], kept: Sequence[int], stretches: Sequence[_Stretch]) -> int | None:
+def _chunks(stretches: Sequence[_Stretch]) -> Iterator[tuple[int, int, bool]]:
+    """The stepper's calls over ``stretches``: each call's first tick, the tick after its
+    last (at most :data:`BATCH_TICKS` apart) and whether its rows are kept."""
+    for k, end, kept_rows in stretches:
+        while k < end:
+            k1 = min(k + BATCH_TICKS, end)
+            yield k, k1, kept_rows
+            k = k1
+
+
+#: the bytes of driven rows a batch computes ahead, in the thread that opens it: a Monte Carlo
+#: steps a batch in a thread of its own while its own thread evaluates the batch before, in
+#: Python; the driven rows' numpy calls, made in the stepping thread, each waited for the
+#: interpreter's lock (in the default run 0.66 s of their 0.84 s, a quarter of the stepping
+#: thread's time, on a slow day). Beyond this size (long runs, many copies) the stepping
+#: thread computes the rest, batch by batch of ticks, so that a batch's memory stays bounded.
+DRIVEN_AHEAD_BYTES = 32 << 20
+
+
+def _driven_ahead(
+    copies: Sequence[_Copy], stretches: Sequence[_Stretch]
+) -> dict[tuple[int, int], np.ndarray]:
+    """The driven rows (:func:`_driven`) of the stepper's first calls over ``stretches``,
+    in order, as long as they fit in :data:`DRIVEN_AHEAD_BYTES`, by (first tick, tick after
+    the last)."""
+    if not copies:
+        return {}
+    budget = DRIVEN_AHEAD_BYTES
+    plan = copies[0].plan
+    every, n_driven = driven_every(plan), max(len(plan.driven), 1)
+    ahead: dict[tuple[int, int], np.ndarray] = {}
+    for k, k1, _ in _chunks(stretches):
+        rows = len(driven_ticks(k, k1, every))
+        budget -= rows * n_driven * len(copies) * 8
+        if budget < 0:
+            break
+        ahead[(k, k1)] = _driven(copies, k, k1, every, n_driven)
+    return ahead
+
+
+def _step(
+    copies: list[_Copy],
+    kept: Sequence[int],
+    stretches: Sequence[_Stretch],
+    ahead: Mapping[tuple[int, int], np.ndarray] | None = None,
+) -> int | None:
     """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
-    failed, else None (every copy's rows, those of the ``stretches`` kept, in ``copy.rows``)."""
+    failed, else None (every copy's rows, those of the ``stretches`` kept, in ``copy.rows``).
+    The driven rows of a batch of ticks are taken from ``ahead`` (:func:`_driven_ahead`)
+    where they were computed, else computed here."""
     plan = copies[0].plan
     n_driven, n_cols = max(len(plan.driven), 1), len(kept)
     placed = _Placed(copies, n_driven)
@@ -488,23 +543,23 @@ def _step(copies: list[_Copy], kept: Sequence[int], stretches: Sequence[_Stretch
     step = plan.step_ns
     counters = TwinCounters()
     every = driven_every(plan)
-    for k, end, kept_rows in stretches:
+    ahead = ahead or {}
+    for k, k1, kept_rows in _chunks(stretches):
         out_every = plan.out_every if kept_rows else _NO_ROWS
-        while k < end:
-            k1 = min(k + BATCH_TICKS, end)
+        driven = ahead.get((k, k1))
+        if driven is None:
             driven = _driven(copies, k, k1, every, n_driven)
-            view = rows.values[rows.done :]
-            counters.rows = 0
-            status = run(
-                slots, len(slots), k, k1, step, out_every, driven.ctypes.data, driven.shape[1], every,
-                view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
-            )  # fmt: skip
-            if status == Status.OVERFLOW:
-                raise RunError("the stepper's row buffer was too small (a bug in the batch)")
-            if status != Status.OK:
-                return placed.copy_at[int(counters.fail_slot)]
-            rows.done += int(counters.rows)
-            k = k1
+        view = rows.values[rows.done :]
+        counters.rows = 0
+        status = run(
+            slots, len(slots), k, k1, step, out_every, driven.ctypes.data, driven.shape[1], every,
+            view.ctypes.data, view.shape[0], cols, n_cols * len(copies), ctypes.byref(counters),
+        )  # fmt: skip
+        if status == Status.OVERFLOW:
+            raise RunError("the stepper's row buffer was too small (a bug in the batch)")
+        if status != Status.OK:
+            return placed.copy_at[int(counters.fail_slot)]
+        rows.done += int(counters.rows)
     if rows.done != len(rows.numbers):
         raise RunError(f"the stepper recorded {rows.done} rows, not {len(rows.numbers)} (a bug in the batch)")
     fmu_steps = _fmu_steps(plan)
