@@ -492,8 +492,10 @@ def _chunks(stretches: Sequence[_Stretch]) -> Iterator[tuple[int, int, bool]]:
 #: Python; the driven rows' numpy calls, made in the stepping thread, each waited for the
 #: interpreter's lock (in the default run 0.66 s of their 0.84 s, a quarter of the stepping
 #: thread's time, on a slow day). Beyond this size (long runs, many copies) the stepping
-#: thread computes the rest, batch by batch of ticks, so that a batch's memory stays bounded.
-DRIVEN_AHEAD_BYTES = 32 << 20
+#: thread computes the rest, batch by batch of ticks, so that a batch's memory stays bounded
+#: (the paper replay's 20 copies hold 2.3 MB of them; a call of BATCH_TICKS ticks driven at
+#: every tick, 26 MB).
+DRIVEN_AHEAD_BYTES = 8 << 20
 
 
 def _driven_ahead(
