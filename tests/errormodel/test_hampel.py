@@ -71,3 +71,42 @@ def test_the_same_doubles_and_flags_as_every_windows_median(
 def test_other_streams_take_every_windows_median(x: np.ndarray) -> None:
     with np.errstate(invalid="ignore"):
         assert same(hampel(x, 3, 5.0, 1e-6), everywhere(x, 3, 5.0, 1e-6))
+
+
+def _median_filter(x: np.ndarray, half_window: int) -> np.ndarray:
+    """The moving median as numpy's own helpers make it (what moving_median made before its
+    windows were made directly): np.pad's end values, sliding_window_view, np.partition."""
+    windows = np.lib.stride_tricks.sliding_window_view(
+        np.pad(x, half_window, mode="edge"), 2 * half_window + 1
+    )
+    return np.partition(windows, half_window, axis=1)[:, half_window]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    n=st.integers(1, 400),
+    half_window=st.integers(1, 12),
+    kind=st.sampled_from(["noise", "nan", "inf", "signed zeros", "ties"]),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_moving_median_is_numpy_s_median_of_every_window(
+    n: int, half_window: int, kind: str, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    x = rng.normal(0.0, 1e-6, n)
+    if kind == "nan":
+        x[rng.integers(0, n, 2)] = np.nan
+    elif kind == "inf":
+        x[rng.integers(0, n, 3)] = rng.choice([np.inf, -np.inf, -0.0], 3)
+    elif kind == "signed zeros":
+        x = rng.choice([0.0, -0.0, 1e-7, -1e-7], n)
+    elif kind == "ties":
+        x = np.round(x / 1e-6) * 1e-6
+    assert sources.moving_median(x, half_window).tobytes() == _median_filter(x, half_window).tobytes()
+
+
+def test_moving_median_in_chunks_is_the_same(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a long record's windows are partitioned a chunk of rows at a time
+    x = np.random.default_rng(5).normal(size=1000)
+    monkeypatch.setattr(sources, "_MEDIAN_ROWS", 64)
+    assert sources.moving_median(x, 7).tobytes() == _median_filter(x, 7).tobytes()
