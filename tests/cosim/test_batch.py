@@ -334,44 +334,64 @@ def test_ticks_where_nothing_happens_are_counted_not_changed(tmp_path: Path) -> 
     _same(Master(plan, loop="python").run(), Master(plan, loop="fast").run())
 
 
+@pytest.mark.parametrize("ends", [False, True])
 @pytest.mark.parametrize("ahead_bytes", [None, 0, 1])
 def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budget(
-    monkeypatch: pytest.MonkeyPatch, ahead_bytes: int | None
+    monkeypatch: pytest.MonkeyPatch, ahead_bytes: int | None, ends: bool
 ) -> None:
     # the stepping thread of a Monte Carlo's batch computes no driven rows (their numpy calls
-    # would wait for the interpreter's lock), but beyond the budget; either way every row is
-    # the run's alone
+    # would wait for the interpreter's lock), but those beyond the budget; either way every
+    # row is the run's alone, with every row kept or only those near the ends (the samples')
     import twin.cosim.batch as batch_module
 
-    monkeypatch.setattr(batch_module, "BATCH_TICKS", 1000)  # the 2 h replay in 8 calls
+    monkeypatch.setattr(batch_module, "BATCH_TICKS", 1000)  # the 2 h replay in 8 or more calls
     plans = [make_plan(_paper(120).with_seed(60 + i)) for i in range(2)]
-    if ahead_bytes is not None:
-        # 0: none ahead; 1: the first call's rows (every copy's driven columns) and no more
-        k0 = plans[0].start_tick
-        rows = len(driven_ticks(k0, k0 + 1000, driven_every(plans[0])))
-        monkeypatch.setattr(
-            batch_module, "DRIVEN_AHEAD_BYTES", ahead_bytes * rows * len(plans[0].driven) * 2 * 8
-        )
-    where: list[str] = []
+    every, columns = driven_every(plans[0]), len(plans[0].driven) * 2  # two copies' columns
+
+    def size(k0: int, k1: int) -> int:
+        return len(driven_ticks(k0, k1, every)) * columns * 8
+
+    k0 = plans[0].start_tick
+    # None: the shipped budget (every call's rows); 0: none; 1: the first call's rows
+    budget = {None: batch_module.DRIVEN_AHEAD_BYTES, 0: 0, 1: size(k0, k0 + 1000)}[ahead_bytes]
+    monkeypatch.setattr(batch_module, "DRIVEN_AHEAD_BYTES", budget)
+    made: list[tuple[str, int, int]] = []
     original = batch_module._driven
 
-    def driven(*args: object) -> np.ndarray:
-        where.append(threading.current_thread().name)
-        return original(*args)  # type: ignore[arg-type]
+    def driven(copies: list, k0: int, k1: int, *args: int) -> np.ndarray:
+        made.append((threading.current_thread().name, k0, k1))
+        return original(copies, k0, k1, *args)
 
     monkeypatch.setattr(batch_module, "_driven", driven)
     keep = {c.meta.name for c in plans[0].columns}
-    with Batch(plans, keep) as batch:
+    ends_s = 5 * 60.0 + 0.5 if ends else None
+    with Batch(plans, keep, ends_s=ends_s) as batch:
+        calls = [(k, k1) for k, k1, _ in batch_module._chunks(batch.stretches)]
         batch.open()
-        opened = len(where)
         thread = threading.Thread(target=batch.attempt, name="stepping")
         thread.start()
         thread.join()
+        assert batch._ahead == {}  # handed to the attempt, which freed them call by call
         batch.step()
         results = batch.results()
-    assert len(where) == 8
-    expected = {None: 8, 0: 0, 1: 1}[ahead_bytes]
-    assert opened == expected and where[:opened] == [threading.current_thread().name] * opened
-    assert where[opened:] == ["stepping"] * (8 - opened)
+    assert len(calls) >= 8 and sorted((k, k1) for _, k, k1 in made) == sorted(calls)  # each once
+    opener = threading.current_thread().name
+    ahead = [(k, k1) for who, k, k1 in made if who == opener]
+    assert sum(size(k, k1) for k, k1 in ahead) <= budget
+    assert all(who in (opener, "stepping") for who, _, _ in made)
+    if ahead_bytes is None:
+        assert ahead == calls  # the paper replay's fit in the shipped budget
+    elif ahead_bytes == 0:
+        assert ahead == []
+    else:
+        assert ahead[0] == calls[0] and len(ahead) < len(calls)
     for i, plan in enumerate(plans):
-        _same(Master(plan).run(), results.results[i])
+        alone = Master(plan).run()
+        if ends_s is None:
+            _same(alone, results.results[i])
+            continue
+        a, b = alone.table, results.results[i].table
+        near = (a.time <= a.time[0] + ends_s) | (a.time >= a.time[-1] - ends_s)
+        assert 0 < near.sum() < len(a.time) and b.time.tobytes() == a.time[near].tobytes()
+        for name in keep:
+            assert b[name].tobytes() == a[name][near].tobytes(), name

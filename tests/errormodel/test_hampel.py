@@ -110,3 +110,23 @@ def test_moving_median_in_chunks_is_the_same(monkeypatch: pytest.MonkeyPatch) ->
     x = np.random.default_rng(5).normal(size=1000)
     monkeypatch.setattr(sources, "_MEDIAN_ROWS", 64)
     assert sources.moving_median(x, 7).tobytes() == _median_filter(x, 7).tobytes()
+
+
+@pytest.mark.parametrize(
+    "x",
+    [
+        np.arange(40.0)[::-2],  # strided, reversed
+        np.arange(30, dtype=np.float32) % 7,
+        np.arange(25) % 5,  # integers
+        np.arange(20.0).astype(">f8"),  # big-endian
+        [1.0, float("nan"), -0.0, 3.0],
+    ],
+)
+def test_moving_median_takes_any_1d_stream_as_float64(x: object) -> None:
+    as_float = np.asarray(x, dtype=np.float64)
+    assert sources.moving_median(x, 3).tobytes() == _median_filter(as_float, 3).tobytes()  # type: ignore[arg-type]
+
+
+def test_moving_median_refuses_what_is_not_one_stream() -> None:
+    with pytest.raises(ValueError, match="1-D"):
+        sources.moving_median(np.zeros((3, 4)), 2)

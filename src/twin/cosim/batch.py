@@ -148,8 +148,9 @@ class Batch:
         self.kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep] if plans else []
         self.copies: list[_Copy] = []
         self.alone: list[int] = []
-        #: the driven rows of the first batches of ticks, computed by the opening thread
-        #: (:func:`_driven_ahead`), by (first tick, tick after the last)
+        #: the driven rows of the stepper's calls that :meth:`open` computed ahead
+        #: (:func:`_driven_ahead`), by (first tick, tick after the last): handed to the next
+        #: :meth:`attempt` (and emptied by it)
         self._ahead: dict[tuple[int, int], np.ndarray] = {}
         self.setup_s = self.step_s = 0.0
         self._attempted = False
@@ -158,7 +159,9 @@ class Batch:
         self._identities = identities(self.plans)
 
     def open(self) -> Batch:
-        """Load and initialize every copy; a copy an FMU refuses goes to :attr:`alone`."""
+        """Load and initialize every copy (a copy an FMU refuses goes to :attr:`alone`) and
+        compute the driven rows of the stepper's calls ahead (:func:`_driven_ahead`: their
+        time counts as stepping, not as the set-up)."""
         start = time.perf_counter()
         if self.plans:
             # the copies share their models (structure): each file is found once for them all
@@ -173,8 +176,10 @@ class Batch:
                 self.alone.append(index)
             else:
                 self.copies.append(copy)
+        ahead_start = time.perf_counter()
         self._ahead = _driven_ahead(self.copies, self.stretches)
-        self.setup_s = time.perf_counter() - start
+        self.step_s += time.perf_counter() - ahead_start
+        self.setup_s = ahead_start - start
         return self
 
     def step(self) -> None:
@@ -201,8 +206,7 @@ class Batch:
                 else:
                     reopened.append(again)
             self.copies = reopened
-            self._ahead = _driven_ahead(self.copies, self.stretches)  # the copies' columns changed
-            self.attempt()
+            self.attempt()  # in this thread: it computes the driven rows of the copies left
 
     def attempt(self) -> None:
         """Step every copy to the end once, the compiled stepper's ticks and nothing of the
@@ -210,7 +214,7 @@ class Batch:
         :meth:`step`."""
         start = time.perf_counter()
         self._attempted = True
-        ahead, self._ahead = self._ahead, {}
+        ahead, self._ahead = self._ahead, {}  # taken call by call: not held past its own
         self._failed = _step(self.copies, self.kept, self.stretches, ahead) if self.copies else None
         self.step_s += time.perf_counter() - start
 
@@ -491,19 +495,20 @@ def _chunks(stretches: Sequence[_Stretch]) -> Iterator[tuple[int, int, bool]]:
 #: steps a batch in a thread of its own while its own thread evaluates the batch before, in
 #: Python; the driven rows' numpy calls, made in the stepping thread, each waited for the
 #: interpreter's lock (in the default run 0.66 s of their 0.84 s, a quarter of the stepping
-#: thread's time, on a slow day). Beyond this size (long runs, many copies) the stepping
-#: thread computes the rest, batch by batch of ticks, so that a batch's memory stays bounded
-#: (the paper replay's 20 copies hold 2.3 MB of them; a call of BATCH_TICKS ticks driven at
-#: every tick, 26 MB).
+#: thread's time, on a slow day). The calls whose rows do not fit (long runs, many copies)
+#: have them computed by the stepping thread, one call's at a time, as before: what the rows
+#: computed ahead add to a batch's memory stays within this (the paper replay's 20 copies
+#: hold 2.3 MB of them; one call of BATCH_TICKS ticks of 20 copies with 5 columns driven at
+#: every tick would hold 26 MB).
 DRIVEN_AHEAD_BYTES = 8 << 20
 
 
 def _driven_ahead(
     copies: Sequence[_Copy], stretches: Sequence[_Stretch]
 ) -> dict[tuple[int, int], np.ndarray]:
-    """The driven rows (:func:`_driven`) of the stepper's first calls over ``stretches``,
-    in order, as long as they fit in :data:`DRIVEN_AHEAD_BYTES`, by (first tick, tick after
-    the last)."""
+    """The driven rows (:func:`_driven`) of the stepper's calls over ``stretches``, taken in
+    order while they fit in :data:`DRIVEN_AHEAD_BYTES` together (a call's that does not is
+    left out, a later, smaller one's still taken), by (first tick, tick after the last)."""
     if not copies:
         return {}
     budget = DRIVEN_AHEAD_BYTES
@@ -511,10 +516,10 @@ def _driven_ahead(
     every, n_driven = driven_every(plan), max(len(plan.driven), 1)
     ahead: dict[tuple[int, int], np.ndarray] = {}
     for k, k1, _ in _chunks(stretches):
-        rows = len(driven_ticks(k, k1, every))
-        budget -= rows * n_driven * len(copies) * 8
-        if budget < 0:
-            break
+        size = len(driven_ticks(k, k1, every)) * n_driven * len(copies) * 8  # as _driven makes it
+        if size > budget:
+            continue
+        budget -= size
         ahead[(k, k1)] = _driven(copies, k, k1, every, n_driven)
     return ahead
 
@@ -523,11 +528,11 @@ def _step(
     copies: list[_Copy],
     kept: Sequence[int],
     stretches: Sequence[_Stretch],
-    ahead: Mapping[tuple[int, int], np.ndarray] | None = None,
+    ahead: dict[tuple[int, int], np.ndarray] | None = None,
 ) -> int | None:
     """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
     failed, else None (every copy's rows, those of the ``stretches`` kept, in ``copy.rows``).
-    The driven rows of a batch of ticks are taken from ``ahead`` (:func:`_driven_ahead`)
+    The driven rows of a batch of ticks are taken out of ``ahead`` (:func:`_driven_ahead`)
     where they were computed, else computed here."""
     plan = copies[0].plan
     n_driven, n_cols = max(len(plan.driven), 1), len(kept)
@@ -548,7 +553,7 @@ def _step(
     ahead = ahead or {}
     for k, k1, kept_rows in _chunks(stretches):
         out_every = plan.out_every if kept_rows else _NO_ROWS
-        driven = ahead.get((k, k1))
+        driven = ahead.pop((k, k1), None)  # freed once its call is made
         if driven is None:
             driven = _driven(copies, k, k1, every, n_driven)
         view = rows.values[rows.done :]

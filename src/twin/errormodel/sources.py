@@ -483,6 +483,8 @@ def moving_median(x: np.ndarray, half_window: int) -> np.ndarray:
     mode="nearest")`` (a median of an odd count is one of the samples, no arithmetic), without
     importing scipy.ndimage into ``twin compensate``."""
     x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"moving_median takes one stream (a 1-D array), got {x.ndim} dimensions")
     if half_window <= 0 or x.size == 0:
         return x.copy()
     # np.pad and sliding_window_view cost most of a short stream's medians (a Monte Carlo
