@@ -180,8 +180,10 @@ def sampler(unc: Uncertainty, scenario: Scenario) -> tuple[dict[str, str], Maker
     # every sample's draw at once (each from its own stream: the same numbers one by one)
     draws = testers.draw_many(range(unc.samples))
 
+    curves: dict[str, rooms.ShapedCurve] = {}
+
     def make(i: int, posterior: Mapping[str, float] | None = None) -> Draw:
-        profile, name, mean = _room(unc, scenario, target, i)
+        profile, name, mean = _room(unc, scenario, target, i, curves)
         drawn = dict(draws[i]) if i < len(draws) else testers.draw(i)
         values = with_rests(scenario, drawn, prior.rests)
         shape = float(unc.room_shapes.index(name)) if name in unc.room_shapes else 0.0
@@ -244,16 +246,23 @@ def own_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
     return predictive_rows(rows, UPDATED) or predictive_rows(rows, PRIOR)
 
 
-def _room(unc: Uncertainty, scenario: Scenario, target: str, i: int) -> tuple[Any, str, float]:
+def _room(
+    unc: Uncertainty, scenario: Scenario, target: str, i: int, curves: dict[str, rooms.ShapedCurve]
+) -> tuple[Any, str, float]:
     """Sample ``i``'s room: a rise takes a shape in turn; any other room keeps its own curve;
-    both with a slow drift (and that drift's mean over the run, K)."""
+    both with a slow drift (and that drift's mean over the run, K). ``curves`` keeps each
+    shape's curve before its drift (:func:`twin.uncertainty.rooms.shaped_curve`), made for the
+    first sample that draws it: the samples' rooms differ by their drifts alone."""
     drift = rooms.smooth_drift(generator(unc.seed, Key.SAMPLE, i), unc.room_drift_K)
-    mean = float(np.mean(drift(np.linspace(0.0, 1.0, 401))))
+    mean = drift.grid_mean()
     if rooms.rise_of(scenario.profile(target), scenario.duration_ns / NS_PER_S) is None:
         return rooms.drifted(scenario, target, drift), "own", mean
     name = unc.room_shapes[i % len(unc.room_shapes)]
     source = f"twin run uncertainty: room shape {name} plus a slow drift"
-    return rooms.shaped(scenario, target, name, drift, source), name, mean
+    curve = curves.get(name)
+    if curve is None:
+        curve = curves[name] = rooms.shaped_curve(scenario, target, name)
+    return curve.profile(drift, source), name, mean
 
 
 # ----------------------------------------------------------------------------- the figures

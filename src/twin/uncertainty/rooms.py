@@ -24,11 +24,14 @@ __all__ = [
     "ROOM_SHAPES",
     "ROOM_STEP_S",
     "Rise",
+    "ShapedCurve",
+    "SmoothDrift",
     "drifted",
     "rise_of",
     "sample_times",
     "shape",
     "shaped",
+    "shaped_curve",
     "smooth_drift",
 ]
 
@@ -40,21 +43,40 @@ ROOM_SHAPES = ("exponential", "ramp", "s-curve")
 Drift = Callable[[np.ndarray], np.ndarray]
 
 
-def smooth_drift(rng: np.random.Generator, max_amplitude: float) -> Drift:
+#: the points a drift's peak and mean are taken over (x from 0 to 1), and its three
+#: half-waves there: the same for every drift, worked out once (a Monte Carlo draws hundreds)
+_GRID = np.linspace(0.0, 1.0, 401)
+_GRID_WAVES = tuple(np.sin((k + 1) * np.pi * _GRID) for k in range(3))
+
+
+@dataclass(frozen=True, eq=False)
+class SmoothDrift:
+    """A slow random drift over a run (:func:`smooth_drift`): ``scale`` times the half-waves
+    ``sin(k pi x)`` weighted by ``weights``. Called with x = t / run length."""
+
+    weights: np.ndarray
+    scale: float
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.clip(x, 0.0, 1.0)
+        return self.scale * sum(w * np.sin((k + 1) * np.pi * x) for k, w in enumerate(self.weights))
+
+    def grid_mean(self) -> float:
+        """Its mean over 401 points from x = 0 to 1: ``np.mean(self(np.linspace(0, 1, 401)))``,
+        the same double, from the half-waves there worked out once."""
+        return float(
+            np.mean(self.scale * sum(w * wave for w, wave in zip(self.weights, _GRID_WAVES, strict=True)))
+        )
+
+
+def smooth_drift(rng: np.random.Generator, max_amplitude: float) -> SmoothDrift:
     """A slow random drift over a run, zero at its start and end: three half-waves with
     normal weights (falling as 1/k), scaled so its largest excursion is uniform in
     [0, max_amplitude]. Argument x = t / run length."""
     weights = rng.normal(size=3) / np.arange(1, 4)
     amplitude = float(rng.uniform(0.0, max_amplitude))
-    grid = np.linspace(0.0, 1.0, 401)
-    peak = float(np.max(np.abs(sum(w * np.sin((k + 1) * np.pi * grid) for k, w in enumerate(weights)))))
-    scale = amplitude / peak if peak > 0 else 0.0
-
-    def drift(x: np.ndarray) -> np.ndarray:
-        x = np.clip(x, 0.0, 1.0)
-        return scale * sum(w * np.sin((k + 1) * np.pi * x) for k, w in enumerate(weights))
-
-    return drift
+    peak = float(np.max(np.abs(sum(w * wave for w, wave in zip(weights, _GRID_WAVES, strict=True)))))
+    return SmoothDrift(weights, amplitude / peak if peak > 0 else 0.0)
 
 
 def shape(name: str, x: np.ndarray, tau_ratio: float) -> np.ndarray:
@@ -111,6 +133,28 @@ def shaped(
 ) -> Profile:
     """The room ``target``'s rise in the shape ``name`` (same start, rise and rise time as its
     own exponential profile), plus ``drift`` (of x = t / run length) when given."""
+    return shaped_curve(scenario, target, name).profile(drift, source)
+
+
+@dataclass(frozen=True, eq=False)
+class ShapedCurve:
+    """A room's rise in one shape (:func:`shaped_curve`), sampled at ``times`` (s) over a run
+    of ``end`` s, before any drift is added: the same for every sample that draws that shape."""
+
+    target: str
+    name: str
+    times: np.ndarray
+    values: np.ndarray
+    end: float
+
+    def profile(self, drift: Drift | None = None, source: str = "") -> Profile:
+        """The curve plus ``drift`` (of x = t / run length) when given, as a table profile."""
+        values = self.values if drift is None else self.values + drift(self.times / self.end)
+        return Profile.of_table(self.target, self.times, values, source or f"room shape {self.name}")
+
+
+def shaped_curve(scenario: Scenario, target: str, name: str) -> ShapedCurve:
+    """The room ``target``'s rise in the shape ``name``, before a drift (:func:`shaped`)."""
     end = scenario.duration_ns / NS_PER_S
     rise = rise_of(scenario.profile(target), end)
     if rise is None:
@@ -121,9 +165,7 @@ def shaped(
         )
     t = sample_times(scenario, [rise.rise_at])
     values = rise.start + rise.rise * shape(name, t / rise.rise_at, rise.tau_ratio)
-    if drift is not None:
-        values = values + drift(t / end)
-    return Profile.of_table(target, t, values, source or f"room shape {name}")
+    return ShapedCurve(target, name, t, values, end)
 
 
 def drifted(scenario: Scenario, target: str, drift: Drift, source: str = "") -> Profile:
