@@ -395,3 +395,37 @@ def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budge
         assert 0 < near.sum() < len(a.time) and b.time.tobytes() == a.time[near].tobytes()
         for name in keep:
             assert b[name].tobytes() == a[name][near].tobytes(), name
+
+
+def test_copies_driven_by_the_same_profiles_share_their_driven_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a Monte Carlo's updated sample is its prior sample with other parameters: the same room
+    # (the very same profiles), whose rows are worked out once for both; another room's not
+    import twin.cosim.batch as batch_module
+    import twin.cosim.state as state_module
+
+    base = _paper(120)
+    target = "thermal.t_room"
+    drift = smooth_drift(np.random.default_rng(7), 1.0)
+    prior = base.with_input(shaped(base, target, "ramp", drift, "test: a room"))
+    updated = prior.with_parameters("mechanics", {"alpha_base": 11.5e-6})
+    other = base.with_input(shaped(base, target, "s-curve", drift, "test: another room"))
+    assert updated.profiles is prior.profiles and other.profiles is not prior.profiles
+    plans = [make_plan(s) for s in (prior, updated, other)]
+    evaluated: list[int] = []
+    original = state_module.Driven.at_ticks
+
+    def at_ticks(self: state_module.Driven, ticks: np.ndarray, step_ns: int) -> np.ndarray:
+        evaluated.append(id(self))
+        return original(self, ticks, step_ns)
+
+    monkeypatch.setattr(state_module.Driven, "at_ticks", at_ticks)
+    keep = {c.meta.name for c in plans[0].columns}
+    batch = run_batch(plans, keep)
+    calls = len(list(batch_module._chunks(batch_module._stretches(plans[0], None))))
+    assert calls >= 1 and len(evaluated) == 2 * calls  # the prior's and the other's, per call
+    monkeypatch.setattr(state_module.Driven, "at_ticks", original)
+    for i, plan in enumerate(plans):
+        _same(Master(plan).run(), batch.results[i])
+    # the two rooms differ (the shared rows could not have served the third copy)
+    rooms = [batch.results[i].table["thermal.t_room"] for i in (0, 1, 2)]
+    assert rooms[0].tobytes() == rooms[1].tobytes() != rooms[2].tobytes()

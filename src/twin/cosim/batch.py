@@ -647,8 +647,15 @@ def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int
     if not every:
         return out
     step = copies[0].plan.step_ns
+    # a copy driven as one before it (a Monte Carlo's updated sample as its prior sample: the
+    # same room) takes that one's values instead of evaluating its profiles again
+    made: dict[tuple[object, ...], np.ndarray] = {}
     for c, copy in enumerate(copies):
-        out[:, c * n_driven : (c + 1) * n_driven] = copy.state.driven.at_ticks(ticks, step)[:, :n_driven]
+        key = copy.state.driven.identity()
+        values = made.get(key)
+        if values is None:
+            values = made[key] = copy.state.driven.at_ticks(ticks, step)[:, :n_driven]
+        out[:, c * n_driven : (c + 1) * n_driven] = values
     return out
 
 

@@ -84,6 +84,13 @@ class Driven:
     def __len__(self) -> int:
         return len(self.functions)
 
+    def identity(self) -> tuple[object, ...]:
+        """A key two of them share only when they give the same values at every tick: the
+        same specs over the very same profiles (the objects: a Monte Carlo's prior and updated
+        sample share their scenario's; equal copies are not recognized). It holds an object's
+        id: good while both are alive."""
+        return (tuple(self.specs), id(self._profiles))
+
     def matrix(self, k0: int, k1: int, step_ns: int, every: int) -> np.ndarray:
         """The driven values from tick ``k0`` to ``k1 - 1`` at the ticks that read them
         (:func:`driven_ticks`), one row per such tick."""
