@@ -24,6 +24,9 @@ from twin.errormodel.tester import tester_model
 from twin.errors import ConfigError, TwinError
 from twin.signals.table import Signal, SignalTable
 
+#: numpy's stacked least-squares kernel, as the drift lines call it (wrapped by some tests)
+_stacked = factors_module._STACKED_LSTSQ
+
 
 def _nothing(m: Measured) -> Contribution:
     return m.zero()
@@ -360,3 +363,53 @@ def test_samples_on_one_time_axis_share_its_lines_and_no_other_axis_does() -> No
     end_lines(changed, 300.0)
     changed[-1] += 10.0  # the caller's array changed in place: not the lines kept
     assert end_lines(changed, 300.0).drifts([y]) == EndLines(changed, 300.0).drifts([y])
+
+
+def test_a_stream_solved_before_takes_its_value_to_the_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A line keeps the values of the streams it solved (an updated sample's temperatures are
+    its prior sample's): a stream whose rows are the same bytes takes the kept value, which is
+    the one a line that never saw it solves; other rows, a signed zero turned +0.0 as the
+    solver sees it, and a float32 stream are solved or found as their own. The kept values
+    are bounded."""
+    from twin.errormodel import factors as factors_mod
+
+    rng = np.random.default_rng(9)
+    t = np.arange(104) * 10.0
+    t[52:] += 28800.0 - 1040.0  # a sample's rows: those near either end of the run
+    seen = factors_mod.EndLines(t, 300.0)
+    first = [rng.normal(size=t.size).cumsum() * 1e-6 for _ in range(12)]
+    seen.drifts(first)
+    again = [first[3].copy(), rng.normal(size=t.size), first[0].copy(), -np.zeros(t.size), np.zeros(t.size)]
+    again += [first[5].astype(np.float32), first[5].astype(np.float32)]
+    solved = []
+    monkeypatch.setattr(
+        factors_mod, "_STACKED_LSTSQ", lambda a, b, *x, **k: solved.append(len(b)) or _stacked(a, b, *x, **k)
+    )
+    got = seen.drifts(again)
+    fresh = factors_mod.EndLines(t, 300.0).drifts(again)
+    assert [v.hex() for v in got] == [v.hex() for v in fresh]
+    # per end, the new stream, the zero (both signs: one key) and the float32 one were solved
+    assert solved[:2] == [3, 3]
+    monkeypatch.setattr(factors_mod, "_SOLVED_KEPT", 8)
+    bounded = factors_mod.EndLines(t, 300.0)
+    for _ in range(5):
+        bounded.drifts([rng.normal(size=t.size) for _ in range(3)])
+        assert len(bounded.start._solved) <= 8 and len(bounded.end._solved) <= 8
+
+
+def test_a_poorly_conditioned_line_warns_whenever_it_is_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The rank warning is the matrix's (one for every stream): a call whose streams were all
+    solved before warns as the first did (the solver told here that the rank is 1)."""
+    from twin.errormodel import factors as factors_mod
+
+    def rank_one(a: np.ndarray, b: np.ndarray, *args: object, **kwargs: object) -> tuple:
+        c, resids, rank, s = _stacked(a, b, *args, **kwargs)
+        return c, resids, np.ones_like(rank), s
+
+    monkeypatch.setattr(factors_mod, "_STACKED_LSTSQ", rank_one)
+    t = np.arange(104) * 10.0
+    lines = factors_mod.EndLines(t, 300.0)
+    ys = [np.arange(104.0), np.ones(104)]
+    for _ in range(2):  # solved, then found
+        with pytest.warns(np.exceptions.RankWarning):
+            lines.start.values(ys)

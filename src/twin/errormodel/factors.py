@@ -137,6 +137,11 @@ def _raise_not_converged(err: object, flag: object) -> None:
 _STACKED_LSTSQ: Any = getattr(getattr(np.linalg, "_umath_linalg", None), "lstsq", None)
 
 
+#: the values a line keeps of the streams it solved (:meth:`_LineAt.values`): a Monte Carlo
+#: batch's 20 samples solve about 500 a line; more are forgotten all at once (a few MB)
+_SOLVED_KEPT = 4096
+
+
 class _LineAt:
     """The least-squares line through the rows ``mask`` of ``(t, y)``, evaluated at ``at``:
     ``np.polyfit(t[mask] - at, y[mask], 1)``'s intercept, made as polyfit makes it (the same
@@ -148,6 +153,9 @@ class _LineAt:
         if self.count < 2:
             return
         self.rows = np.flatnonzero(mask)
+        #: the values of the streams solved, by their rows' bytes (:meth:`values`)
+        self._solved: dict[bytes, float] = {}
+        self._deficient = False  # the matrix's rank (the same for every stream) is below 2
         x = np.asarray(t[mask] - at) + 0.0
         self.rcond = len(x) * np.finfo(x.dtype).eps
         lhs = np.vander(x, 2)
@@ -166,18 +174,44 @@ class _LineAt:
     def values(self, ys: Sequence[np.ndarray]) -> list[float]:
         """:meth:`value` of each of ``ys``: the systems solved one by one in numpy's stacked
         kernel (one gelsd call each, with the operands lstsq gives it), not as one system of
-        many right-hand sides, whose blocked products round otherwise."""
+        many right-hand sides, whose blocked products round otherwise.
+
+        A stream whose rows are the very bytes of one solved before takes its value: each
+        system is solved on its own, so its value depends on its rows alone. A Monte Carlo's
+        samples share their time axis and so their lines (:func:`end_lines`), and an updated
+        sample's temperatures, and the thermal parts of most bodies, are its prior sample's
+        (the posterior sets the mechanics' and the probe's parameters): a third of the
+        samples' systems. At most :data:`_SOLVED_KEPT` values are kept."""
         if self.count < 2 or _STACKED_LSTSQ is None or not ys:
             return [self.value(y) for y in ys]
-        # + 0.0 as value() adds it: a -0.0 becomes +0.0 before the solver sees it
-        b = np.stack([np.asarray(y)[self.rows] for y in ys])[:, :, None] + 0.0
-        with np.errstate(
-            call=_raise_not_converged, invalid="call", over="ignore", divide="ignore", under="ignore"
-        ):
-            c, _resids, rank, _s = _STACKED_LSTSQ(self.lhs, b, self.rcond, signature="ddd->ddid")
-        if np.any(rank != 2):
+        # + 0.0 as value() adds it: a -0.0 becomes +0.0 before the solver sees it (the
+        # solver's doubles: a float32 stream's rows as the kernel casts them)
+        b = (np.stack([np.asarray(y)[self.rows] for y in ys])[:, :, None] + 0.0).astype(
+            np.float64, copy=False
+        )
+        keys = [system.tobytes() for system in b]
+        solved = self._solved
+        found = {key: value for key in keys if (value := solved.get(key)) is not None}
+        todo: dict[bytes, int] = {}  # each stream not solved before, once: its first place
+        for j, key in enumerate(keys):
+            if key not in found and key not in todo:
+                todo[key] = j
+        if todo:
+            rows = list(todo.values())
+            with np.errstate(
+                call=_raise_not_converged, invalid="call", over="ignore", divide="ignore", under="ignore"
+            ):
+                c, _resids, rank, _s = _STACKED_LSTSQ(
+                    self.lhs, b if len(rows) == len(keys) else b[rows], self.rcond, signature="ddd->ddid"
+                )
+            self._deficient = bool(np.any(rank != 2))
+            if len(solved) + len(rows) > _SOLVED_KEPT:
+                solved.clear()
+            for key, value in zip(todo, (c[:, 1, 0] / self.scale[1]).tolist(), strict=True):
+                found[key] = solved[key] = value
+        if self._deficient:
             warnings.warn("Polyfit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=3)
-        return (c[:, 1, 0] / self.scale[1]).tolist()
+        return [found[key] for key in keys]
 
 
 @dataclass(frozen=True)
