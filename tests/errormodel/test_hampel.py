@@ -25,6 +25,25 @@ def probe_like(rng: np.random.Generator, n: int, spikes: int = 3) -> np.ndarray:
     return x
 
 
+def of_kind(kind: str, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``x`` as a stream of ``kind``: noise, with two NaNs, with infinities and a -0.0, signed
+    zeros, steps, or rounded to ties; any other kind (the probe's) is ``x`` itself."""
+    n = x.size
+    if kind == "noise":
+        return rng.normal(0.0, 1e-6, n)
+    if kind == "nan":
+        x[rng.integers(0, n, 2)] = np.nan
+    elif kind == "inf":
+        x[rng.integers(0, n, 3)] = rng.choice([np.inf, -np.inf, -0.0], 3)
+    elif kind == "signed zeros":
+        return rng.choice([0.0, -0.0, 1e-7, -1e-7], n)
+    elif kind == "steps":
+        return np.repeat(rng.normal(0.0, 3e-6, n // 200 + 1), 200)[:n]
+    elif kind == "ties":
+        return np.round(x / 1e-6) * 1e-6
+    return x
+
+
 def same(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
     return a[0].dtype == b[0].dtype and a[0].tobytes() == b[0].tobytes() and np.array_equal(a[1], b[1])
 
@@ -52,17 +71,7 @@ def test_the_same_doubles_and_flags_as_every_windows_median(
     n: int, half_window: int, floor: float, kind: str, seed: int
 ) -> None:
     rng = np.random.default_rng(seed)
-    x = probe_like(rng, n, spikes=max(1, n // 500))
-    if kind == "noise":
-        x = rng.normal(0.0, 1e-6, n)
-    elif kind == "nan":
-        x[rng.integers(0, n, 2)] = np.nan
-    elif kind == "inf":
-        x[rng.integers(0, n, 3)] = rng.choice([np.inf, -np.inf, -0.0], 3)
-    elif kind == "signed zeros":
-        x = rng.choice([0.0, -0.0, 1e-7, -1e-7], n)
-    elif kind == "steps":
-        x = np.repeat(rng.normal(0.0, 3e-6, n // 200 + 1), 200)[:n]
+    x = of_kind(kind, probe_like(rng, n, spikes=max(1, n // 500)), rng)
     with np.errstate(invalid="ignore"):  # inf - inf in both
         assert same(hampel(x, half_window, 5.0, floor), everywhere(x, half_window, 5.0, floor))
 
@@ -93,15 +102,7 @@ def test_moving_median_is_numpy_s_median_of_every_window(
     n: int, half_window: int, kind: str, seed: int
 ) -> None:
     rng = np.random.default_rng(seed)
-    x = rng.normal(0.0, 1e-6, n)
-    if kind == "nan":
-        x[rng.integers(0, n, 2)] = np.nan
-    elif kind == "inf":
-        x[rng.integers(0, n, 3)] = rng.choice([np.inf, -np.inf, -0.0], 3)
-    elif kind == "signed zeros":
-        x = rng.choice([0.0, -0.0, 1e-7, -1e-7], n)
-    elif kind == "ties":
-        x = np.round(x / 1e-6) * 1e-6
+    x = of_kind(kind, rng.normal(0.0, 1e-6, n), rng)
     assert sources.moving_median(x, half_window).tobytes() == _median_filter(x, half_window).tobytes()
 
 
