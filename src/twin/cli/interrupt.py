@@ -275,26 +275,38 @@ def _living(proc: Any) -> bool:
 
 def end_children() -> None:
     """Kill every process this one started, and theirs (SIGKILL: they have SIGTERM blocked).
-    A few rounds: a nanny of the Dask cluster may start a worker again meanwhile."""
+
+    Every one is stopped first (SIGSTOP), round after round until no new one shows, then all
+    are killed. Killed as found, a process could start one between the look and its kill
+    (a build's make its compiler's linker): that one, orphaned, left the tree and outlived
+    the command; a stopped process starts none, and what it started before stays below it,
+    found in the next round. A few rounds: a thread of this process (a Dask nanny) may start
+    one meanwhile."""
     try:
         import psutil  # distributed's dependency, so there with the twin
     except ImportError:  # pragma: no cover
         return
     _no_more_workers()
-    killed: list[Any] = []
+    stopped: dict[int, Any] = {}
     quiet = 0
-    for _ in range(20):  # a thread of this process may be starting one meanwhile: look again
+    for _ in range(20):
         try:
-            children = [c for c in psutil.Process().children(recursive=True) if _living(c)]
+            new = [
+                c for c in psutil.Process().children(recursive=True) if c.pid not in stopped and _living(c)
+            ]
         except psutil.Error:
             break
-        quiet = 0 if children else quiet + 1
+        quiet = 0 if new else quiet + 1
         if quiet == 3:
             break
-        for child in children:
+        for child in new:
             with suppress(psutil.Error):
-                child.kill()
-        killed += children
+                child.suspend()
+            stopped[child.pid] = child
         time.sleep(0.03)
+    killed = list(stopped.values())
+    for child in killed:
+        with suppress(psutil.Error):
+            child.kill()
     # a killed orphan may stay a zombie where the first process reaps none: no long wait
     psutil.wait_procs(killed, timeout=0.3)
