@@ -229,6 +229,31 @@ def test_resumed_sinks_cut_the_csv_back_to_the_checkpoint(tmp_path: Path) -> Non
     ]
 
 
+def test_a_short_runs_recording_closes_after_its_plots_when_a_helper_draws_them(tmp_path: Path) -> None:
+    from twin.outputs.plot_process import PlotProcess
+
+    folder = RunFolder(tmp_path)
+    plot = BudgetColumns("probe.reading", "errormodel.e_total", PARTS, [])
+    helper = PlotProcess()  # never started: only the order is asked of it
+
+    def order(outputs: RunOutputs, process: PlotProcess | None) -> tuple[list[str], bool]:
+        sinks = folder.run_sinks(outputs, plot_process=process)
+        (recording,) = [s for s in sinks if type(s).__name__ == "RecordingSink"]
+        return [type(s).__name__ for s in sinks], recording.hold
+
+    written_at_once = ["SignalsCsvSink", "RecordingSink", "DerivedCsvSink", "ErrorBudgetSink", "SummarySink"]
+    # a short run whose plots the helper draws: its rows wait in the recording's sink, which is
+    # written once the plots are drawn (its memory after the helper's), summary.json still last
+    assert order(RunOutputs("sample", (), (), plot), helper) == (
+        ["SignalsCsvSink", "DerivedCsvSink", "ErrorBudgetSink", "RecordingSink", "SummarySink"],
+        True,
+    )
+    # a long run's recording is written while it steps, and a run drawing its own plots has no
+    # helper to wait for: the recording is written as the rows come, before the plots
+    assert order(RunOutputs("sample", (), (), plot, long=True), helper) == (written_at_once, False)
+    assert order(RunOutputs("sample", (), (), plot), None) == (written_at_once, False)
+
+
 def _another_process_can_lock(folder: RunFolder) -> bool:
     probe = (
         "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDWR), fcntl.LOCK_EX | fcntl.LOCK_NB)"

@@ -19,7 +19,7 @@ from twin.outputs.csv import DerivedCsvSink, SignalsCsvSink, read_signals_csv, w
 from twin.outputs.plot_sinks import ErrorBudgetSink
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.recording_sink import RecordingSink
-from twin.outputs.rerun_rec import entity_path, read_recording
+from twin.outputs.rerun_rec import entity_path, read_recording, recorded_unit
 from twin.outputs.sink import Outcome, Sink
 from twin.outputs.summary import SummarySink
 from twin.signals.recorder import TeeRecorder
@@ -343,6 +343,44 @@ def test_the_recording_is_made_with_its_first_rows_or_when_the_run_ends_without_
     assert read_recording(tmp_path / "recording.rrd") == {}  # a whole (footed) recording, empty
     with pytest.raises(ValueError, match="budget columns"):  # checked at open, not with the rows
         RecordingSink(tmp_path / "b.rrd", recording_name="r", budget_columns=["no.such"]).open(signals)
+
+
+def test_a_held_recording_is_written_when_it_closes_with_the_rows_and_the_outcome(tmp_path: Path) -> None:
+    import sys
+
+    full = make_table(rows=40)
+    _, table = recorded(full)
+    sink = RecordingSink(
+        tmp_path / "recording.rrd", recording_name="r", late_signals=[full.meta[n] for n in DERIVED]
+    )
+    sink.hold = True
+    rec = TeeRecorder([sink], hold_last=True)
+    stream(rec, table, batch=7)
+    rec.flush()
+    # rerun is loaded with the rows (beside the plots' drawing), the file is not begun
+    assert "twin.outputs.rerun_rec" in sys.modules
+    assert not (tmp_path / "recording.rrd").exists()
+    sink.close(Outcome(full, DERIVED, dict))
+    series = read_recording(tmp_path / "recording.rrd")
+    for name in ("probe.reading", "thermal.t_base", "errormodel.e_total"):
+        t, v = series[entity_path(full.meta[name])]
+        np.testing.assert_array_equal(t, full.time)
+        np.testing.assert_array_equal(v, full[name] * recorded_unit(full.meta[name])[1])
+
+
+def test_a_held_recording_keeps_its_rows_when_the_run_fails_before_it_closes(tmp_path: Path) -> None:
+    _, table = recorded(make_table(rows=25))
+    sink = RecordingSink(tmp_path / "recording.rrd", recording_name="r")
+    sink.hold = True
+    rec = TeeRecorder([sink], hold_last=True)
+    stream(rec, table)
+    rec.flush()
+    sink.fail(RuntimeError("the plot failed"))  # before the sink's close, as a plot's failure would
+    sink.fail(RuntimeError("again"))  # harmless
+    series = read_recording(tmp_path / "recording.rrd")
+    t, v = series[entity_path(table.meta["probe.reading"])]
+    np.testing.assert_array_equal(t, table.time)
+    np.testing.assert_array_equal(v, table["probe.reading"] * 1e6)
 
 
 def test_fail_keeps_what_was_written_and_writes_nothing_new(tmp_path: Path) -> None:

@@ -10,6 +10,12 @@ while it runs: its sink (``preload``) begins the import in a thread of its own w
 opens its outputs (after its checks and the FMUs' set-up: a run that fails those never pays
 it), so that it goes on while the co-simulation steps (the native stepper leaves Python's lock
 free) instead of holding up the first rows.
+
+A short run's sink whose plots that process draws (``hold``) keeps the rows handed to it and
+writes the file when it closes, after the plots (:meth:`twin.outputs.run_folder.RunFolder.run_sinks`
+orders it so): rerun still loads beside the drawing, but the recording's own memory (rerun's
+buffers, its Arrow arrays: about 20 MB for the paper's replay) is taken once the helper has
+ended, not beside matplotlib's. That overlap was the default run's peak memory (issue 32).
 """
 
 from __future__ import annotations
@@ -82,6 +88,10 @@ class RecordingSink(Sink):
         self.scene = scene
         #: a long run's sink: rerun's import begins when the run opens its outputs (the module)
         self.preload = False
+        #: a short run's sink, closed after the plots: the rows handed to it are kept until
+        #: then (the module); they are the rows the run held for its outputs, not a copy
+        self.hold = False
+        self._held: list[Block] = []
         self.recording_name = recording_name
         self.late_signals = list(late_signals)
         self.budget_columns = budget_columns
@@ -130,10 +140,20 @@ class RecordingSink(Sink):
             self._writer.append(before.time, columns, partial=True)
             if self.scene is not None:
                 self.scene.collect(before.time, columns)
+        held, self._held = self._held, []
+        for block in held:
+            self._send(self._writer, block)
         return self._writer
 
     def write(self, block: Block) -> None:
-        self._started().append(block.time, block.columns, partial=True)
+        if self.hold and self._writer is None:
+            _rerun_rec()  # loaded now, beside the plots' drawing; the file is written at close
+            self._held.append(block)
+            return
+        self._send(self._started(), block)
+
+    def _send(self, writer: RecordingWriter, block: Block) -> None:
+        writer.append(block.time, block.columns, partial=True)
         if self.scene is not None:
             self.scene.collect(block.time, block.columns)
 
@@ -149,7 +169,9 @@ class RecordingSink(Sink):
     def fail(self, error: BaseException) -> None:
         if self._signals is not None and not self._closed and self._writer is None:
             try:
-                self._started()  # a run that broke before its first rows still leaves its recording
+                # a run that broke before its first rows still leaves its recording, and one
+                # that broke while its rows were held (a plot failed) leaves them in it
+                self._started()
             finally:
                 self._release()
             return

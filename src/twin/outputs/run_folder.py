@@ -464,12 +464,14 @@ class RunFolder:
             scene=outputs.scene,
         )
         recording.preload = outputs.long
-        return [
-            SignalsCsvSink(csv_path, resume_at=position, columns=outputs.signals),
-            *mat,
-            recording,
-            *self.result_sinks(name=outputs.name, plot=outputs.plot, plot_process=plot_process),
-        ]
+        results = self.result_sinks(name=outputs.name, plot=outputs.plot, plot_process=plot_process)
+        signals: list[Sink] = [SignalsCsvSink(csv_path, resume_at=position, columns=outputs.signals), *mat]
+        if outputs.long or plot_process is None:
+            return [*signals, recording, *results]
+        # a short run's recording is written once its plots are drawn, before summary.json:
+        # its memory then comes after the plot helper's (twin.outputs.recording_sink)
+        recording.hold = True
+        return [*signals, *results[:-1], recording, results[-1]]
 
     def result_sinks(
         self, *, name: str, plot: BudgetColumns, plot_process: PlotProcess | None = None
