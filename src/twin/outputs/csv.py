@@ -230,7 +230,7 @@ def _csv_rows(columns: Sequence[np.ndarray]) -> bytes:
     text = sink.getvalue().to_pybytes()
     del sink
     # Arrow's allocator (mimalloc) keeps what it freed for its next call; given back now, the
-    # run's memory stays lower while rerun loads beside the plot helper (issue 32: 6-13 MB)
+    # run's memory stays lower while rerun loads beside the plot helper (issue 32: 13 MB in the paper's replay)
     pa.default_memory_pool().release_unused()
     return text
 

@@ -14,7 +14,7 @@ free) instead of holding up the first rows.
 A short run's sink whose plots that process draws (``hold``) keeps the rows handed to it and
 writes the file when it closes, after the plots (:meth:`twin.outputs.run_folder.RunFolder.run_sinks`
 orders it so): rerun still loads beside the drawing, but the recording's own memory (rerun's
-buffers, its Arrow arrays: about 20 MB for the paper's replay) is taken once the helper has
+writer, buffers and arrays: about 25 MB for the paper's replay) is taken once the helper has
 ended, not beside matplotlib's. That overlap was the default run's peak memory (issue 32).
 """
 
