@@ -98,7 +98,7 @@ def run_command(argv: Sequence[str] | None = None, *, own_process: bool = False)
 
 
 def _os_error(exc: OSError) -> str:
-    from twin.outputs.run_folder import DISK_FULL_ERRNOS
+    from twin.outputs.sink import DISK_FULL_ERRNOS
 
     if exc.errno in DISK_FULL_ERRNOS:
         return f"disk full ({exc.strerror}) while writing {exc.filename or 'an output file'}"

@@ -11,11 +11,17 @@ opens its outputs (after its checks and the FMUs' set-up: a run that fails those
 it), so that it goes on while the co-simulation steps (the native stepper leaves Python's lock
 free) instead of holding up the first rows.
 
-A short run's sink whose plots that process draws (``hold``) keeps the rows handed to it and
+A short run's sink whose plots that process draws (``hold``) keeps the rows handed to it once
+the run's outputs begin (:meth:`RecordingSink.begin`: the rows the run held for them) and
 writes the file when it closes, after the plots (:meth:`twin.outputs.run_folder.RunFolder.run_sinks`
 orders it so): rerun still loads beside the drawing, but the recording's own memory (rerun's
 writer, buffers and arrays: about 25 MB for the paper's replay) is taken once the helper has
 ended, not beside matplotlib's. That overlap was the default run's peak memory (issue 32).
+Rows that came while the run went (a slow short run's, every :data:`~twin.signals.recorder.FLUSH_SECONDS`)
+are written as they come, and so is the rest of its rows then. A run that fails before the
+sink closes (a plot that cannot be drawn) still writes the held rows and the error model's
+columns, as they were written before the plots; a full disk writes nothing more (the rows are
+in signals.csv, and the space left is the failed summary's).
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 from twin.outputs.guard import refuse_links
-from twin.outputs.sink import Outcome, Sink
+from twin.outputs.sink import DISK_FULL_ERRNOS, Outcome, Sink
 from twin.signals.table import Block, Signal
 
 if TYPE_CHECKING:
@@ -88,10 +94,13 @@ class RecordingSink(Sink):
         self.scene = scene
         #: a long run's sink: rerun's import begins when the run opens its outputs (the module)
         self.preload = False
-        #: a short run's sink, closed after the plots: the rows handed to it are kept until
-        #: then (the module); they are the rows the run held for its outputs, not a copy
+        #: a short run's sink, closed after the plots: the rows handed to it once the outputs
+        #: begin are kept until then (the module); they are the rows the run held for its
+        #: outputs, not a copy
         self.hold = False
         self._held: list[Block] = []
+        #: the run's outcome while rows are held (from :meth:`begin`), else None
+        self._holding: Outcome | None = None
         self.recording_name = recording_name
         self.late_signals = list(late_signals)
         self.budget_columns = budget_columns
@@ -145,8 +154,14 @@ class RecordingSink(Sink):
             self._send(self._writer, block)
         return self._writer
 
+    def begin(self, outcome: Outcome) -> bool:
+        # the outputs begin: a held sink with no file yet keeps the rows from now on
+        if self.hold and self._writer is None and not self._closed:
+            self._holding = outcome
+        return False
+
     def write(self, block: Block) -> None:
-        if self.hold and self._writer is None:
+        if self._holding is not None and self._writer is None:
             _rerun_rec()  # loaded now, beside the plots' drawing; the file is written at close
             self._held.append(block)
             return
@@ -160,18 +175,30 @@ class RecordingSink(Sink):
     def close(self, outcome: Outcome) -> None:
         if self._signals is None or self._closed:
             return
-        writer = self._started()
+        self._derived(self._started(), outcome)
+        self._release()
+
+    @staticmethod
+    def _derived(writer: RecordingWriter, outcome: Outcome) -> None:
+        """The columns derived after the run (the error model's), on the rows' timeline."""
         if outcome.table is not None:
             table = outcome.table
             writer.append(table.time, {n: table[n] for n in outcome.columns}, partial=True)
-        self._release()
 
     def fail(self, error: BaseException) -> None:
         if self._signals is not None and not self._closed and self._writer is None:
+            holding, self._holding = self._holding, None
+            if self._held and isinstance(error, OSError) and error.errno in DISK_FULL_ERRNOS:
+                self._held.clear()  # a full disk: nothing more is written (the module)
+                self._closed = True
+                return
             try:
                 # a run that broke before its first rows still leaves its recording, and one
-                # that broke while its rows were held (a plot failed) leaves them in it
-                self._started()
+                # that broke while its rows were held (a plot failed) leaves them in it, with
+                # the error model's columns, as a recording written before the plots has them
+                writer = self._started()
+                if holding is not None:
+                    self._derived(writer, holding)
             finally:
                 self._release()
             return

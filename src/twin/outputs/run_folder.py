@@ -23,7 +23,6 @@ the fingerprint of the scenario it was taken from makes a resume of an edited sc
 
 from __future__ import annotations
 
-import errno
 import hashlib
 import json
 import math
@@ -102,8 +101,6 @@ RUN_OUTPUTS = (
 MAX_HEADER_BYTES = 16 * 2**20
 #: file systems no run folder may be on
 _SPECIAL_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
-#: the errors of a full disk or a file-size limit
-DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 
 
 def output_folder(raw: str | None, default: Path, option: str = "--out") -> Path:

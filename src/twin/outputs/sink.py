@@ -27,6 +27,7 @@ Adding an output is one class with these four methods in its own module, and a l
 
 from __future__ import annotations
 
+import errno
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -36,7 +37,10 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 if TYPE_CHECKING:
     from twin.signals.table import Block, Signal, SignalTable
 
-__all__ = ["ClosesOnExit", "Outcome", "OutcomeSink", "Sink"]
+__all__ = ["DISK_FULL_ERRNOS", "ClosesOnExit", "Outcome", "OutcomeSink", "Sink"]
+
+#: the errors of a full disk or a file-size limit: a sink failing on one writes nothing more
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 
 
 class Outcome:
