@@ -246,6 +246,34 @@ def test_the_held_rows_go_to_the_files_after_the_plots_start_and_before_any_file
     ]
 
 
+@pytest.mark.parametrize("stopped", [False, True])
+def test_a_stop_while_a_plot_is_drawn_writes_the_data_files_after_it_before_waiting(stopped: bool) -> None:
+    from twin.pipeline import RunControls
+    from twin.pipeline.stages import OutputsLog, write_outputs
+
+    events: list[tuple[str, Any]] = []
+    begun: list[bool] = []
+
+    class Plot(Log):
+        skippable = True
+
+        def begin(self, outcome: Outcome) -> bool:
+            begun.append(True)
+            return True
+
+    # in a short run's order: the recording after the plot it waits for, the summary last
+    sinks = [Log(events, "csv"), Plot(events, "png"), Log(events, "rec"), Log(events, "summary")]
+    controls = RunControls(stop=lambda: "SIGINT" if stopped and begun else None)
+    log = OutputsLog()
+    write_outputs(sinks, Outcome(None, (), dict), controls, log)
+    closed = [e[0] for e in events if e[1] == "close"]
+    if stopped:  # the begun plot is still waited for, after the data it would have held up
+        assert closed == ["csv", "rec", "png", "summary"]
+    else:
+        assert closed == ["csv", "png", "rec", "summary"]
+    assert log.skipped == []
+
+
 def test_tee_without_sinks_keeps_only_the_kept_columns() -> None:
     _, table = recorded(make_table())
     rec = TeeRecorder(keep={"thermal.t_base", "probe.reading"}.__contains__)
@@ -345,42 +373,86 @@ def test_the_recording_is_made_with_its_first_rows_or_when_the_run_ends_without_
         RecordingSink(tmp_path / "b.rrd", recording_name="r", budget_columns=["no.such"]).open(signals)
 
 
-def test_a_held_recording_is_written_when_it_closes_with_the_rows_and_the_outcome(tmp_path: Path) -> None:
-    import sys
-
-    full = make_table(rows=40)
-    _, table = recorded(full)
+def _held_sink(tmp_path: Path, full: SignalTable) -> RecordingSink:
     sink = RecordingSink(
         tmp_path / "recording.rrd", recording_name="r", late_signals=[full.meta[n] for n in DERIVED]
     )
     sink.hold = True
-    rec = TeeRecorder([sink], hold_last=True)
-    stream(rec, table, batch=7)
-    rec.flush()
-    # rerun is loaded with the rows (beside the plots' drawing), the file is not begun
-    assert "twin.outputs.rerun_rec" in sys.modules
-    assert not (tmp_path / "recording.rrd").exists()
-    sink.close(Outcome(full, DERIVED, dict))
-    series = read_recording(tmp_path / "recording.rrd")
-    for name in ("probe.reading", "thermal.t_base", "errormodel.e_total"):
+    return sink
+
+
+def _assert_recorded(path: Path, full: SignalTable, names: tuple[str, ...]) -> None:
+    series = read_recording(path)
+    for name in names:
         t, v = series[entity_path(full.meta[name])]
         np.testing.assert_array_equal(t, full.time)
         np.testing.assert_array_equal(v, full[name] * recorded_unit(full.meta[name])[1])
 
 
-def test_a_held_recording_keeps_its_rows_when_the_run_fails_before_it_closes(tmp_path: Path) -> None:
-    _, table = recorded(make_table(rows=25))
-    sink = RecordingSink(tmp_path / "recording.rrd", recording_name="r")
-    sink.hold = True
+def test_a_held_recording_is_written_when_it_closes_with_the_rows_and_the_outcome(tmp_path: Path) -> None:
+    import sys
+
+    full = make_table(rows=40)
+    _, table = recorded(full)
+    sink = _held_sink(tmp_path, full)
+    rec = TeeRecorder([sink], hold_last=True)
+    stream(rec, table, batch=7)
+    outcome = Outcome(full, DERIVED, dict)
+    assert sink.begin(outcome) is False  # nothing of it is made by another process
+    rec.flush()  # the rows the run held for its outputs
+    # rerun is loaded with the rows (beside the plots' drawing), the file is not begun
+    assert "twin.outputs.rerun_rec" in sys.modules
+    assert not (tmp_path / "recording.rrd").exists()
+    sink.close(outcome)
+    _assert_recorded(
+        tmp_path / "recording.rrd", full, ("probe.reading", "thermal.t_base", "errormodel.e_total")
+    )
+
+
+def test_rows_that_came_while_the_run_went_are_written_as_they_came_held_or_not(tmp_path: Path) -> None:
+    full = make_table(rows=40)
+    _, table = recorded(full)
+    sink = _held_sink(tmp_path, full)
+    sink.open([table.meta[n] for n in table.names()])
+    sink.write(Block(table.time[:10], {n: table[n][:10] for n in table.names()}))  # while it runs
+    assert (tmp_path / "recording.rrd").exists()  # streamed: a killed run keeps them
+    outcome = Outcome(full, DERIVED, dict)
+    sink.begin(outcome)
+    sink.write(Block(table.time[10:], {n: table[n][10:] for n in table.names()}))  # the file is open
+    sink.close(outcome)
+    _assert_recorded(tmp_path / "recording.rrd", full, ("probe.reading", "errormodel.e_total"))
+
+
+def test_a_held_recording_keeps_its_rows_and_the_outcome_when_the_run_fails_before_it_closes(
+    tmp_path: Path,
+) -> None:
+    full = make_table(rows=25)
+    _, table = recorded(full)
+    sink = _held_sink(tmp_path, full)
     rec = TeeRecorder([sink], hold_last=True)
     stream(rec, table)
+    sink.begin(Outcome(full, DERIVED, dict))
     rec.flush()
     sink.fail(RuntimeError("the plot failed"))  # before the sink's close, as a plot's failure would
     sink.fail(RuntimeError("again"))  # harmless
-    series = read_recording(tmp_path / "recording.rrd")
-    t, v = series[entity_path(table.meta["probe.reading"])]
-    np.testing.assert_array_equal(t, table.time)
-    np.testing.assert_array_equal(v, table["probe.reading"] * 1e6)
+    # as a recording written before the plots: the rows, and the error model's columns
+    _assert_recorded(tmp_path / "recording.rrd", full, ("probe.reading", "errormodel.e_total"))
+
+
+def test_a_held_recording_writes_nothing_more_on_a_full_disk(tmp_path: Path) -> None:
+    import errno
+
+    full = make_table(rows=25)
+    _, table = recorded(full)
+    sink = _held_sink(tmp_path, full)
+    rec = TeeRecorder([sink], hold_last=True)
+    stream(rec, table)
+    sink.begin(Outcome(full, DERIVED, dict))
+    rec.flush()
+    sink.fail(OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "errormodel.csv")))
+    sink.close(Outcome(full, DERIVED, dict))  # after a failure: nothing either
+    # the rows are in signals.csv; the space left is the failed summary's
+    assert not (tmp_path / "recording.rrd").exists()
 
 
 def test_fail_keeps_what_was_written_and_writes_nothing_new(tmp_path: Path) -> None:

@@ -38,7 +38,6 @@ from twin.fmu.pool import SlotPool
 from twin.outputs.fmi_log import FmiLogFile
 from twin.outputs.plots import BudgetColumns
 from twin.outputs.run_folder import (
-    DISK_FULL_ERRNOS,
     FMI_LOG,
     SUMMARY_JSON,
     Checkpoint,
@@ -49,7 +48,7 @@ from twin.outputs.run_folder import (
 )
 from twin.outputs.scene3d import ROLES as SCENE_ROLES
 from twin.outputs.scene3d import tester_scene
-from twin.outputs.sink import Outcome, Sink
+from twin.outputs.sink import DISK_FULL_ERRNOS, Outcome, Sink
 from twin.outputs.summary import write_summary
 from twin.pipeline.prepare import PreparedRun
 from twin.pipeline.run_summary import RunSummary, Timing
@@ -263,10 +262,25 @@ def write_outputs(
         t0 = time.perf_counter()
         held.flush()
         log.timings["last_rows"] = time.perf_counter() - t0
-    for sink in sinks:
+    pending = list(sinks)
+    while pending:
+        sink = pending.pop(0)
         if sink.skippable and id(sink) not in begun and controls.stopped():
             log.skipped.append(sink.path.name)
             continue
+        if id(sink) in begun and controls.stopped():
+            # stopped while a plot is drawn: the files of the run's data that would come after
+            # it (a short run's recording) are written before it is waited for, the last sink
+            # (summary.json) still last; a second signal's grace may not cover both
+            # (twin.cli.interrupt)
+            data = {id(s) for s in pending[:-1] if not s.skippable}
+            if data:
+                pending = [
+                    *(s for s in pending if id(s) in data),
+                    sink,
+                    *(s for s in pending if id(s) not in data),
+                ]
+                continue
         t0 = time.perf_counter()
         sink.close(outcome)
         log.timings[sink.path.name] = time.perf_counter() - t0
@@ -412,6 +426,7 @@ def _give_back_free_pages() -> None:
     that overlap is the default run's peak memory (issue 32), which the pages would raise."""
     trim = getattr(ctypes.CDLL(None), "malloc_trim", None)
     if trim is not None:
+        trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
         trim(0)
 
 
