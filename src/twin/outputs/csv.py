@@ -165,6 +165,7 @@ class SignalsCsvWriter(ClosesOnExit):
         rows = max(1, _FORMAT_BYTES // (24 * len(columns)))
         for i in range(0, t.size, rows):
             self._write_rows(_csv_rows([c[i : i + rows] for c in columns]), t[i : i + rows])
+        _give_back_arrow_memory()
 
     def _write_rows(self, text: bytes, t: np.ndarray) -> None:
         """Write ``text`` (the rows at times ``t``) in slices of about :data:`_SLICE_BYTES`,
@@ -227,12 +228,16 @@ def _csv_rows(columns: Sequence[np.ndarray]) -> bytes:
     table = pa.Table.from_arrays(arrays, names=[f"c{j}" for j in range(len(columns))])
     sink = pa.BufferOutputStream()
     pacsv.write_csv(table, sink, pacsv.WriteOptions(include_header=False, quoting_style="none"))
-    text = sink.getvalue().to_pybytes()
-    del sink
-    # Arrow's allocator (mimalloc) keeps what it freed for its next call; given back now, the
-    # run's memory stays lower while rerun loads beside the plot helper (issue 32: 13 MB in the paper's replay)
+    return sink.getvalue().to_pybytes()
+
+
+def _give_back_arrow_memory() -> None:
+    """Arrow's allocator (mimalloc) keeps what it freed for its next call: given back once a
+    chunk is written, the run's memory stays lower while rerun loads beside the plot helper
+    (issue 32: 13 MB in the paper's replay). Microseconds; the next chunk's pages are new."""
+    import pyarrow as pa
+
     pa.default_memory_pool().release_unused()
-    return text
 
 
 def write_units_sidecar(csv_path: str | os.PathLike[str], signals: Sequence[Signal]) -> Path:
