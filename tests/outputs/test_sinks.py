@@ -389,21 +389,26 @@ def _assert_recorded(path: Path, full: SignalTable, names: tuple[str, ...]) -> N
         np.testing.assert_array_equal(v, full[name] * recorded_unit(full.meta[name])[1])
 
 
-def test_a_held_recording_is_written_when_it_closes_with_the_rows_and_the_outcome(tmp_path: Path) -> None:
-    import sys
-
-    full = make_table(rows=40)
+def _held_rows(tmp_path: Path, rows: int) -> tuple[SignalTable, RecordingSink]:
+    """A held recording's sink once the outputs began and the run's rows were handed to it."""
+    full = make_table(rows=rows)
     _, table = recorded(full)
     sink = _held_sink(tmp_path, full)
     rec = TeeRecorder([sink], hold_last=True)
     stream(rec, table, batch=7)
-    outcome = Outcome(full, DERIVED, dict)
-    assert sink.begin(outcome) is False  # nothing of it is made by another process
+    assert sink.begin(Outcome(full, DERIVED, dict)) is False  # nothing of it made elsewhere
     rec.flush()  # the rows the run held for its outputs
+    return full, sink
+
+
+def test_a_held_recording_is_written_when_it_closes_with_the_rows_and_the_outcome(tmp_path: Path) -> None:
+    import sys
+
+    full, sink = _held_rows(tmp_path, 40)
     # rerun is loaded with the rows (beside the plots' drawing), the file is not begun
     assert "twin.outputs.rerun_rec" in sys.modules
     assert not (tmp_path / "recording.rrd").exists()
-    sink.close(outcome)
+    sink.close(Outcome(full, DERIVED, dict))
     _assert_recorded(
         tmp_path / "recording.rrd", full, ("probe.reading", "thermal.t_base", "errormodel.e_total")
     )
@@ -426,13 +431,7 @@ def test_rows_that_came_while_the_run_went_are_written_as_they_came_held_or_not(
 def test_a_held_recording_keeps_its_rows_and_the_outcome_when_the_run_fails_before_it_closes(
     tmp_path: Path,
 ) -> None:
-    full = make_table(rows=25)
-    _, table = recorded(full)
-    sink = _held_sink(tmp_path, full)
-    rec = TeeRecorder([sink], hold_last=True)
-    stream(rec, table)
-    sink.begin(Outcome(full, DERIVED, dict))
-    rec.flush()
+    full, sink = _held_rows(tmp_path, 25)
     sink.fail(RuntimeError("the plot failed"))  # before the sink's close, as a plot's failure would
     sink.fail(RuntimeError("again"))  # harmless
     # as a recording written before the plots: the rows, and the error model's columns
@@ -442,13 +441,7 @@ def test_a_held_recording_keeps_its_rows_and_the_outcome_when_the_run_fails_befo
 def test_a_held_recording_writes_nothing_more_on_a_full_disk(tmp_path: Path) -> None:
     import errno
 
-    full = make_table(rows=25)
-    _, table = recorded(full)
-    sink = _held_sink(tmp_path, full)
-    rec = TeeRecorder([sink], hold_last=True)
-    stream(rec, table)
-    sink.begin(Outcome(full, DERIVED, dict))
-    rec.flush()
+    full, sink = _held_rows(tmp_path, 25)
     sink.fail(OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "errormodel.csv")))
     sink.close(Outcome(full, DERIVED, dict))  # after a failure: nothing either
     # the rows are in signals.csv; the space left is the failed summary's
