@@ -249,7 +249,9 @@ def write_outputs(
     their files' names added to ``log.skipped``: an interrupted run keeps its data, not its
     pictures. Every sink is asked first whether it begins its file now
     (:meth:`~twin.outputs.sink.Sink.begin`: the plots, drawn by their own process while the
-    files before them are written). The rows ``held`` back at the end of the run
+    files before them are written); a begun one is still waited for after a stop, but after
+    the data files that come behind it (a short run's recording), the last sink still last.
+    The rows ``held`` back at the end of the run
     (:func:`simulate`'s ``hold_last_rows``) are handed to the sinks after that, before any
     closes (their time into the log as ``last_rows``).
     """
