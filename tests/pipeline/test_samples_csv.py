@@ -63,6 +63,8 @@ def test_same_bytes_as_pandas(tmp_path: Path, seed: int) -> None:
     rows[14]["mixed"] = "x"
     for r in rows:
         r["float32 free, inf"] = math.inf if r["sample"] == 2 else -1e300
+        # every row a float, one of them NaN: the column of floats alone (most of a run's)
+        r["floats, a nan"] = math.nan if r["sample"] == 4 else r["sample"] / 7 - 3.0
     ours, theirs = tmp_path / "ours.csv", tmp_path / "theirs.csv"
     write_samples(ours, rows)
     _pandas_way(theirs, rows)

@@ -360,7 +360,11 @@ def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
     # then every drawn input, in the order drawn: a sample can be rerun or analysed from its row
     inputs = [c for c in seen if c not in SAMPLE_COLUMNS and c not in parts]
     columns = [*SAMPLE_COLUMNS, *parts, *inputs]
-    cells = [_csv_column([row.get(c, _MISSING) for row in rows]) for c in columns]
+    # row by row, then column by column: a key a row lacks is None there, a missing cell
+    table = [list(map(row.get, columns)) for row in rows]
+    cells = (
+        [_csv_column(list(values)) for values in zip(*table, strict=True)] if table else [[] for _ in columns]
+    )
 
     def write(tmp: Path) -> None:
         with tmp.open("w", encoding="utf-8", newline="") as f:
@@ -371,16 +375,17 @@ def write_samples(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
     return write_atomic(path, write)  # never through a link
 
 
-#: a key a sample's row does not have (pandas' missing value: an empty cell)
-_MISSING = object()
-
-
-def _csv_column(values: Sequence[Any]) -> list[str]:
+def _csv_column(values: list[Any]) -> list[str]:
     """One column's cells as pandas writes them: a column of numbers, some missing or any a
     float, is pandas' float64 (numpy's shortest repr, ``3.0`` for an integer, missing empty); a
     column of integers (or of booleans) with none missing their text; anything else each
     value's text, missing (None, NaN) empty."""
-    missing = [v is _MISSING or v is None or (isinstance(v, float) and math.isnan(v)) for v in values]
+    if values and set(map(type, values)) == {float}:
+        # every cell a Python float (a sample's figures and what was drawn for it): their
+        # shortest reprs made in one go by the list's repr, a NaN missing
+        cells = repr(values)[1:-1].split(", ")
+        return ["" if c == "nan" else c for c in cells] if "nan" in cells else cells
+    missing = [v is None or (isinstance(v, float) and math.isnan(v)) for v in values]
     present = [v for v, m in zip(values, missing, strict=True) if not m]
     if present and all(isinstance(v, int | float | np.integer) and not isinstance(v, bool) for v in present):
         if not any(missing) and all(isinstance(v, int | np.integer) for v in present):
