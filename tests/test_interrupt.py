@@ -239,6 +239,28 @@ def test_first_use_compile_interrupted_by_sigterm_to_the_command_alone(tmp_path:
     assert not [*cache.glob(f"{toolchain.SCRATCH}*"), *private.glob("pid-*")]
 
 
+def test_a_build_starts_no_cmake_once_its_children_are_ended(tmp_path: Path) -> None:
+    """Ending the command's processes closes its builds first: its main thread, running on,
+    cannot start the next FMU's cmake after the last look for processes (a build interrupted
+    between two FMUs left one running, with its make, after the command had ended)."""
+    code = (
+        "from pathlib import Path\n"
+        "from twin.cli import interrupt\n"
+        "from twin.errors import BuildError\n"
+        "from twin.fmu import toolchain\n"
+        "interrupt.end_children()\n"
+        "try:\n"
+        f"    toolchain.run_cmake(Path({str(tmp_path)!r}), Path({str(tmp_path / 'build')!r}), 'a test')\n"
+        "except BuildError as exc:\n"
+        "    print(exc)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    # refused before cmake started (a cmake started on an empty folder fails its configure)
+    assert r.stdout.strip() == "building a test: not started, the command is ending", r.stdout
+    assert not (tmp_path / "build").exists()
+
+
 def test_monte_carlo_start_interrupted(tmp_path: Path) -> None:
     rng = random.Random(333)
     out = tmp_path / "run"

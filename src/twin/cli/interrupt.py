@@ -256,11 +256,16 @@ def _silence() -> int | None:
 def _no_more_workers() -> None:
     """A Dask nanny (a thread of this process) starts its worker again when it finds it dead,
     and multiprocessing its resource tracker: from here each such start fails at once (the
-    executable it would start is /dev/null), so killing them is not a race."""
+    executable it would start is /dev/null), and so does a build's next cmake, which the main
+    thread, running on, could start between two FMUs (:func:`twin.fmu.toolchain.no_more_builds`),
+    so killing them is not a race."""
     mp = sys.modules.get("multiprocessing")
     if mp is not None:
         with suppress(Exception):
             mp.set_executable(os.devnull)
+    toolchain = sys.modules.get("twin.fmu.toolchain")  # loaded: a build may run
+    if toolchain is not None:
+        toolchain.no_more_builds()
 
 
 def _living(proc: Any) -> bool:

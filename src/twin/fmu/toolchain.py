@@ -34,6 +34,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from importlib.resources.abc import Traversable
@@ -250,11 +251,30 @@ def folder_files(folder: Path | Traversable) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in entries if not p.name.startswith(".")}
 
 
+#: held while cmake is started; :func:`no_more_builds` closes it for good
+_STARTS = threading.Lock()
+_builds_closed = False
+
+
+def no_more_builds() -> None:
+    """From now on :func:`run_cmake` starts no process (it raises :class:`BuildError` at once).
+
+    A command that a signal ends kills every process it started (:func:`twin.cli.interrupt.end_children`)
+    while its main thread runs on: a build between two FMUs could start the next one's cmake
+    after the last look for processes, and that cmake (and its make and compilers) outlived
+    the command. Closed first, every cmake started is there to be found. Waits for a start
+    under way."""
+    global _builds_closed
+    with _STARTS:
+        _builds_closed = True
+
+
 def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] | None = None) -> None:
     """Configure ``source`` into ``build`` and build its ``install`` target.
 
     Raises :class:`ToolMissingError` without a compiler or cmake and :class:`BuildError`
-    naming ``what`` with the tail of the compiler output when a step fails.
+    naming ``what`` with the tail of the compiler output when a step fails, or at once once
+    the command is ending (:func:`no_more_builds`).
     """
     cc, cmake = find_tools()
     flags = [f"-D{k}={v}" for k, v in (defines or {}).items()]
@@ -263,9 +283,14 @@ def run_cmake(source: Path, build: Path, what: str, defines: Mapping[str, str] |
         "build": [cmake, "--build", str(build), "--target", "install"],
     }
     for step, cmd in steps.items():
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        with _STARTS:
+            if _builds_closed:
+                raise BuildError(f"building {what}: not started, the command is ending")
+            proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        with proc:
+            out, err = proc.communicate()
         if proc.returncode != 0:
-            raise _build_failure(what, step, cc, proc.stdout + proc.stderr)
+            raise _build_failure(what, step, cc, out + err)
 
 
 def _build_failure(what: str, step: str, cc: str, output: str) -> BuildError:
