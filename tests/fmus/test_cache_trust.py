@@ -208,6 +208,44 @@ def test_a_library_is_checked_again_for_every_instance(seeded: Path, tmp_path: P
         second.close()
 
 
+def test_a_library_loaded_by_a_live_instance_is_not_loaded_again(seeded: Path, tmp_path: Path) -> None:
+    """While an instance holds its library loaded, the next instance of the FMU is not checked
+    again (slot._loaded_live): the loader finds the library by its path among those loaded
+    and maps nothing new. Shown with a library planted at that path meanwhile (a new file: the
+    loaded one's pages stay as they are): the second instance runs the first's code, never the
+    planted constructor; once both are freed, the next instance's load checks the file again."""
+    from twin.fmu import slot as slot_module
+    from twin.fmu.slot import FMUSlot
+
+    fmu = ensure_fmu("HydraulicLoader")
+    first = FMUSlot(fmu, "first")
+    library = Path(first.library)
+    assert slot_module._LIVE[str(fmu)][1] == 1
+    marker = tmp_path / "planted-ran"
+    planted = tmp_path / "planted.so"
+    _plant(planted, marker, tmp_path)
+    os.replace(planted, library)  # the record beside it still the real library's
+    second = FMUSlot(fmu, "second")
+    try:
+        assert slot_module._LIVE[str(fmu)][1] == 2
+        assert not marker.exists(), "the planted library's constructor ran"
+        for s in (first, second):  # the real library's functions, in both
+            s.setup(0.0)
+            s.enter_initialization()
+            s.exit_initialization()
+    finally:
+        second.close()
+        first.close()
+    assert str(fmu) not in slot_module._LIVE
+    assert library.read_bytes() != _member(seeded)  # still the planted file: nothing checked it yet
+    third = FMUSlot(fmu, "third")
+    try:
+        assert not marker.exists(), "the planted library's constructor ran"
+        assert library.read_bytes() == _member(seeded)  # checked at the load: taken out anew
+    finally:
+        third.close()
+
+
 def test_a_relative_cache_folder_works(seeded: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """fmpy changes the working directory while it loads a library: the cache's paths are
     absolute, whatever TWIN_CACHE_DIR says."""

@@ -302,7 +302,11 @@ def identities(plans: Sequence[Plan]) -> list[list[int]]:
     splits: the coarsest partition in which every instance's sources are in its class's
     sources' classes, so a cycle of delayed connections is shared whole or not at all."""
     own: dict[object, int] = {}
-    ids = [[own.setdefault(_given(plan, i), len(own)) for i in range(len(plan.instances))] for plan in plans]
+    profiles: dict[int, object] = {}  # each profile's key, made once (samples share most)
+    ids = [
+        [own.setdefault(_given(plan, i, profiles), len(own)) for i in range(len(plan.instances))]
+        for plan in plans
+    ]
     n = len(own)
     while True:
         refined: dict[object, int] = {}
@@ -321,34 +325,40 @@ def identities(plans: Sequence[Plan]) -> list[list[int]]:
         n = len(refined)
 
 
-def _given(plan: Plan, i: int) -> object:
+def _given(plan: Plan, i: int, profiles: dict[int, object]) -> object:
     """What the plan gives instance ``i`` but its connections' sources, as a key of exact
-    values: names compared as strings, numbers by their bits (:func:`_bits`)."""
+    values: names compared as strings, numbers by their bits (:func:`_bits`: the parameters'
+    names and values in one serialization, the names written as strings)."""
     inst = plan.instances[i]
     return (
         inst.name, inst.model, inst.period_ns, inst.period_ticks, inst.outputs, inst.out_vrs,
         plan.scenario.start_ns,
-        tuple(name for name, _ in inst.parameters), _bits(tuple(v for _, v in inst.parameters)),
+        _bits(inst.parameters),
         tuple((p.name, p.vr, int(p.kind), p.idx) for p in inst.inputs),
         _bits(tuple((p.initial, p.factor, p.offset) for p in inst.inputs)),
-        tuple(_driven_spec(plan, p.src) for p in inst.inputs if p.kind == InputKind.DRIVEN),
+        tuple(_driven_spec(plan, p.src, profiles) for p in inst.inputs if p.kind == InputKind.DRIVEN),
     )  # fmt: skip
 
 
-def _driven_spec(plan: Plan, column: int) -> object:
+def _driven_spec(plan: Plan, column: int, profiles: dict[int, object]) -> object:
     """How a driven column is driven, as a key of exact values: a profile by its data, not its
     place in the scenario; its table (a sample's room: hundreds of points) by the float64
-    bits the profile evaluates."""
+    bits the profile evaluates. ``profiles`` keeps each profile's key by the profile (a
+    frozen value, alive while the plans are: the samples of a batch share the tester's
+    load and drive profiles, an updated sample its prior sample's room)."""
     spec = plan.driven[column]
     if spec[0] != "profile":
         return _bits(spec)
     profile = plan.scenario.profiles[int(spec[1])]
-    table = np.array(profile.table, dtype=np.float64)
-    params = sorted(profile.params.items())
-    return (
-        profile.target, profile.kind, profile.source, tuple(k for k, _ in params),
-        _bits(tuple(v for _, v in params)), table.shape, table.tobytes(),
-    )  # fmt: skip
+    key = profiles.get(id(profile))
+    if key is None:
+        table = np.array(profile.table, dtype=np.float64)
+        params = sorted(profile.params.items())
+        key = profiles[id(profile)] = (
+            profile.target, profile.kind, profile.source, tuple(k for k, _ in params),
+            _bits(tuple(v for _, v in params)), table.shape, table.tobytes(),
+        )  # fmt: skip
+    return key
 
 
 def _bits(values: tuple[Any, ...]) -> object:

@@ -247,7 +247,9 @@ def built_library(fmu: Path) -> Path | None:
 
     The library is taken out of the FMU once, when the FMU's bytes still match the SHA-256
     recorded at its build, and is from then on checked against its own recorded SHA-256
-    each time, as every cache entry is (:func:`twin.fmu.toolchain.cached`). A fresh process
+    each time it is asked for, as every cache entry is (:func:`twin.fmu.toolchain.cached`):
+    before each load of it (:func:`twin.fmu.slot.FMUSlot` does not ask while an instance
+    holds the library loaded, when the loader loads nothing new). A fresh process
     then loads the tester's five FMUs without unpacking any. The FMUs built here have no ``resources/``
     (:func:`_lay_out`), so the library is all an instance loads of them.
     """

@@ -19,6 +19,7 @@ import ctypes
 import functools
 import os
 import shutil
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -226,13 +227,53 @@ def _unpacked(key: tuple[str, int, int]) -> external.Unpacked:
         raise
 
 
+#: the FMUs the twin built whose library instances of this process hold loaded now, by the
+#: FMU file's path: what they loaded and how many of them are alive (:func:`_loaded_live`)
+_LIVE: dict[str, tuple[Loaded, int]] = {}
+_LIVE_LOCK = threading.Lock()
+
+
+def _loaded_live(path: Path) -> tuple[Loaded, str | None]:
+    """:func:`_loaded`, and the key under which an instance that loads it counts as alive
+    (None: an FMU from elsewhere, unpacked as before). While an instance of a built FMU is
+    alive, the next instance of it does not check its library again: the library is loaded,
+    and loading a path that is loaded maps nothing new (the dynamic loader finds the library
+    by its path among those loaded before it opens any file), so what that instance runs are
+    the bytes checked when the first was loaded. A Monte Carlo opens about a hundred instances
+    of five libraries; once none is alive, the next load checks the file again."""
+    key = str(path)
+    with _LIVE_LOCK:
+        live = _LIVE.get(key)
+    if live is not None:
+        return live[0], key
+    loaded = _loaded(path)
+    return loaded, None if loaded.foreign else key
+
+
+def _hold(key: str, loaded: Loaded) -> None:
+    """One more instance of ``key``'s library alive (it instantiated)."""
+    with _LIVE_LOCK:
+        count = _LIVE[key][1] if key in _LIVE else 0
+        _LIVE[key] = (loaded, count + 1)
+
+
+def _let_go(key: str) -> None:
+    """One instance of ``key``'s library freed (its library unloaded with it)."""
+    with _LIVE_LOCK:
+        loaded, count = _LIVE[key]
+        if count > 1:
+            _LIVE[key] = (loaded, count - 1)
+        else:
+            del _LIVE[key]
+
+
 def _loaded(path: Path) -> Loaded:
     """What an instance of the FMU at ``path`` loads. An FMU the twin built
     (:func:`twin.fmu.catalog.fmu` has just verified it) loads its library from the cache, where
-    it was taken out once and is checked against its recorded SHA-256 for every instance
-    (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last
-    instance is freed, so each instance opens the file anew. Any other FMU is unpacked
-    (:func:`twin.fmu.external.unpack`)."""
+    it was taken out once and is checked against its recorded SHA-256 each time it is loaded
+    (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last instance is
+    freed, so the next instance opens the file anew (while one is alive, :func:`_loaded_live`
+    does not ask again). Any other FMU is unpacked (:func:`twin.fmu.external.unpack`)."""
     from twin.fmu.build import built_library
 
     library = built_library(path)
@@ -360,14 +401,18 @@ class FMUSlot:
         self, fmu_path: Path, instance_name: str, log: Callable[[str, str, str, str], None] | None = None
     ) -> None:
         self.name = instance_name
-        loaded = _loaded(Path(fmu_path))
+        loaded, live_key = _loaded_live(Path(fmu_path))
         self.description, self.unzipdir, self.library = loaded.description, loaded.unzipdir, loaded.library
         self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self._log = log
         self.time = 0.0
+        self._live_key: str | None = None  # counted alive (_hold) until close frees it
         self._slave = _load(Path(fmu_path), loaded, instance_name)
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
+        if live_key is not None:
+            _hold(live_key, loaded)
+            self._live_key = live_key
         # the FMU library's functions as typed when it was loaded (never the library object's
         # attributes: an attribute not typed there would be a function without a prototype)
         self._fns = fns = self._slave._functions
@@ -553,4 +598,7 @@ class FMUSlot:
                 self._slave.terminate()
         with contextlib.suppress(Exception):
             self._slave.freeInstance()
+        if self._live_key is not None:  # after the library's unloading: the next load checks it
+            _let_go(self._live_key)
+            self._live_key = None
         forget_logging(self.name)
