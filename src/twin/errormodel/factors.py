@@ -153,6 +153,12 @@ class _LineAt:
         if self.count < 2:
             return
         self.rows = np.flatnonzero(mask)
+        #: the same rows as a slice where they follow one another (an end's window: the
+        #: streams' rows are then taken as a view, no index array walked)
+        first = int(self.rows[0])
+        self._take: slice | np.ndarray = (
+            slice(first, first + self.count) if int(self.rows[-1]) - first + 1 == self.count else self.rows
+        )
         #: the values of the streams solved, by their rows' bytes (:meth:`values`)
         self._solved: dict[bytes, float] = {}
         self._deficient = False  # the matrix's rank (the same for every stream) is below 2
@@ -185,11 +191,10 @@ class _LineAt:
         At most :data:`_SOLVED_KEPT` values are kept."""
         if self.count < 2 or _STACKED_LSTSQ is None or not ys:
             return [self.value(y) for y in ys]
-        # + 0.0 as value() adds it: a -0.0 becomes +0.0 before the solver sees it (the
-        # solver's doubles: a float32 stream's rows as the kernel casts them)
-        b = (np.stack([np.asarray(y)[self.rows] for y in ys])[:, :, None] + 0.0).astype(
-            np.float64, copy=False
-        )
+        # the streams as one array, then their rows (the same numbers in the same places as
+        # each stream's rows stacked); + 0.0 as value() adds it: a -0.0 becomes +0.0 before
+        # the solver sees it (the solver's doubles: a float32 stream's rows as the kernel casts them)
+        b = (_side_by_side(ys)[:, self._take][:, :, None] + 0.0).astype(np.float64, copy=False)
         keys = [system.tobytes() for system in b]
         solved = self._solved
         found = {key: value for key in keys if (value := solved.get(key)) is not None}
@@ -205,7 +210,7 @@ class _LineAt:
                 c, _resids, rank, _s = _STACKED_LSTSQ(
                     self.lhs, b if len(rows) == len(keys) else b[rows], self.rcond, signature="ddd->ddid"
                 )
-            self._deficient = bool(np.any(rank != 2))
+            self._deficient = bool((rank != 2).any())
             if len(solved) + len(rows) > _SOLVED_KEPT:
                 solved.clear()
             for key, value in zip(todo, (c[:, 1, 0] / self.scale[1]).tolist(), strict=True):
@@ -213,6 +218,18 @@ class _LineAt:
         if self._deficient:
             warnings.warn("Polyfit may be poorly conditioned", np.exceptions.RankWarning, stacklevel=3)
         return [found[key] for key in keys]
+
+
+def _side_by_side(ys: Sequence[np.ndarray]) -> np.ndarray:
+    """The 1-D streams ``ys`` (of one length) as the rows of one array, their dtypes promoted as
+    ``np.stack`` promotes them (``np.array`` of the list, without ``np.stack``'s per-array
+    checks: most of a short stream's cost); ``np.stack`` where they are not all 1-D arrays of
+    one length."""
+    arrays = [np.asarray(y) for y in ys]
+    n = arrays[0].shape
+    if len(n) == 1 and all(a.shape == n for a in arrays):
+        return np.array(arrays)
+    return np.stack(arrays)
 
 
 @dataclass(frozen=True)
