@@ -38,7 +38,6 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Self
 
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 
 from twin.errors import ConfigError
 
@@ -407,7 +406,9 @@ def hampel(
     """
     x = np.asarray(x)
     w = 2 * half_window + 1
-    if x.ndim != 1 or x.dtype != np.float64 or half_window <= 0 or x.size <= w:
+    # a stream of a few windows (a Monte Carlo sample's 104 rows): every window's median costs
+    # less than looking for the quiet ones first, which most such streams are not
+    if x.ndim != 1 or x.dtype != np.float64 or half_window <= 0 or x.size <= _SHORT_WINDOWS * w:
         return _hampel_everywhere(x, half_window, n_sigmas, min_deviation)
     n = x.size
     # the blocks of w padded samples side by side, a block more on the right than the windows
@@ -429,6 +430,12 @@ def hampel(
     spikes = np.zeros(n, dtype=bool)
     spikes[rows] = deviation[rows] > np.maximum(n_sigmas * 1.4826 * mad, min_deviation)
     return np.where(spikes, med, x), spikes
+
+
+#: a stream of at most this many windows' length takes every window's median at once
+#: (:func:`hampel`): at 104 rows that is 0.8 of the time of looking for the quiet windows first
+#: for a loud stream and 0.9 for a quiet one; at 300 rows the quiet stream already gains
+_SHORT_WINDOWS = 8
 
 
 def _hampel_everywhere(
@@ -494,7 +501,9 @@ def moving_median(x: np.ndarray, half_window: int) -> np.ndarray:
     out = np.empty_like(x)
     for a in range(0, x.size, _MEDIAN_ROWS):
         rows = min(_MEDIAN_ROWS, x.size - a)
-        windows = as_strided(padded[a:], shape=(rows, w), strides=(step, step), writeable=False).copy()
+        # a view of the padded stream's own buffer (as_strided's checks cost more than the
+        # copy of a short stream's windows), copied before it is partitioned
+        windows = np.ndarray((rows, w), padded.dtype, padded, a * step, (step, step)).copy()
         windows.partition(half_window, axis=1)  # in place: np.partition would copy them again
         out[a : a + rows] = windows[:, half_window]
     return out
