@@ -186,7 +186,7 @@ def test_the_libraries_of_fmus_no_longer_cached_go_with_them(seeded: Path) -> No
     assert other.exists()  # another model's: not this one's to prune
 
 
-def test_a_library_is_checked_again_for_every_instance(seeded: Path, tmp_path: Path) -> None:
+def test_a_library_is_checked_again_once_its_last_instance_is_freed(seeded: Path, tmp_path: Path) -> None:
     """fmpy unloads a library when its last instance is freed: the next instance opens the
     file again, so the file is checked again (a planted one is replaced, never run)."""
     from twin.fmu.slot import FMUSlot
@@ -210,7 +210,7 @@ def test_a_library_is_checked_again_for_every_instance(seeded: Path, tmp_path: P
 
 def test_a_library_loaded_by_a_live_instance_is_not_loaded_again(seeded: Path, tmp_path: Path) -> None:
     """While an instance holds its library loaded, the next instance of the FMU is not checked
-    again (slot._loaded_live): the loader finds the library by its path among those loaded
+    again (slot._load_counted): the loader finds the library by its path among those loaded
     and maps nothing new. Shown with a library planted at that path meanwhile (a new file: the
     loaded one's pages stay as they are): the second instance runs the first's code, never the
     planted constructor; once both are freed, the next instance's load checks the file again."""
@@ -244,6 +244,38 @@ def test_a_library_loaded_by_a_live_instance_is_not_loaded_again(seeded: Path, t
         assert library.read_bytes() == _member(seeded)  # checked at the load: taken out anew
     finally:
         third.close()
+
+
+def test_loads_and_frees_from_many_threads_are_counted_back_to_none(seeded: Path) -> None:
+    """Threads opening and freeing instances of one FMU at once (a sweep's worker runs a point
+    per thread): each load counted, each free taken back, none left once all are freed."""
+    import threading
+
+    from twin.fmu import slot as slot_module
+    from twin.fmu.slot import FMUSlot
+
+    fmu = ensure_fmu("HydraulicLoader")
+    errors: list[BaseException] = []
+
+    def churn(name: str) -> None:
+        try:
+            for k in range(25):
+                s = FMUSlot(fmu, f"{name}-{k}")
+                s.setup(0.0)
+                s.close()
+        except BaseException as exc:  # handed to the test's thread
+            errors.append(exc)
+
+    keep = FMUSlot(fmu, "kept")  # one held throughout: the others take the short way
+    threads = [threading.Thread(target=churn, args=(f"t{i}",)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    assert slot_module._LIVE[str(fmu)][1] == 1
+    keep.close()
+    assert str(fmu) not in slot_module._LIVE
 
 
 def test_a_relative_cache_folder_works(seeded: Path, monkeypatch: pytest.MonkeyPatch) -> None:

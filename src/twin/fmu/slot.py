@@ -227,39 +227,52 @@ def _unpacked(key: tuple[str, int, int]) -> external.Unpacked:
         raise
 
 
-#: the FMUs the twin built whose library instances of this process hold loaded now, by the
-#: FMU file's path: what they loaded and how many of them are alive (:func:`_loaded_live`)
+#: the FMUs the twin built whose library this process holds loaded now, by the FMU file's path:
+#: what their instances loaded and how many of fmpy's loads of it are not freed yet
+#: (:func:`_load_counted`); changed, with the loads and frees it counts, under the lock
 _LIVE: dict[str, tuple[Loaded, int]] = {}
 _LIVE_LOCK = threading.Lock()
 
 
-def _loaded_live(path: Path) -> tuple[Loaded, str | None]:
-    """:func:`_loaded`, and the key under which an instance that loads it counts as alive
-    (None: an FMU from elsewhere, unpacked as before). While an instance of a built FMU is
-    alive, the next instance of it does not check its library again: the library is loaded,
-    and loading a path that is loaded maps nothing new (the dynamic loader finds the library
-    by its path among those loaded before it opens any file), so what that instance runs are
-    the bytes checked when the first was loaded. A Monte Carlo opens about a hundred instances
-    of five libraries; once none is alive, the next load checks the file again."""
+def _load_counted(path: Path, name: str) -> tuple[FMU2SlaveTyped, Loaded, str | None]:
+    """fmpy's binding of a new instance of the FMU at ``path`` (:func:`_load`), what it loaded,
+    and the key its load is counted under (None: an FMU from elsewhere, unpacked as before).
+
+    While a load of a built FMU's library is not freed, the next instance's load does not check
+    the library again: loading a path that is loaded maps nothing new (the dynamic loader finds
+    the library by its path among those loaded before it opens any file), so that instance runs
+    the bytes checked at the first load. The look-up and the load are one step under the lock,
+    as a free and its count are (:meth:`FMUSlot.close`), so no other thread's free unloads the
+    library in between. A Monte Carlo opens about a hundred instances of five libraries; once
+    every load is freed, the next one checks the file again."""
     key = str(path)
     with _LIVE_LOCK:
         live = _LIVE.get(key)
-    if live is not None:
-        return live[0], key
-    loaded = _loaded(path)
-    return loaded, None if loaded.foreign else key
-
-
-def _hold(key: str, loaded: Loaded) -> None:
-    """One more instance of ``key``'s library alive (it instantiated)."""
+        if live is not None:
+            slave = _load(path, live[0], name)
+            _LIVE[key] = (live[0], live[1] + 1)
+            return slave, live[0], key
+    loaded = _loaded(path)  # checked (or built, taken out) outside the lock
+    slave = _load(path, loaded, name)
+    if loaded.foreign:
+        return slave, loaded, None
     with _LIVE_LOCK:
         count = _LIVE[key][1] if key in _LIVE else 0
         _LIVE[key] = (loaded, count + 1)
+    return slave, loaded, key
 
 
-def _let_go(key: str) -> None:
-    """One instance of ``key``'s library freed (its library unloaded with it)."""
+def _free_counted(slave: FMU2SlaveTyped, key: str | None) -> None:
+    """``slave.freeInstance()`` (which unloads its library when no other load holds it), and
+    for a counted load (:func:`_load_counted`) its count taken back in the same step; never
+    raises (a free that failed is taken back too: the next load then checks the file)."""
+    if key is None:
+        with contextlib.suppress(Exception):
+            slave.freeInstance()
+        return
     with _LIVE_LOCK:
+        with contextlib.suppress(Exception):
+            slave.freeInstance()
         loaded, count = _LIVE[key]
         if count > 1:
             _LIVE[key] = (loaded, count - 1)
@@ -272,8 +285,9 @@ def _loaded(path: Path) -> Loaded:
     (:func:`twin.fmu.catalog.fmu` has just verified it) loads its library from the cache, where
     it was taken out once and is checked against its recorded SHA-256 each time it is loaded
     (:func:`twin.fmu.build.built_library`): fmpy unloads a library when its last instance is
-    freed, so the next instance opens the file anew (while one is alive, :func:`_loaded_live`
-    does not ask again). Any other FMU is unpacked (:func:`twin.fmu.external.unpack`)."""
+    freed, so the next instance opens the file anew (while one holds it loaded,
+    :func:`_load_counted` does not ask again). Any other FMU is unpacked
+    (:func:`twin.fmu.external.unpack`)."""
     from twin.fmu.build import built_library
 
     library = built_library(path)
@@ -401,18 +415,15 @@ class FMUSlot:
         self, fmu_path: Path, instance_name: str, log: Callable[[str, str, str, str], None] | None = None
     ) -> None:
         self.name = instance_name
-        loaded, live_key = _loaded_live(Path(fmu_path))
-        self.description, self.unzipdir, self.library = loaded.description, loaded.unzipdir, loaded.library
-        self.variables: Mapping[str, Variable] = self.description.variables
         self.messages: list[str] = []
         self._log = log
         self.time = 0.0
-        self._live_key: str | None = None  # counted alive (_hold) until close frees it
-        self._slave = _load(Path(fmu_path), loaded, instance_name)
+        # its load counted until close frees it (an instance that fails to instantiate is never
+        # freed: its load, and so its library, stay, counted)
+        self._slave, loaded, self._live_key = _load_counted(Path(fmu_path), instance_name)
+        self.description, self.unzipdir, self.library = loaded.description, loaded.unzipdir, loaded.library
+        self.variables: Mapping[str, Variable] = self.description.variables
         self._slave.instantiate(callbacks=self._make_callbacks(), loggingOn=log is not None)
-        if live_key is not None:
-            _hold(live_key, loaded)
-            self._live_key = live_key
         # the FMU library's functions as typed when it was loaded (never the library object's
         # attributes: an attribute not typed there would be a function without a prototype)
         self._fns = fns = self._slave._functions
@@ -596,9 +607,6 @@ class FMUSlot:
         if self._initialized:
             with contextlib.suppress(Exception):
                 self._slave.terminate()
-        with contextlib.suppress(Exception):
-            self._slave.freeInstance()
-        if self._live_key is not None:  # after the library's unloading: the next load checks it
-            _let_go(self._live_key)
-            self._live_key = None
+        key, self._live_key = self._live_key, None
+        _free_counted(self._slave, key)
         forget_logging(self.name)
