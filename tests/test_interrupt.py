@@ -261,6 +261,29 @@ def test_a_build_starts_no_cmake_once_its_children_are_ended(tmp_path: Path) -> 
     assert not (tmp_path / "build").exists()
 
 
+def test_a_signal_while_the_toolchain_module_is_still_loading_ends_the_command() -> None:
+    """A signal in the imports can find twin.fmu.toolchain in sys.modules with its body not yet
+    run (its own imports under way): the ending, which closes the builds, raised there, the
+    watcher died, and the main thread parked for good at its next park() (the command hung;
+    a Ctrl-C 0.2 s after the start did so once in CI). The module as the import leaves it
+    while its body runs, then the signal: the command ends with its one line."""
+    code = (
+        "import os, signal, sys, time, types\n"
+        "from twin.cli import interrupt\n"
+        "interrupt.install()\n"
+        "sys.modules['twin.fmu.toolchain'] = types.ModuleType('twin.fmu.toolchain')\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(LIMIT)\n"
+        "interrupt.park()\n"
+    ).replace("LIMIT", repr(LIMIT_S))
+    started = time.monotonic()
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    took = time.monotonic() - started
+    assert r.returncode == 130, (r.returncode, r.stderr)
+    assert r.stderr.strip() == "twin: interrupted by SIGINT", r.stderr
+    assert took < LIMIT_S, took
+
+
 def test_monte_carlo_start_interrupted(tmp_path: Path) -> None:
     rng = random.Random(333)
     out = tmp_path / "run"

@@ -204,24 +204,29 @@ def _hard_exit() -> None:
         _state.ending = True
         _state.ender = threading.get_ident()
     name = _state.name or "SIGINT"
-    for stream in (sys.stdout, sys.stderr):
-        with suppress(OSError, ValueError):
-            stream.flush()
-    err = _silence()
-    end_children()
-    # the hooks as they are now, just before the end: the main thread runs on meanwhile (ending
-    # the children takes a tenth of a second), and a signal during prepare found no run folder
-    # that the run may have made, and begun to record into, by now
-    with _state.lock:
-        hooks = list(_state.hooks)
-    told = [_told(hook, name) for hook in hooks]
-    with _state.lock:
-        line = None if _state.said else next((t for t in told if t), None) or _line()
-        _state.said = True
-    if line is not None and err is not None:
-        with suppress(OSError):
-            os.write(err, (line + "\n").encode("utf-8", "replace"))
-    os._exit(exit_code(name))
+    # from here the command must end whatever fails on the way: the main thread, running on,
+    # parks for good at its next park() (another thread is ending), so a step that raised
+    # here would leave the command hanging, its children alive
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            with suppress(OSError, ValueError):
+                stream.flush()
+        err = _silence()
+        end_children()
+        # the hooks as they are now, just before the end: the main thread runs on meanwhile
+        # (ending the children takes a tenth of a second), and a signal during prepare found no
+        # run folder that the run may have made, and begun to record into, by now
+        with _state.lock:
+            hooks = list(_state.hooks)
+        told = [_told(hook, name) for hook in hooks]
+        with _state.lock:
+            line = None if _state.said else next((t for t in told if t), None) or _line()
+            _state.said = True
+        if line is not None and err is not None:
+            with suppress(OSError):
+                os.write(err, (line + "\n").encode("utf-8", "replace"))
+    finally:
+        os._exit(exit_code(name))
 
 
 def _told(hook: Callable[[str], str | None], name: str) -> str | None:
@@ -263,9 +268,12 @@ def _no_more_workers() -> None:
     if mp is not None:
         with suppress(Exception):
             mp.set_executable(os.devnull)
-    toolchain = sys.modules.get("twin.fmu.toolchain")  # loaded: a build may run
-    if toolchain is not None:
-        toolchain.no_more_builds()
+    # loaded: a build may run; or still loading (the signal came during the imports, its body
+    # not yet at no_more_builds): then no build has begun, and the exit comes milliseconds
+    # from now, long before the run could reach one
+    close = getattr(sys.modules.get("twin.fmu.toolchain"), "no_more_builds", None)
+    if close is not None:
+        close()
 
 
 def _living(proc: Any) -> bool:
