@@ -19,7 +19,10 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         "scenario file or shipped name whose thermal network is calibrated (default: the paper's)",
     )
     p.add_argument(
-        "--out", metavar="FILE", help="parameter file to write (default: runs/calibrate/<name>.toml)"
+        "--out",
+        metavar="FILE",
+        help="parameter file to write (default: runs/calibrate/ under the name of the scenario's "
+        "calibration file, e.g. runs/calibrate/li2017-thermal-network.toml)",
     )
     flag(p, "--write", "replace the calibration file the scenario includes (the committed one)")
     return p
