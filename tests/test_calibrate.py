@@ -108,6 +108,22 @@ def test_calibrate_names_a_scenario_that_is_not_there(capsys: pytest.CaptureFixt
     assert len(err) == 1 and "did you mean 'li2017-thermal-experiment'" in err[0], err
 
 
+def test_calibrate_refuses_write_with_out(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """--write names the committed file as the target, --out another: both at once is refused
+    before any fit, the committed file and --out untouched (it once wrote --out, silently)."""
+    from twin.cli import main
+
+    before = COMMITTED.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    assert main(["calibrate", "--out", "mine.toml", "--write"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--write" in err[0] and "--out" in err[0], err
+    assert not (tmp_path / "mine.toml").exists() and not (tmp_path / "runs").exists()
+    assert COMMITTED.read_bytes() == before
+
+
 def test_the_scenario_uses_the_calibrated_values() -> None:
     sc = load_scenario(default_scenario_path())
     params = sc.fmu("thermal").parameters

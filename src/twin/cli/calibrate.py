@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from twin.cli.common import flag, optional
+from twin.cli.common import optional
 
 NAME = "calibrate"
 
@@ -18,13 +18,20 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         "scenario",
         "scenario file or shipped name whose thermal network is calibrated (default: the paper's)",
     )
-    p.add_argument(
+    # one target or the other: --write with --out once wrote --out and left the committed
+    # file as it was, without a word
+    target = p.add_mutually_exclusive_group()
+    target.add_argument(
         "--out",
         metavar="FILE",
         help="parameter file to write (default: runs/calibrate/ under the name of the scenario's "
         "calibration file, e.g. runs/calibrate/li2017-thermal-network.toml)",
     )
-    flag(p, "--write", "replace the calibration file the scenario includes (the committed one)")
+    target.add_argument(
+        "--write",
+        action="store_true",
+        help="replace the calibration file the scenario includes (the committed one) instead",
+    )
     return p
 
 
