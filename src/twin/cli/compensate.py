@@ -30,7 +30,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         metavar="TOML",
         help="[errormodel] column map and coefficients (default: the twin's names)",
     )
-    p.add_argument("--out", metavar="DIR", help="output folder (default: <csv stem>-compensated)")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="output folder (default: beside the input: <csv stem>-compensated next to a CSV, "
+        "<run folder>-compensated next to a run folder)",
+    )
     add_tester(p, "the error model takes its coefficients (identified on it by twin identify --tester)")
     flag(p, "--force", "write into an --out folder that holds another command's outputs (a run's, a sweep's)")
     return p
