@@ -72,7 +72,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         action="extend",
         metavar="VAR",
         help="the columns signals.csv holds, named instance.variable (variable alone for one FMU); "
-        "default: every output and driven input",
+        "default: every Real output of every FMU, then each input a profile or an event drives "
+        "(a connected input is its source's output, recorded there)",
     )
     p.add_argument(
         "--format",

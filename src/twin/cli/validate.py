@@ -18,7 +18,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     add_set(p)
     add_experiment(p)
     p.add_argument(
-        "--record", nargs="+", action="extend", metavar="VAR", help="the columns signals.csv would hold"
+        "--record",
+        nargs="+",
+        action="extend",
+        metavar="VAR",
+        help="the columns signals.csv would hold (default: as twin run's, every Real output, then "
+        "each input a profile or an event drives)",
     )
     return p
 
