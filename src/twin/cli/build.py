@@ -10,8 +10,17 @@ NAME = "build"
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
-    p = sub.add_parser(NAME, help="build every FMU in fmus/ (into the cache, or --out DIR)")
-    p.add_argument("--out", metavar="DIR", help="write the .fmu files here instead of the cache")
+    p = sub.add_parser(
+        NAME,
+        help="build the FMUs in fmus/: into the cache those whose sources changed, or every one "
+        "into --out DIR",
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="build every FMU and write the .fmu files here (default: the cache, where an FMU "
+        "whose sources are unchanged since its last build is found, not built again)",
+    )
     return p
 
 
