@@ -28,14 +28,16 @@ def test_in_process_and_on_dask_the_samples_are_the_same(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
 ) -> None:
     assert main([*ARGS, "--out", str(tmp_path / "here")]) == 0
-    # a cluster that costs nothing to start pays at once: after the second batch in process
-    # (3 samples each: a tenth), the other 24 go to Dask
+    # a cluster that costs nothing to start pays at once: judged on the first batch finished
+    # in process (3 samples each: a tenth), when STEPPED_AHEAD more are started (2: the
+    # third batch), the other 21 go to Dask
     monkeypatch.setattr(run_module, "CLUSTER_START_S", 0.0)
     monkeypatch.setattr(run_module, "ON_DASK", 0.0)  # and whose samples cost nothing there
     capfd.readouterr()
     assert main([*ARGS, "--out", str(tmp_path / "dask")]) == 0
     said = capfd.readouterr()
-    assert "uncertainty: the other 24 samples on Dask" in said.out + said.err
+    on_dask = 30 - 3 * (run_module.STEPPED_AHEAD + 1)
+    assert f"uncertainty: the other {on_dask} samples on Dask" in said.out + said.err
     here = (tmp_path / "here" / "uncertainty.csv").read_bytes()
     dask = (tmp_path / "dask" / "uncertainty.csv").read_bytes()
     assert here.count(b"\n") == 1 + 30

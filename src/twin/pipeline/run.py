@@ -184,6 +184,11 @@ def run_samples(
 #: samples a batch in process holds at most: their FMUs stepped together, the progress told and
 #: a signal heeded between two batches (a batch of the paper replay takes a few tenths of a second)
 IN_PROCESS_BATCH = 20
+#: batches whose ticks run ahead of the one the error model evaluates: with one, the stepping
+#: thread of a batch that finished early left its core idle until the next batch was opened
+#: (the paper replay's run waited about 10 ms on every other batch, 0.13 s in all); with two,
+#: a batch is always stepping
+STEPPED_AHEAD = 2
 #: what a local cluster costs before its first sample, s: its worker processes start and
 #: import the twin (about a second and a half of both cores on the developers' 2-core machine),
 #: with a margin for its scheduler
@@ -311,17 +316,19 @@ def _in_process(
 ) -> list[int]:
     """Run the samples in this process, ``batches`` in turn, into ``records``, until none is
     left, a signal stops it or a cluster pays for the rest (:func:`_cluster_pays`); returns
-    the samples left. A batch's ticks run (in a thread of their own) while the batch before
-    is evaluated: the FMUs' stepping and the error model's Python share the two cores."""
+    the samples left. A batch's ticks run (in a thread of their own) while the batches before
+    are evaluated, :data:`STEPPED_AHEAD` of them in flight: the FMUs' stepping and the error
+    model's Python share the two cores."""
     from twin.fmu.pool import SlotPool
     from twin.pipeline.point import Tasks, abandon, finish_tasks, start_tasks
 
     size = max((len(b) for b in batches), default=1)
-    pool = SlotPool(per_key=2 * size)  # two batches' instances at once
+    # the batches stepped ahead and the one being started hold their instances at once
+    pool = SlotPool(per_key=(STEPPED_AHEAD + 1) * size)
     waiting = list(batches)
     left = [i for b in batches for i in b]
     batches_done = 0
-    pending: Tasks | None = None
+    pending: list[Tasks] = []  # started, oldest first
     pace = _Pace()
 
     def finish(tasks: Tasks) -> None:
@@ -338,25 +345,24 @@ def _in_process(
             left = left[len(batch) :]
             items = [payload(i) for i in batch]
             records.update({r["index"]: r for r in items if "status" in r})
-            started = start_tasks([p for p in items if "status" not in p], pool)
-            if pending is not None:
-                finish(pending)
-            pending = started
-            # judged from the second batch on: the first also made the pool's instances
+            pending.append(start_tasks([p for p in items if "status" not in p], pool))
+            if len(pending) > STEPPED_AHEAD:
+                finish(pending.pop(0))
+            # judged once a batch is finished in each turn: the turns before evaluated none
             batches_done += 1
             b1 = _machine_busy_s()
-            if batches_done == 1:
+            if batches_done <= STEPPED_AHEAD:
                 continue
             busy = b1 - b0 if b0 is not None and b1 is not None else None
             pace.add(len(batch), time.process_time() - t0, time.perf_counter() - w0, busy)
             if pace.cluster_pays(len(left)):
                 break
-        if pending is not None and controls.stopped() is None:
-            finish(pending)
-            pending = None
+        while pending and controls.stopped() is None:
+            finish(pending[0])
+            pending.pop(0)
     finally:
-        if pending is not None:
-            abandon(pending)
+        for tasks in pending:
+            abandon(tasks)
         pool.clear()
     return left
 
