@@ -358,8 +358,7 @@ def _in_process(
             if pace.cluster_pays(len(left)):
                 break
         while pending and controls.stopped() is None:
-            finish(pending[0])
-            pending.pop(0)
+            finish(pending.pop(0))  # finish_tasks gives its instances back even when it raises
     finally:
         for tasks in pending:
             abandon(tasks)
