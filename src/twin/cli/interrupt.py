@@ -157,16 +157,19 @@ def install() -> None:
     thread of a process that is the command's alone, before anything starts a thread."""
     if _state.installed:
         return
+    # blocked first: from here a signal waits, pending, for the watcher, which alone unblocks
+    # them. Blocked last, one that came while the main thread waited for the watcher to start
+    # (milliseconds on a busy machine) met the default handler: a KeyboardInterrupt in the main
+    # thread racing the watcher's end of the command, a cut traceback and exit code 1.
+    # Every thread and process this one starts from here inherits the block
+    signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
     read, write = os.pipe()
     os.set_blocking(write, False)
     signal.set_wakeup_fd(write, warn_on_full_buffer=False)
-    # a signal from here on reaches the watcher (its byte waits in the pipe until it reads)
-    threading.Thread(target=_watch, args=(read,), name="twin signals", daemon=True).start()
-    # from here on every thread and process this one starts inherits the block
-    signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
-    _state.installed = True
     for signum in _SIGNALS:
         signal.signal(signum, _ignore)
+    threading.Thread(target=_watch, args=(read,), name="twin signals", daemon=True).start()
+    _state.installed = True
 
 
 def _ignore(signum: int, frame: object) -> None:
@@ -175,6 +178,9 @@ def _ignore(signum: int, frame: object) -> None:
 
 
 def _watch(read: int) -> None:
+    # the one thread that takes the signals: one pending since install() comes now, its
+    # byte written by the C-level handler (which runs in this thread) to the wakeup pipe
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)
     while True:
         try:
             data = os.read(read, 64)
