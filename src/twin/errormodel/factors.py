@@ -77,11 +77,6 @@ class FactorError(TwinError, TypeError):
     """
 
 
-def _rel(y: np.ndarray) -> np.ndarray:
-    """The change of a stream since its first sample (the probe is zeroed at the start)."""
-    return y - y[0]
-
-
 def endpoints(t: np.ndarray, y: np.ndarray, window_s: float) -> tuple[float, float]:
     """Start and end value of ``y`` from lines through the first and last ``window_s``.
 
@@ -261,6 +256,9 @@ class Measured:
     spikes: np.ndarray
     temperatures: dict[str, np.ndarray]
     history: np.ndarray | None = None
+    #: the rows of each record where records of one time axis are stacked end to end (a Monte
+    #: Carlo batch's samples: :func:`~twin.errormodel.evaluate.evaluate_many`); None: one record
+    rows_each: int | None = None
 
     @classmethod
     def read(
@@ -317,10 +315,21 @@ class Measured:
         """The lines of :meth:`drift`, worked out once for every stream it is asked for."""
         return end_lines(self.table.time, self.cfg.window_s)
 
+    def first(self, y: np.ndarray) -> Any:
+        """The first value of ``y``; with records stacked, each row's record's first value."""
+        if self.rows_each is None:
+            return y[0]
+        return np.repeat(y[:: self.rows_each], self.rows_each)
+
+    def rel(self, y: np.ndarray) -> np.ndarray:
+        """The change of a stream since its first sample (the probe is zeroed at the start); with
+        records stacked, since its record's first sample: the same subtraction, row by row."""
+        return y - self.first(y)
+
     def change(self, name: str) -> np.ndarray | None:
         """:meth:`sensor` relative to its first sample."""
         values = self.sensor(name)
-        return None if values is None else _rel(values)
+        return None if values is None else self.rel(values)
 
     @property
     def coefficients(self) -> MechanicalCoefficients:
@@ -483,7 +492,7 @@ def _thermal(m: Measured) -> Contribution:
     """Thermal dE_T: alpha L dT of every body from the temperature rises, plus the probe's
     zero drift and its span drift on the cleaned reading (its position in its range), through
     the positioning error matrices dT_ijp (``p_dz``)."""
-    rises = {point: _rel(y) for point, y in m.temperatures.items()}
+    rises = {point: m.rel(y) for point, y in m.temperatures.items()}
     by_body = m.model.e_z_by_body(thermal_errors(rises, m.cfg.thermal, m.cleaned))
     return Contribution(np.sum(np.array(list(by_body.values())), axis=0), by_body)
 
@@ -508,17 +517,17 @@ def _fluctuating(m: Measured) -> Contribution:
     """Fluctuating dE_V: the spindle's runout against the encoder's angle and the fixture's
     vibration, through the kinematic error matrices dT_ijs (``s_dz``)."""
     angle = m.sensor("angle")
-    angle0 = float(angle[0]) if angle is not None else 0.0
+    angle0 = m.first(np.asarray(angle, dtype=float)) if angle is not None else 0.0
     errors = fluctuating_errors(angle, angle0, m.change("vibration"), m.coefficients)
-    return Contribution(_rel(m.e_z(errors)))
+    return Contribution(m.rel(m.e_z(errors)))
 
 
 def _positioning(m: Measured) -> Contribution:
     """Positioning dE_G: the probe's tilt from Z (cosine error of the cleaned reading change)
     and the T-plate's rotation by the friction torque, a rotation error of the clamp that the
     characteristic matrices read at the Abbe lever."""
-    errors = positioning_errors(_rel(m.cleaned), m.change("torque"), m.coefficients)
-    return Contribution(_rel(m.e_z(errors)))
+    errors = positioning_errors(m.rel(m.cleaned), m.change("torque"), m.coefficients)
+    return Contribution(m.rel(m.e_z(errors)))
 
 
 def _interference(m: Measured) -> Contribution:

@@ -356,10 +356,14 @@ def loading_errors(
 
 
 def fluctuating_errors(
-    angle: np.ndarray | None, angle0: float, vibration: np.ndarray | None, c: MechanicalCoefficients
+    angle: np.ndarray | None,
+    angle0: float | np.ndarray,
+    vibration: np.ndarray | None,
+    c: MechanicalCoefficients,
 ) -> dict[str, dict[str, np.ndarray]]:
     """Fluctuating dE_V: spindle runout against the encoder's angle (a kinematic error of the
-    spindle), and the fixture's vibration as the vibration pickup measures it."""
+    spindle) from its start ``angle0`` (records stacked: each row's record's), and the
+    fixture's vibration as the vibration pickup measures it."""
     out: dict[str, dict[str, np.ndarray]] = {}
     if angle is not None:
         phase = c.runout_phase

@@ -28,7 +28,14 @@ from twin.fmu.pool import SlotPool, sweep_pool
 from twin.pipeline.cluster import Payload, Record, one_line, peak_rss_mb
 from twin.pipeline.prepare import PreparedRun, RunOptions, prepare
 from twin.pipeline.run_summary import RunSummary
-from twin.pipeline.stages import Simulation, evaluate_run, run_into_folder, run_point, summarize
+from twin.pipeline.stages import (
+    Simulation,
+    evaluate_run,
+    evaluate_runs,
+    run_into_folder,
+    run_point,
+    summarize,
+)
 from twin.pipeline.worker_state import check_worker
 
 __all__ = ["Tasks", "abandon", "batch_tasks", "figures", "finish_tasks", "point_task", "start_tasks"]
@@ -158,17 +165,23 @@ def finish_tasks(tasks: Tasks) -> list[Record]:
             batch.step()  # a copy that failed: the others again without it
             done = batch.results()
             each = (time.perf_counter() - tasks.start) / max(len(tasks.payloads), 1)
+            ran = {
+                j: Simulation(payload["run"], result, result.table)
+                for j, payload in enumerate(group)
+                if (result := done.results.get(j)) is not None
+            }
+            # the batch's samples evaluated together where they can be (their numbers are
+            # each one's own), else one by one
+            together = dict(zip(ran, evaluate_runs(list(ran.values())) or (), strict=False))
             for j, payload in enumerate(group):
-                result = done.results.get(j)
-                if result is None:
+                simulation = ran.get(j)
+                if simulation is None:
                     tasks.records[payload["index"]] = point_task(payload)
                     continue
                 record = _record(payload["index"])
                 try:
-                    simulation = Simulation(payload["run"], result, result.table)
-                    record["figures"] = figures(
-                        summarize(simulation, evaluate_run(simulation, columns=False))
-                    )
+                    evaluated = together.get(j) or evaluate_run(simulation, columns=False)
+                    record["figures"] = figures(summarize(simulation, evaluated))
                     if "end_figures_s" in payload:  # the others were read off the rows kept
                         record["figures"] = end_figures(record["figures"])
                 except Exception as exc:

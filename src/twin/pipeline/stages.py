@@ -30,7 +30,7 @@ from typing import Any
 from twin.config.spec import NS_PER_S, Scenario
 from twin.cosim.controls import RunControls
 from twin.cosim.master import Master, RunResult
-from twin.errormodel.evaluate import evaluate, evaluation_signals
+from twin.errormodel.evaluate import evaluate, evaluate_many, evaluation_signals
 from twin.errormodel.factors import FACTORS
 from twin.errormodel.settings import EvaluationConfig
 from twin.errors import ConfigError, RunError, TwinError
@@ -60,6 +60,7 @@ __all__ = [
     "OutputsLog",
     "Simulation",
     "evaluate_run",
+    "evaluate_runs",
     "run_into_folder",
     "run_point",
     "simulate",
@@ -183,6 +184,27 @@ def evaluate_run(
     for report in simulation.prepared.reports:
         report.add(results, table)
     return Evaluated(table, names, results)
+
+
+def evaluate_runs(simulations: Sequence[Simulation]) -> list[Evaluated] | None:
+    """What :func:`evaluate_run` makes of each simulation with ``columns=False``, the same
+    numbers, the error model run over all of them at once
+    (:func:`~twin.errormodel.evaluate.evaluate_many`: a Monte Carlo batch's samples, one time
+    axis, one error model, no report); None where they are not such runs, or where any fails
+    (evaluated one by one, each says its own failure)."""
+    if not simulations:
+        return None
+    cfg = simulations[0].prepared.evaluation
+    if not cfg.evaluate or any(
+        s.prepared.reports or (s.prepared.evaluation is not cfg and s.prepared.evaluation != cfg)
+        for s in simulations
+    ):
+        return None
+    try:
+        summaries = evaluate_many([s.table for s in simulations], cfg)
+    except Exception:  # one by one, as evaluate_run tells each run's failure
+        return None
+    return [Evaluated(s.table, (), summary) for s, summary in zip(simulations, summaries, strict=True)]
 
 
 def summarize(
