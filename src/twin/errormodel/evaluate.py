@@ -153,9 +153,11 @@ def evaluate_many(tables: Sequence[SignalTable], cfg: EvaluationConfig) -> list[
 
     Each record is read as :func:`evaluate` reads it (its robust filter, its load history);
     then the factors run once over the records stacked end to end (a row's numbers depend on
-    its row, its record's first row and its load history: :attr:`Measured.rows_each`), and
-    each record's summary is made from its rows of theirs. Records of other time axes or
-    columns, or of fewer than two rows: ValueError (evaluate them one by one)."""
+    its row, its record's first row and its load history: :attr:`Measured.rows_each`), and so
+    does the summary, each figure an array of the records' values (their drift lines solved
+    one by one, all in one call per end), taken apart into each record's summary. Records of
+    other time axes or columns, or of fewer than two rows: ValueError (evaluate them one by
+    one)."""
     if not tables:
         raise ValueError("no record to evaluate")
     model = tester_model()
@@ -179,29 +181,25 @@ def evaluate_many(tables: Sequence[SignalTable], cfg: EvaluationConfig) -> list[
         {k: first.meta[k] for k in names},
     )
     history = None if ms[0].history is None else np.concatenate([m.history for m in ms], axis=1)
-    contributions, rows = evaluate_rows(
-        Measured(
-            table,
-            cfg,
-            model,
-            stacked([m.reading for m in ms]),
-            stacked([m.cleaned for m in ms]),
-            stacked([m.spikes for m in ms]),
-            {p: stacked([m.temperatures[p] for m in ms]) for p in ms[0].temperatures},
-            history,
-            rows_each=n,
-        )
+    stacked_m = Measured(
+        table,
+        cfg,
+        model,
+        stacked([m.reading for m in ms]),
+        stacked([m.cleaned for m in ms]),
+        stacked([m.spikes for m in ms]),
+        {p: stacked([m.temperatures[p] for m in ms]) for p in ms[0].temperatures},
+        history,
+        rows_each=n,
     )
-    out = []
-    for k, (m, t) in enumerate(zip(ms, tables, strict=True)):
-        sl = slice(k * n, (k + 1) * n)
-        own = {
-            name: Contribution(c.e_z[sl], {b: v[sl] for b, v in c.by_body.items()})
-            for name, c in contributions.items()
-        }
-        rms = {name: _rms(c.e_z) for name, c in own.items()}
-        summary = summarize(m, own, rows["e_z"][sl], rms=rms, spikes=m.spikes)
-        if "residual" in rows:
+    contributions, rows = evaluate_rows(stacked_m)
+    slices = [slice(k * n, (k + 1) * n) for k in range(len(tables))]
+    rms = {name: np.array([_rms(c.e_z[sl]) for sl in slices]) for name, c in contributions.items()}
+    out = _unstack(
+        summarize(stacked_m, contributions, rows["e_z"], rms=rms, spikes=stacked_m.spikes), len(tables)
+    )
+    if "residual" in rows:
+        for summary, t, sl in zip(out, tables, slices, strict=True):
             wear = t[cfg.true_wear] - t[cfg.true_wear][0]  # as evaluate takes it
             summary.update(
                 compensation_summary(
@@ -213,8 +211,22 @@ def evaluate_many(tables: Sequence[SignalTable], cfg: EvaluationConfig) -> list[
                     cfg.credibility,
                 )
             )
-        out.append(summary)
     return out
+
+
+def _unstack(summary: dict[str, Any], records: int) -> list[dict[str, Any]]:
+    """The summaries of ``records`` stacked records from their summary, whose figures are
+    arrays of one value per record (a figure that is not, they share: the sensors used)."""
+
+    def split(value: Any) -> list[Any]:
+        if isinstance(value, dict):
+            parts = {k: split(v) for k, v in value.items()}
+            return [{k: p[i] for k, p in parts.items()} for i in range(records)]
+        if isinstance(value, np.ndarray):
+            return value.tolist()  # a record's own value as Python's number, as summarize gives it
+        return [value] * records
+
+    return split(summary)
 
 
 def evaluate_rows(m: Measured) -> tuple[dict[str, Contribution], dict[str, np.ndarray]]:
@@ -247,7 +259,7 @@ def summarize(
     contributions: dict[str, Contribution],
     e_z: np.ndarray,
     *,
-    rms: dict[str, float],
+    rms: Mapping[str, float | np.ndarray],
     spikes: np.ndarray | int,
 ) -> dict[str, Any]:
     """The end-minus-start numbers: drift, temperature rises, each part, each factor's report.
@@ -255,6 +267,8 @@ def summarize(
     Only the rows within the drift window of either end of ``m`` enter (the drifts are lines
     through them), so ``m`` may hold just those rows; the figures of the whole record, each
     part's ``rms`` and the ``spikes`` (their count, or the flags of every row), come separately.
+    Of records stacked (``m.rows_each``), each figure is an array of the records' values (each
+    part's ``rms`` given so), each the number the record's own summary holds.
     """
     parts = {name: c.e_z for name, c in contributions.items()}
     # every drift's lines solved in one go (the same numbers as one by one)
@@ -270,7 +284,9 @@ def summarize(
     for f in FACTORS:
         if f.report is not None:
             summary.update(f.report(contributions[f.name], m))
-    summary["interference_spikes"] = int(np.sum(spikes))
+    summary["interference_spikes"] = (
+        int(np.sum(spikes)) if m.rows_each is None else np.sum(np.reshape(spikes, (-1, m.rows_each)), axis=1)
+    )
     summary["sensors_used"] = _sensors_used(m)
     return summary
 

@@ -104,6 +104,15 @@ class EndLines:
         starts, ends = self.start.values(ys), self.end.values(ys)
         return [end - start for start, end in zip(starts, ends, strict=True)]
 
+    def stacked_drifts(self, ys: Sequence[np.ndarray], records: int) -> list[np.ndarray]:
+        """:meth:`drifts` of the ``records`` stacked end to end in each of ``ys`` (each of this
+        time axis' length): per stream, an array of its records' drifts. Every record's lines
+        are solved on their own, so each is the number :meth:`drifts` gives that record alone
+        (the same subtraction, element by element), all of them in one call per end."""
+        each = [record for y in ys for record in np.reshape(y, (records, -1))]
+        drifts = np.subtract(self.end.values(each), self.start.values(each))
+        return list(drifts.reshape(len(ys), records))
+
 
 #: the last time axis and window :func:`end_lines` was asked for, and their lines
 _LAST_LINES: tuple[np.ndarray, float, EndLines] | None = None
@@ -301,19 +310,28 @@ class Measured:
         column = getattr(self.cfg, name)
         return self.table.columns.get(column)
 
-    def drift(self, y: np.ndarray) -> float:
-        """End minus start value of ``y`` over the run (see :func:`endpoints`)."""
+    def drift(self, y: np.ndarray) -> Any:
+        """End minus start value of ``y`` over the run (see :func:`endpoints`); with records
+        stacked, each record's (:meth:`drifts`)."""
+        if self.rows_each is not None:
+            return self.drifts([y])[0]
         start, end = self._ends.values(y)
         return end - start
 
-    def drifts(self, ys: Sequence[np.ndarray]) -> list[float]:
-        """:meth:`drift` of each of ``ys``, the same numbers, their lines solved together."""
+    def drifts(self, ys: Sequence[np.ndarray]) -> list[Any]:
+        """:meth:`drift` of each of ``ys``, the same numbers, their lines solved together; with
+        records stacked, per stream an array of its records' drifts, each the number its record
+        alone gives (:meth:`EndLines.stacked_drifts`)."""
+        if self.rows_each is not None:
+            return self._ends.stacked_drifts(ys, self.n // self.rows_each)
         return self._ends.drifts(ys)
 
     @functools.cached_property
     def _ends(self) -> EndLines:
-        """The lines of :meth:`drift`, worked out once for every stream it is asked for."""
-        return end_lines(self.table.time, self.cfg.window_s)
+        """The lines of :meth:`drift` (of a record's time axis), worked out once for every stream
+        it is asked for."""
+        t = self.table.time if self.rows_each is None else self.table.time[: self.rows_each]
+        return end_lines(t, self.cfg.window_s)
 
     def first(self, y: np.ndarray) -> Any:
         """The first value of ``y``; with records stacked, each row's record's first value."""
@@ -375,7 +393,8 @@ class Factor:
     computes the contribution. ``identified``: it needs the mechanical coefficients a lab
     identifies once on its tester and contributes zero without them. ``by_body``: it also
     records its contribution body by body (columns ``errormodel.<name>.<body>``). ``report``
-    adds figures of its own to the summary.
+    adds figures of its own to the summary (of records stacked, each figure an array of the
+    records' values: their drifts are, :meth:`Measured.drifts`).
     """
 
     name: str
