@@ -429,3 +429,32 @@ def test_copies_driven_by_the_same_profiles_share_their_driven_rows(monkeypatch:
     # the two rooms differ (the shared rows could not have served the third copy)
     rooms = [batch.results[i].table["thermal.t_room"] for i in (0, 1, 2)]
     assert rooms[0].tobytes() == rooms[1].tobytes() != rooms[2].tobytes()
+
+
+def test_batches_that_share_a_files_dict_find_the_models_files_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a Monte Carlo's batches in process: the first finds each model's .fmu (its sources
+    # hashed, its cache entry checked), the next ones take what it found
+    import twin.cosim.batch as batch_module
+
+    found: list[object] = []
+    real = batch_module.fmu_files
+    monkeypatch.setattr(batch_module, "fmu_files", lambda plan: found.append(plan) or real(plan))
+    plan = make_plan(_paper(10))
+    keep = {"sensors.probe_meas"}
+    files: dict[str, Path] = {}
+    pool = SlotPool(per_key=2)
+    rows = []
+    for _ in range(3):
+        with Batch([plan], keep, pool, None, files) as batch:
+            batch.open().step()
+            rows.append(batch.results().results[0].table["sensors.probe_meas"].tobytes())
+    assert len(found) == 1
+    assert set(files) == {inst.model for inst in plan.instances}
+    alone = Master(plan).run().table["sensors.probe_meas"].tobytes()
+    assert rows == [alone] * 3
+    # a plan with a model the batches before did not find: its files are found (and kept)
+    missing = next(iter(files))
+    del files[missing]
+    with Batch([plan], keep, pool, None, files) as batch:
+        batch.open()
+    assert len(found) == 2 and missing in files

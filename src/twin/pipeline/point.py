@@ -115,13 +115,14 @@ class Tasks:
     start: float = field(default_factory=time.perf_counter)
 
 
-def start_tasks(payloads: list[Payload], pool: SlotPool) -> Tasks:
+def start_tasks(payloads: list[Payload], pool: SlotPool, files: dict[str, Path] | None = None) -> Tasks:
     """Start in-memory points (``payloads`` as :func:`point_task` takes them) in this process:
     the points of one structure (a Monte Carlo's samples) are loaded as one batch
     (:class:`twin.cosim.batch.Batch`: each point's rows bit for bit its own run's) whose ticks
     run in a thread of their own, while the caller goes on (evaluating the batch before: the
     compiled stepper releases the interpreter's lock); a point that cannot join a batch runs
-    alone through :func:`point_task`, now. :func:`finish_tasks` gives the records."""
+    alone through :func:`point_task`, now. :func:`finish_tasks` gives the records. ``files``
+    (shared by the caller's calls) keeps the models' files the first batch found."""
     tasks = Tasks(payloads)
     groups: dict[tuple[object, ...], list[Payload]] = {}
     for payload in payloads:
@@ -135,7 +136,7 @@ def start_tasks(payloads: list[Payload], pool: SlotPool) -> Tasks:
         for (_, (_, ends_s)), group in groups.items():
             runs: list[PreparedRun] = [p["run"] for p in group]
             keep = set().union(*(run.keep() for run in runs))
-            batch = Batch([run.plan for run in runs], keep, pool, ends_s)
+            batch = Batch([run.plan for run in runs], keep, pool, ends_s, files)
             thread = threading.Thread(target=_attempt, args=(batch, tasks.errors))
             tasks.batches.append((batch, group, thread))
             batch.open()

@@ -330,6 +330,7 @@ def _in_process(
     batches_done = 0
     pending: list[Tasks] = []  # started, oldest first
     pace = _Pace()
+    files: dict[str, Path] = {}  # the models' files, found by the first batch for all of them
 
     def finish(tasks: Tasks) -> None:
         for record in finish_tasks(tasks):
@@ -345,7 +346,7 @@ def _in_process(
             left = left[len(batch) :]
             items = [payload(i) for i in batch]
             records.update({r["index"]: r for r in items if "status" in r})
-            pending.append(start_tasks([p for p in items if "status" not in p], pool))
+            pending.append(start_tasks([p for p in items if "status" not in p], pool, files))
             if len(pending) > STEPPED_AHEAD:
                 finish(pending.pop(0))
             # judged once a batch is finished in each turn: the turns before evaluated none
