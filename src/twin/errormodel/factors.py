@@ -310,25 +310,17 @@ class Measured:
         column = getattr(self.cfg, name)
         return self.table.columns.get(column)
 
-    def drift(self, y: np.ndarray) -> Any:
-        """End minus start value of ``y`` over the run (see :func:`endpoints`); with records
-        stacked, each record's (:meth:`drifts`)."""
-        if self.rows_each is not None:
-            return self.drifts([y])[0]
-        start, end = self._ends.values(y)
-        return end - start
-
     def drifts(self, ys: Sequence[np.ndarray]) -> list[Any]:
-        """:meth:`drift` of each of ``ys``, the same numbers, their lines solved together; with
-        records stacked, per stream an array of its records' drifts, each the number its record
-        alone gives (:meth:`EndLines.stacked_drifts`)."""
+        """End minus start value of each of ``ys`` over the run (see :func:`endpoints`), their
+        lines solved together; with records stacked, per stream an array of its records'
+        drifts, each the number its record alone gives (:meth:`EndLines.stacked_drifts`)."""
         if self.rows_each is not None:
             return self._ends.stacked_drifts(ys, self.n // self.rows_each)
         return self._ends.drifts(ys)
 
     @functools.cached_property
     def _ends(self) -> EndLines:
-        """The lines of :meth:`drift` (of a record's time axis), worked out once for every stream
+        """The lines of :meth:`drifts` (of a record's time axis), worked out once for every stream
         it is asked for."""
         t = self.table.time if self.rows_each is None else self.table.time[: self.rows_each]
         return end_lines(t, self.cfg.window_s)
