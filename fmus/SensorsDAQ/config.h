@@ -55,7 +55,9 @@ typedef struct {
  * step's last internal step is taken from a copy of these when its outputs are read (the
  * wrapper's deferred outputs: MODEL_DEFERS_OUTPUTS), while the live streams skip its draws:
  * a sample nobody reads then costs no logarithm, sine or cosine, and one that is read has
- * the bits it had when it was taken at once. */
+ * the bits it had when it was taken at once. The first and third streams owe their skips
+ * (rng_owe_gauss), the copy with them: a read advances the copy over what it owes, and the
+ * live streams become it again, owing only the skips since (model_outputs). */
 typedef struct {
     Rng rng;
     Rng rng2;

@@ -162,9 +162,12 @@ static void take_sample_now(ModelInstance *comp) {
  * equals two doStep(h)). The filters and the interference process run on every step. */
 static void skip_sample(ModelInstance *comp) {
     ModelState *m = &comp->v.m;
-    rng_skip_gauss(&m->rng, SD_TEMPS + 1); /* the temperatures, the probe */
-    rng_skip_gauss(&m->rng2, 3);           /* load, torque, vibration */
-    rng_skip_gauss(&m->rng3, 1);           /* the probe body's thermometer */
+    /* the first and third streams draw nothing else on the live state: their skips are owed,
+     * and advanced over in one jump when a sample is read (model_outputs); the second's are
+     * made now, its spike draws coming between them */
+    rng_owe_gauss(&m->rng, SD_TEMPS + 1); /* the temperatures, the probe */
+    rng_skip_gauss(&m->rng2, 3);          /* load, torque, vibration */
+    rng_owe_gauss(&m->rng3, 1);           /* the probe body's thermometer */
 }
 
 /* ------------------------------------------------------------------ model contract */
@@ -219,12 +222,23 @@ fmi2Status model_step(ModelInstance *comp, double h) {
 }
 
 void model_outputs(ModelInstance *comp) {
-    const ModelState *m = &comp->v.m;
+    ModelState *m = &comp->v.m;
     double *r = comp->v.r;
     int i;
     if (comp->deferred.pending) { /* the step's last sample, taken now */
+        SampleSource *src = &comp->deferred.source;
+        /* the live streams are the kept copies and the skips owed since: the copies advanced
+         * over what they owe are the live streams' state too, which then owe only those skips
+         * (so the stretch a stream owes between two reads stays as long as the reads' spacing) */
+        const int64_t since = m->rng.owed - src->rng.owed, since3 = m->rng3.owed - src->rng3.owed;
         comp->deferred.pending = 0;
-        take_sample(comp, &comp->deferred.source);
+        rng_settle(&src->rng);
+        rng_settle(&src->rng3);
+        m->rng = src->rng;
+        m->rng.owed = since;
+        m->rng3 = src->rng3;
+        m->rng3.owed = since3;
+        take_sample(comp, src);
     }
     for (i = 0; i < SD_TEMPS; i++) r[VR_MEAS[i]] = m->temp_sample[i];
     r[VR_probe_meas] = m->probe_sample;

@@ -13,12 +13,18 @@
 
 #include <stdint.h>
 
+/* the most normals a stream may owe (rng_owe_gauss): far beyond any run (a DAQ at 10 kHz owes
+ * 1e5 a second: 2^50 is three centuries), and far from int64_t's end */
+#define RNG_OWED_MAX ((int64_t)1 << 50)
+
 typedef struct {
     uint64_t s[4];      /* xoshiro256** state (never all zero after rng_seed) */
     double gauss_spare; /* has_spare 1: the second Box-Muller value, returned by the next rng_gauss;
                            has_spare 2: the first uniform of the pair whose second value it is */
     int has_spare;      /* 0 none, 1 a spare normal, 2 a spare not computed yet (rng_skip_gauss) */
     double spare_u2;    /* has_spare 2: the pair's second uniform */
+    int64_t owed;       /* normals skipped on credit (rng_owe_gauss), not yet advanced over: the
+                           next draw advances over them first (rng_settle) */
 } Rng;
 
 /* Expand a seed into the 256-bit state by splitmix64 and drop any spare normal. */
@@ -37,10 +43,20 @@ double rng_gauss(Rng *r);
  * spare (the one the next rng_gauss returns): the draws of a DAQ sample nobody reads. */
 void rng_skip_gauss(Rng *r, int n);
 
+/* The same as rng_skip_gauss(r, n), on credit: only counted now, and advanced over at once by
+ * the next draw from r (or rng_settle), by a jump of the generator where the stretch is long.
+ * For a stream a model only skips between the draws it reads: the stream then stays bit for
+ * bit what skipping at once would make of it. */
+void rng_owe_gauss(Rng *r, int n);
+
+/* Advance r over the normals it owes (rng_owe_gauss), exactly as rng_skip_gauss would have. */
+void rng_settle(Rng *r);
+
 /* NULL if r can be a generator's state (after rng_seed and any draws), else why not: the
  * xoshiro256** state is never all zero, has_spare is 0, 1 or 2, a pending pair's uniforms are
  * in (0, 1], and the spare normal is one
- * Box-Muller can give (|x| <= sqrt(-2 ln 2^-53) ~ 8.57, the uniforms being >= 2^-53).
+ * Box-Muller can give (|x| <= sqrt(-2 ln 2^-53) ~ 8.57, the uniforms being >= 2^-53), and
+ * the normals owed are not negative nor more than RNG_OWED_MAX.
  * For the FMU state checks of the models that carry a generator. */
 const char *rng_problem(const Rng *r);
 

@@ -630,3 +630,37 @@ def test_samples_nobody_reads_are_skipped_without_changing_what_is_read(
         assert np.array_equal(np.asarray(got), np.asarray(want)), (k, got, want)
         spikes += int(got[outputs.index("spike")])
     assert spikes > 0  # a spike was on at some of the compared samples
+
+
+def test_noise_owed_over_long_unread_stretches_is_what_drawing_it_gives(fmu_paths: dict[str, Path]) -> None:
+    # the first and third noise streams owe the draws of the samples nobody reads and advance
+    # over them when one is read, by a jump of the generator where the stretch is long
+    # (fmus/common/rng.c, RNG_JUMP_MIN steps): read after a few, hundreds or thousands of unread
+    # communication steps, and through a saved and restored state, every sample read is bit for
+    # bit the one an instance read at every step (which never owes more than a step) gives
+    outputs = [*T_OUT, "probe_meas", "t_probe_body_meas", "load_meas", "vibration_meas", "spike"]
+    params = {"solver_step": 0.001, "spike_rate": 20.0, "spike_duration": 0.002, "seed": 9}
+    every, lazy = start(fmu_paths, params, name="every"), start(fmu_paths, params, name="lazy")
+    gaps = [1, 700, 3, 2500, 2, 455, 456, 1200, 1200, 40]  # communication steps of 10 samples
+    for k, gap in enumerate(gaps):
+        inputs = {
+            **dict.fromkeys(T_IN, T0 + 0.1 * k),
+            "probe_true": 4.805e-3 + 1e-6 * np.sin(k),
+            "t_probe_body": T0 + 0.2 * k,
+            "load_true": 2e5 + 100.0 * k,
+            "vibration_true": 1e-7 * k,
+        }
+        every.set(inputs), lazy.set(inputs)
+        for _ in range(gap):
+            every.step(0.01)
+            every.get(outputs)
+            lazy.step(0.01)
+        if k == 4:  # a state saved while owing, handed to a fresh instance that goes on from it
+            blob = lazy.slave.serializeFMUState(lazy.slave.getFMUState())
+            lazy.close()
+            lazy = start(fmu_paths, params, name="restored")
+            lazy.slave.setFMUState(lazy.slave.deserializeFMUState(blob))
+            lazy.time = every.time
+        got, want = lazy.get(outputs), every.get(outputs)
+        assert got.tobytes() == want.tobytes(), (k, gap, got, want)
+    every.close(), lazy.close()

@@ -744,6 +744,8 @@ static const char *craft_model(int k, Blob *b) {
         case 15: m->probe_in_range = 0.5; return "probe_in_range";
         case 16: m->vibration_sample = INFINITY; return "sample";
         case 17: b->v.r[VR_probe_range_min] = 0.5; b->v.r[VR_probe_range_max] = 0.1; return "probe_range_min";
+        case 18: m->rng.owed = -1; return "normals owed";
+        case 19: m->rng3.owed = RNG_OWED_MAX + 1; return "normals owed";
 #endif
 #ifdef TN_NODES
         case 0: m->temp[4] = NAN; return "node temperature";
