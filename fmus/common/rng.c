@@ -80,23 +80,10 @@ double rng_gauss(Rng *r) {
     return rad * cos(RNG_TWO_PI * u2);
 }
 
+/* n normals unread: what rng_settle does with n more owed (a skip on credit, settled now) */
 void rng_skip_gauss(Rng *r, int n) {
-    if (r->owed) rng_settle(r);
-    while (n > 0) {
-        if (r->has_spare) { /* the kept value (or its uniforms), unread */
-            r->has_spare = 0;
-            n--;
-        } else if (n == 1) { /* half a pair: its second value is the next draw's, kept uncomputed */
-            r->gauss_spare = uniform_raw(r);
-            r->spare_u2 = uniform_raw(r);
-            r->has_spare = 2;
-            n = 0;
-        } else { /* a whole pair, both values unread: its two uniforms only */
-            (void)next_raw(r);
-            (void)next_raw(r);
-            n -= 2;
-        }
-    }
+    rng_owe_gauss(r, n);
+    rng_settle(r);
 }
 
 /* ---- skipping on credit: a jump of the generator over a long stretch
@@ -196,8 +183,9 @@ void rng_owe_gauss(Rng *r, int n) {
     if (n > 0) r->owed += n;
 }
 
-/* What rng_skip_gauss(r, owed) does, with its whole pairs in one advance: the kept value (or
- * its uniforms) first, then the pairs, then half a pair whose uniforms are kept. */
+/* Advance over the normals owed as that many rng_gauss calls would, computing only a value kept
+ * as the spare: the kept value (or its uniforms) first, then the whole pairs (their uniforms
+ * unread, in one advance), then half a pair whose uniforms are kept for the next draw. */
 void rng_settle(Rng *r) {
     int64_t n = r->owed;
     r->owed = 0;

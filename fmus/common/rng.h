@@ -49,7 +49,8 @@ void rng_skip_gauss(Rng *r, int n);
  * bit what skipping at once would make of it. */
 void rng_owe_gauss(Rng *r, int n);
 
-/* Advance r over the normals it owes (rng_owe_gauss), exactly as rng_skip_gauss would have. */
+/* Advance r over the normals it owes (rng_owe_gauss), exactly as rng_skip_gauss would have
+ * (which is rng_owe_gauss, then this). */
 void rng_settle(Rng *r);
 
 /* NULL if r can be a generator's state (after rng_seed and any draws), else why not: the
