@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -346,7 +347,9 @@ def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budge
 
     monkeypatch.setattr(batch_module, "BATCH_TICKS", 1000)  # the 2 h replay in 8 or more calls
     plans = [make_plan(_paper(120).with_seed(60 + i)) for i in range(2)]
-    every, columns = driven_every(plans[0]), len(plans[0].driven) * 2  # two copies' columns
+    # two scenarios loaded apart (their profiles other objects, equal or not): each copy's
+    # columns its own in the rows (checked below)
+    every, columns = driven_every(plans[0]), len(plans[0].driven) * 2
 
     def size(k0: int, k1: int) -> int:
         return len(driven_ticks(k0, k1, every)) * columns * 8
@@ -358,9 +361,11 @@ def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budge
     made: list[tuple[str, int, int]] = []
     original = batch_module._driven
 
-    def driven(copies: list, k0: int, k1: int, *args: int) -> np.ndarray:
+    def driven(copies: list, placed: Any, k0: int, k1: int, every: int) -> np.ndarray:
         made.append((threading.current_thread().name, k0, k1))
-        return original(copies, k0, k1, *args)
+        rows = original(copies, placed, k0, k1, every)
+        assert rows.shape[1] == columns
+        return rows
 
     monkeypatch.setattr(batch_module, "_driven", driven)
     keep = {c.meta.name for c in plans[0].columns}
@@ -418,11 +423,30 @@ def test_copies_driven_by_the_same_profiles_share_their_driven_rows(monkeypatch:
         evaluated.append(id(self))
         return original(self, ticks, step_ns)
 
+    # each column of the driven rows is one of a copy's own functions, evaluated once a call
+    calls_of: list[int] = []
+
+    def driven(copies: list, placed: Any, k0: int, k1: int, every: int) -> np.ndarray:
+        calls_of.append(placed.width)
+        return original_driven(copies, placed, k0, k1, every)
+
+    original_driven = batch_module._driven
+    monkeypatch.setattr(batch_module, "_driven", driven)
     monkeypatch.setattr(state_module.Driven, "at_ticks", at_ticks)
     keep = {c.meta.name for c in plans[0].columns}
-    batch = run_batch(plans, keep)
+    with Batch(plans, keep) as opened:
+        opened.open()
+        placed = batch_module._Columns(opened.copies)
+        opened.step()
+        batch = opened.results()
+    n = len(plans[0].driven)
+    room = [p.target for p in prior.profiles].index(target)
+    column = [d for d, spec in enumerate(plans[0].driven) if spec == ("profile", room)]
+    assert len(column) == 1 and placed.width == n + 1  # the prior's columns and the other's room
+    assert placed.of[0] == placed.of[1] == list(range(n))
+    assert [j for j in range(n) if placed.of[2][j] != j] == column and placed.of[2][column[0]] == n
     calls = len(list(batch_module._chunks(batch_module._stretches(plans[0], None))))
-    assert calls >= 1 and len(evaluated) == 2 * calls  # the prior's and the other's, per call
+    assert calls >= 1 and calls_of == [n + 1] * calls and evaluated == []  # no copy's whole matrix
     monkeypatch.setattr(state_module.Driven, "at_ticks", original)
     for i, plan in enumerate(plans):
         _same(Master(plan).run(), batch.results[i])

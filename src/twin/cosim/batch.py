@@ -533,19 +533,20 @@ def _driven_ahead(
 ) -> dict[tuple[int, int], np.ndarray]:
     """The driven rows (:func:`_driven`) of the stepper's calls over ``stretches``, taken in
     order while they fit in :data:`DRIVEN_AHEAD_BYTES` together (a call's that does not is
-    left out, a later, smaller one's still taken), by (first tick, tick after the last)."""
+    left out, a later, smaller one's still taken), by (first tick, tick after the last); their
+    columns those of :class:`_Columns` of ``copies``, as :func:`_step` places them."""
     if not copies:
         return {}
     budget = DRIVEN_AHEAD_BYTES
-    plan = copies[0].plan
-    every, n_driven = driven_every(plan), max(len(plan.driven), 1)
+    columns = _Columns(copies)
+    every = driven_every(copies[0].plan)
     ahead: dict[tuple[int, int], np.ndarray] = {}
     for k, k1, _ in _chunks(stretches):
-        size = len(driven_ticks(k, k1, every)) * n_driven * len(copies) * 8  # as _driven makes it
+        size = len(driven_ticks(k, k1, every)) * columns.width * 8  # as _driven makes it
         if size > budget:
             continue
         budget -= size
-        ahead[(k, k1)] = _driven(copies, k, k1, every, n_driven)
+        ahead[(k, k1)] = _driven(copies, columns, k, k1, every)
     return ahead
 
 
@@ -560,8 +561,9 @@ def _step(
     The driven rows of a batch of ticks are taken out of ``ahead`` (:func:`_driven_ahead`)
     where they were computed, else computed here."""
     plan = copies[0].plan
-    n_driven, n_cols = max(len(plan.driven), 1), len(kept)
-    placed = _Placed(copies, n_driven)
+    n_cols = len(kept)
+    columns = _Columns(copies)  # as _driven_ahead placed them: the same copies, the same columns
+    placed = _Placed(copies, columns)
     slots = placed.slots
     cols = (TwinColumn * max(n_cols * len(copies), 1))(
         *[
@@ -580,7 +582,7 @@ def _step(
         out_every = plan.out_every if kept_rows else _NO_ROWS
         driven = ahead.pop((k, k1), None)  # freed once its call is made
         if driven is None:
-            driven = _driven(copies, k, k1, every, n_driven)
+            driven = _driven(copies, columns, k, k1, every)
         view = rows.values[rows.done :]
         counters.rows = 0
         status = run(
@@ -605,9 +607,9 @@ def _step(
 class _Placed:
     """The stepper's slots for ``copies``: one per instance a copy opened (its borrowed ones
     are its owners' slots), the connections of each reading the slots of its own copy's
-    sources and its driven inputs the columns of its own copy (``n_driven`` a copy)."""
+    sources and its driven inputs the driven rows' columns of its own copy (``columns``)."""
 
-    def __init__(self, copies: Sequence[_Copy], n_driven: int) -> None:
+    def __init__(self, copies: Sequence[_Copy], columns: _Columns) -> None:
         plan = copies[0].plan
         where = {id(copy): c for c, copy in enumerate(copies)}
         #: per copy, per instance: the slot that runs it
@@ -632,7 +634,7 @@ class _Placed:
             s = self.slots[n]  # shares the array's memory
             src = np.array(
                 [
-                    c * n_driven + p.src if p.kind == InputKind.DRIVEN else self.slot_of[c][p.src]
+                    columns.of[c][p.src] if p.kind == InputKind.DRIVEN else self.slot_of[c][p.src]
                     for p in plan.instances[i].inputs
                 ]
                 or [0],
@@ -663,24 +665,42 @@ def _take_over(copy: _Copy) -> None:
         copy.state.pending_at[i] = owner.state.pending_at[i]
 
 
-def _driven(copies: Sequence[_Copy], k0: int, k1: int, every: int, n_driven: int) -> np.ndarray:
-    """Every copy's driven columns side by side, one row per tick that reads them from ``k0``
-    to ``k1 - 1`` (:func:`twin.cosim.state.driven_ticks`: the paper replay's FMUs exchange
-    every tenth tick)."""
+class _Columns:
+    """The driven columns of a batch's copies, each distinct one once in the stepper's driven
+    rows: a Monte Carlo's samples share the tester's load and drive profiles, and an updated
+    sample its prior sample's room, so twenty copies of the paper replay's five columns are
+    about fifteen columns, not a hundred (:meth:`twin.cosim.state.Driven.column_keys`)."""
+
+    def __init__(self, copies: Sequence[_Copy]) -> None:
+        place: dict[object, int] = {}
+        #: per column of the rows: the copy (its place in ``copies``) and its column that give it
+        self.first: list[tuple[int, int]] = []
+        #: per copy, per driven column of its own: its column in the rows
+        self.of: list[list[int]] = []
+        for c, copy in enumerate(copies):
+            row = []
+            for d, key in enumerate(copy.state.driven.column_keys()):
+                if key not in place:
+                    place[key] = len(self.first)
+                    self.first.append((c, d))
+                row.append(place[key])
+            self.of.append(row)
+        #: the rows' width (one column, never read, where nothing is driven)
+        self.width = max(len(self.first), 1)
+
+
+def _driven(copies: Sequence[_Copy], columns: _Columns, k0: int, k1: int, every: int) -> np.ndarray:
+    """The copies' driven ``columns``, one row per tick that reads them from ``k0`` to ``k1 - 1``
+    (:func:`twin.cosim.state.driven_ticks`: the paper replay's FMUs exchange every tenth tick),
+    each column the values its copy's own function gives (:meth:`twin.cosim.state.Driven.at_ticks`:
+    the same times, the same numbers)."""
     ticks = driven_ticks(k0, k1, every)
-    out = np.zeros((len(ticks), n_driven * len(copies)))
+    out = np.zeros((len(ticks), columns.width))
     if not every:
         return out
-    step = copies[0].plan.step_ns
-    # a copy driven as one before it (a Monte Carlo's updated sample as its prior sample: the
-    # same room) takes that one's values instead of evaluating its profiles again
-    made: dict[tuple[object, ...], np.ndarray] = {}
-    for c, copy in enumerate(copies):
-        key = copy.state.driven.identity()
-        values = made.get(key)
-        if values is None:
-            values = made[key] = copy.state.driven.at_ticks(ticks, step)[:, :n_driven]
-        out[:, c * n_driven : (c + 1) * n_driven] = values
+    t = ticks * copies[0].plan.step_ns / NS_PER_S
+    for j, (c, d) in enumerate(columns.first):
+        out[:, j] = copies[c].state.driven.functions[d](t)
     return out
 
 

@@ -9,6 +9,7 @@ calls use directly.
 
 from __future__ import annotations
 
+import marshal
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -84,12 +85,16 @@ class Driven:
     def __len__(self) -> int:
         return len(self.functions)
 
-    def identity(self) -> tuple[object, ...]:
-        """A key two of them share only when they give the same values at every tick: the
-        same specs over the very same profiles (the objects: a Monte Carlo's prior and updated
-        sample share their scenario's; equal copies are not recognized). It holds an object's
-        id: good while both are alive."""
-        return (tuple(self.specs), id(self._profiles))
+    def column_keys(self) -> list[object]:
+        """Per column, a key two columns share only when they give the same values at every
+        tick: a profile's column by the very profile (the object's id, good while it is alive: a
+        Monte Carlo's samples share their tester's load and drive profiles, an updated sample
+        its prior sample's room; equal copies are not recognized), any other by its spec's
+        exact numbers (marshal's bytes: 0.0 is not -0.0)."""
+        return [
+            ("profile", id(self._profiles[int(spec[1])])) if spec[0] == "profile" else _exact(spec)
+            for spec in self.specs
+        ]
 
     def matrix(self, k0: int, k1: int, step_ns: int, every: int) -> np.ndarray:
         """The driven values from tick ``k0`` to ``k1 - 1`` at the ticks that read them
@@ -108,6 +113,15 @@ class Driven:
         """The driven values at the time ``t_s`` (s)."""
         t = np.array([t_s])
         return np.array([fn(t)[0] for fn in self.functions], dtype=np.float64)
+
+
+def _exact(spec: DrivenSpec) -> object:
+    """``spec`` as a key equal to another's only when the two are the same bit for bit (one
+    serialization, never read back); one it cannot write equals nothing else."""
+    try:
+        return marshal.dumps(spec, 2)
+    except ValueError:
+        return object()
 
 
 def driven_every(plan: Plan) -> int:
