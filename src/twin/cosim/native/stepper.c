@@ -25,13 +25,20 @@
  * twin/cosim/layout.py at build time, so that C and the ctypes side cannot disagree */
 #include "twin_layout.h"
 
-static void commit(TwinSlot *s, int64_t k) {
+/* fetched: whether the pending outputs were fetched since the last commit in this call (NULL:
+ * not known, a system too large for the stepper's stack). Outputs whose fetch was skipped are
+ * those committed last, with the same bias (Python changes it between calls only): committing
+ * them again would copy the very values, so it is left out. */
+static void commit(TwinSlot *s, int64_t k, unsigned char *fetched) {
     int32_t j;
     if (*s->pending_at != k) return;
-    for (j = 0; j < s->n_out; j++) {
-        s->out_raw[j] = s->out_pending[j];
-        s->out_cur[j] = s->out_raw[j] + s->bias[j];
+    if (!fetched || *fetched) {
+        for (j = 0; j < s->n_out; j++) {
+            s->out_raw[j] = s->out_pending[j];
+            s->out_cur[j] = s->out_raw[j] + s->bias[j];
+        }
     }
+    if (fetched) *fetched = 0;
     *s->pending_at = -1;
 }
 
@@ -190,15 +197,17 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
     Sources sources;
     const Sources *found = find_sources(slots, n_slots, &sources) ? &sources : NULL;
     unsigned char synced[LOCAL_SLOTS]; /* whether an instance's inputs were set in this call */
+    unsigned char fetched[LOCAL_SLOTS]; /* commit: the first of a call copies what it finds */
     Changed given;
     int32_t i, j;
     memset(synced, 0, sizeof synced);
+    memset(fetched, 1, sizeof fetched);
     for (i = 0; counted && i < n_slots; i++) next_due[i] = first_multiple(k0, slots[i].period_ticks);
     for (k = k0; k < k1; k = next) {
         const int64_t t_ns = k * step_ns;
         const double t = (double)t_ns / 1e9;
         const double *drow = driven_row(driven, n_driven, k, k0, driven_every);
-        for (i = 0; i < n_slots; i++) commit(&slots[i], k);
+        for (i = 0; i < n_slots; i++) commit(&slots[i], k, counted ? &fetched[i] : NULL);
         for (i = 0; i < n_slots; i++) {
             TwinSlot *s = &slots[i];
             int status;
@@ -234,6 +243,7 @@ int twin_run_ticks(TwinSlot *slots, int32_t n_slots, int64_t k0, int64_t k1, int
                     c->fail_slot = i, c->fail_call = CALL_GET_REAL, c->fail_tick = k, c->fail_status = status;
                     return STEP_FAILED;
                 }
+                if (counted) fetched[i] = 1;
                 /* an FMU that reports success with NaN/Inf must not poison the others */
                 for (j = 0; j < s->n_out; j++) {
                     if (!isfinite(s->out_pending[j])) {
