@@ -2,12 +2,15 @@
  * stepper.c -- the master's hot loop in C: runs whole batches of macro steps over a static
  * exchange plan, calling the FMUs' FMI functions directly.
  *
- * It does exactly what the Python loop in twin/cosim/stepping.py does, tick by tick:
+ * It does what the Python loop in twin/cosim/stepping.py does, tick by tick, with the same
+ * values:
  *   (1) outputs that became valid at this tick are committed (pending -> raw, raw + bias -> cur),
  *   (2) the inputs of the FMUs due at this tick are gathered and set (connections read the
  *       visible outputs; a delayed connection gives the value of the previous exchange; a
  *       driven input takes its column of the precomputed profile matrix, whose rows are the
- *       ticks that read it: the multiples of driven_every, twin.cosim.state.driven_ticks),
+ *       ticks that read it: the multiples of driven_every, twin.cosim.state.driven_ticks);
+ *       after an instance's first exchange in a call, only the inputs whose bits changed
+ *       (set_inputs),
  *   (3) the row of an output tick is recorded,
  *   (4) the due FMUs step from t to t + period and their outputs become pending (fetched only
  *       where something can read them: fetch_needed).
@@ -74,8 +77,8 @@ static int fetch_needed(const TwinSlot *s, int64_t k, int64_t k1, int64_t out_ev
 #define LOCAL_SLOTS 512
 
 /* The largest number of inputs whose source the stepper finds once per call and keeps on its
- * stack (that batch has about a thousand); a system with more finds each input's source at
- * every tick it is set, as it did before. */
+ * stack (a Monte Carlo's batch of the paper replay has under six hundred); a system with more
+ * finds each input's source at every tick it is set. */
 #define LOCAL_INPUTS 4096
 
 /* Where the stepper finds what the inputs of a call's instances are given: per input, the
@@ -119,7 +122,7 @@ static inline double linked_value(const TwinSlot *slots, const TwinSlot *s, int3
 }
 
 /* The largest number of inputs of one instance whose changes the stepper sets alone (the
- * tester's instances have at most a dozen); one with more is given all its inputs. */
+ * tester's mechanics has twenty); one with more is given all its inputs at every exchange. */
 #define LOCAL_SET 1024
 
 /* The inputs an instance is given whose bits changed since they were last set (an instance's
