@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
-import marshal
 import math
 import time
 from collections import Counter
@@ -51,7 +50,7 @@ from twin.cosim.instances import close_slots, fmu_files, initialize, open_slots
 from twin.cosim.layout import Status, TwinColumn, TwinCounters, TwinSlot, entry
 from twin.cosim.master import RunResult
 from twin.cosim.native import NativeLoop, stepper
-from twin.cosim.plan import BATCH_TICKS, InputKind, Plan
+from twin.cosim.plan import BATCH_TICKS, InputKind, Plan, exact_key
 from twin.cosim.state import State, driven_every, driven_ticks, make_state
 from twin.cosim.stepping import final_tick
 from twin.errors import RunError
@@ -342,15 +341,15 @@ def identities(plans: Sequence[Plan]) -> list[list[int]]:
 
 def _given(plan: Plan, i: int, profiles: dict[int, object]) -> object:
     """What the plan gives instance ``i`` but its connections' sources, as a key of exact
-    values: names compared as strings, numbers by their bits (:func:`_bits`: the parameters'
-    names and values in one serialization, the names written as strings)."""
+    values: names compared as strings, numbers by their bits (:func:`~twin.cosim.plan.exact_key`:
+    the parameters' names and values in one serialization, the names written as strings)."""
     inst = plan.instances[i]
     return (
         inst.name, inst.model, inst.period_ns, inst.period_ticks, inst.outputs, inst.out_vrs,
         plan.scenario.start_ns,
-        _bits(inst.parameters),
+        exact_key(inst.parameters),
         tuple((p.name, p.vr, int(p.kind), p.idx) for p in inst.inputs),
-        _bits(tuple((p.initial, p.factor, p.offset) for p in inst.inputs)),
+        exact_key(tuple((p.initial, p.factor, p.offset) for p in inst.inputs)),
         tuple(_driven_spec(plan, p.src, profiles) for p in inst.inputs if p.kind == InputKind.DRIVEN),
     )  # fmt: skip
 
@@ -363,7 +362,7 @@ def _driven_spec(plan: Plan, column: int, profiles: dict[int, object]) -> object
     load and drive profiles, an updated sample its prior sample's room)."""
     spec = plan.driven[column]
     if spec[0] != "profile":
-        return _bits(spec)
+        return exact_key(spec)
     profile = plan.scenario.profiles[int(spec[1])]
     key = profiles.get(id(profile))
     if key is None:
@@ -371,21 +370,9 @@ def _driven_spec(plan: Plan, column: int, profiles: dict[int, object]) -> object
         params = sorted(profile.params.items())
         key = profiles[id(profile)] = (
             profile.target, profile.kind, profile.source, tuple(k for k, _ in params),
-            _bits(tuple(v for _, v in params)), table.shape, table.tobytes(),
+            exact_key(tuple(v for _, v in params)), table.shape, table.tobytes(),
         )  # fmt: skip
     return key
-
-
-def _bits(values: tuple[Any, ...]) -> object:
-    """``values`` (numbers, strings, tuples of them) as a key equal to another's only when the
-    two are the same bit for bit: a float by its eight bytes (0.0 is not -0.0), an int, a
-    bool and a float told apart, one serialization (marshal's, which writes no references
-    to objects before version 3) of the values only, never read back. A value it cannot
-    write is a key equal to nothing else: its instance is never shared."""
-    try:
-        return marshal.dumps(values, 2)
-    except ValueError:
-        return object()
 
 
 class _Sharing:

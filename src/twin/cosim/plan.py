@@ -22,6 +22,7 @@ outputs, variable by variable (:attr:`Plan.init_stages`).
 from __future__ import annotations
 
 import dataclasses
+import marshal
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -462,6 +463,18 @@ def shared(what: str, owners: tuple[object, ...], make: Callable[[], T]) -> T:
     return value
 
 
+def exact_key(values: tuple[Any, ...]) -> object:
+    """``values`` (numbers, strings, tuples of them) as a key equal to another's only when the
+    two are the same bit for bit: a float by its eight bytes (0.0 is not -0.0), an int, a
+    bool and a float told apart, one serialization (marshal's, which writes no references
+    to objects before version 3) of the values only, never read back. A value it cannot
+    write is a key equal to nothing else (what it keys is never taken for another's)."""
+    try:
+        return marshal.dumps(values, 2)
+    except ValueError:
+        return object()
+
+
 __all__ = [
     "BATCH_TICKS",
     "Column",
@@ -474,6 +487,7 @@ __all__ = [
     "PlannedInstance",
     "PlannedLoop",
     "PlannedStage",
+    "exact_key",
     "make_plan",
     "shared",
 ]

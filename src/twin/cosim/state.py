@@ -9,7 +9,6 @@ calls use directly.
 
 from __future__ import annotations
 
-import marshal
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -20,7 +19,7 @@ import numpy as np
 from twin.config.profiles import Signal, constant, profile_function, ramp_from
 from twin.config.spec import NS_PER_S, Profile
 from twin.cosim.layout import TwinCounters
-from twin.cosim.plan import DrivenSpec, InputKind, Plan, PlannedInstance
+from twin.cosim.plan import DrivenSpec, InputKind, Plan, PlannedInstance, exact_key
 from twin.fmu.slot import RealPort
 
 
@@ -90,9 +89,9 @@ class Driven:
         tick: a profile's column by the very profile (the object's id, good while it is alive: a
         Monte Carlo's samples share their tester's load and drive profiles, an updated sample
         its prior sample's room; equal copies are not recognized), any other by its spec's
-        exact numbers (marshal's bytes: 0.0 is not -0.0)."""
+        exact numbers (:func:`~twin.cosim.plan.exact_key`: 0.0 is not -0.0)."""
         return [
-            ("profile", id(self._profiles[int(spec[1])])) if spec[0] == "profile" else _exact(spec)
+            ("profile", id(self._profiles[int(spec[1])])) if spec[0] == "profile" else exact_key(spec)
             for spec in self.specs
         ]
 
@@ -113,15 +112,6 @@ class Driven:
         """The driven values at the time ``t_s`` (s)."""
         t = np.array([t_s])
         return np.array([fn(t)[0] for fn in self.functions], dtype=np.float64)
-
-
-def _exact(spec: DrivenSpec) -> object:
-    """``spec`` as a key equal to another's only when the two are the same bit for bit (one
-    serialization, never read back); one it cannot write equals nothing else."""
-    try:
-        return marshal.dumps(spec, 2)
-    except ValueError:
-        return object()
 
 
 def driven_every(plan: Plan) -> int:
