@@ -376,7 +376,7 @@ def test_driven_rows_are_computed_ahead_by_the_opening_thread_within_their_budge
         thread = threading.Thread(target=batch.attempt, name="stepping")
         thread.start()
         thread.join()
-        assert batch._ahead == {}  # handed to the attempt, which freed them call by call
+        assert batch._ahead is None  # handed to the attempt, which freed them call by call
         batch.step()
         results = batch.results()
     assert len(calls) >= 8 and sorted((k, k1) for _, k, k1 in made) == sorted(calls)  # each once

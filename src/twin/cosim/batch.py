@@ -149,10 +149,10 @@ class Batch:
         self.kept = [j for j, c in enumerate(plans[0].columns) if c.meta.name in keep] if plans else []
         self.copies: list[_Copy] = []
         self.alone: list[int] = []
-        #: the driven rows of the stepper's calls that :meth:`open` computed ahead
-        #: (:func:`_driven_ahead`), by (first tick, tick after the last): handed to the next
-        #: :meth:`attempt` (and emptied by it)
-        self._ahead: dict[tuple[int, int], np.ndarray] = {}
+        #: the driven rows of the stepper's calls that :meth:`open` computed ahead for its
+        #: copies (:func:`_driven_ahead`): handed to the next :meth:`attempt` (a retry's
+        #: copies, fewer, have none)
+        self._ahead: _Ahead | None = None
         self.setup_s = self.step_s = 0.0
         self._attempted = False
         self._failed: int | None = None  # the copy whose FMU failed in the last attempt
@@ -228,7 +228,7 @@ class Batch:
         :meth:`step`."""
         start = time.perf_counter()
         self._attempted = True
-        ahead, self._ahead = self._ahead, {}  # taken call by call: not held past its own
+        ahead, self._ahead = self._ahead, None  # taken call by call: not held past its own
         self._failed = _step(self.copies, self.kept, self.stretches, ahead) if self.copies else None
         self.step_s += time.perf_counter() - start
 
@@ -244,7 +244,7 @@ class Batch:
 
     def close(self) -> None:
         """Give every copy's instances back to the pool (idempotent)."""
-        self._ahead = {}
+        self._ahead = None
         for copy in self.copies:
             close_slots(copy.slots, self.pool)
             copy.slots = []
@@ -515,25 +515,31 @@ def _chunks(stretches: Sequence[_Stretch]) -> Iterator[tuple[int, int, bool]]:
 DRIVEN_AHEAD_BYTES = 8 << 20
 
 
-def _driven_ahead(
-    copies: Sequence[_Copy], stretches: Sequence[_Stretch]
-) -> dict[tuple[int, int], np.ndarray]:
+@dataclass
+class _Ahead:
+    """A batch's driven rows computed ahead: their columns (placed so for the stepper, which
+    :func:`_step` takes from here) and the rows of the calls computed, by (first tick, tick
+    after the last)."""
+
+    columns: _Columns
+    rows: dict[tuple[int, int], np.ndarray]
+
+
+def _driven_ahead(copies: Sequence[_Copy], stretches: Sequence[_Stretch]) -> _Ahead | None:
     """The driven rows (:func:`_driven`) of the stepper's calls over ``stretches``, taken in
     order while they fit in :data:`DRIVEN_AHEAD_BYTES` together (a call's that does not is
-    left out, a later, smaller one's still taken), by (first tick, tick after the last); their
-    columns those of :class:`_Columns` of ``copies``, as :func:`_step` places them."""
+    left out, a later, smaller one's still taken), with the columns they hold."""
     if not copies:
-        return {}
+        return None
     budget = DRIVEN_AHEAD_BYTES
-    columns = _Columns(copies)
+    ahead = _Ahead(_Columns(copies), {})
     every = driven_every(copies[0].plan)
-    ahead: dict[tuple[int, int], np.ndarray] = {}
     for k, k1, _ in _chunks(stretches):
-        size = len(driven_ticks(k, k1, every)) * columns.width * 8  # as _driven makes it
+        size = len(driven_ticks(k, k1, every)) * ahead.columns.width * 8  # as _driven makes it
         if size > budget:
             continue
         budget -= size
-        ahead[(k, k1)] = _driven(copies, columns, k, k1, every)
+        ahead.rows[(k, k1)] = _driven(copies, ahead.columns, k, k1, every)
     return ahead
 
 
@@ -541,15 +547,16 @@ def _step(
     copies: list[_Copy],
     kept: Sequence[int],
     stretches: Sequence[_Stretch],
-    ahead: dict[tuple[int, int], np.ndarray] | None = None,
+    ahead: _Ahead | None = None,
 ) -> int | None:
     """Every tick of every copy, in batches; the index (in ``copies``) of a copy whose FMU
     failed, else None (every copy's rows, those of the ``stretches`` kept, in ``copy.rows``).
-    The driven rows of a batch of ticks are taken out of ``ahead`` (:func:`_driven_ahead`)
-    where they were computed, else computed here."""
+    The driven rows of a batch of ticks are taken out of ``ahead`` (:func:`_driven_ahead`, for
+    these copies) where they were computed, else computed here."""
     plan = copies[0].plan
     n_cols = len(kept)
-    columns = _Columns(copies)  # as _driven_ahead placed them: the same copies, the same columns
+    columns = ahead.columns if ahead is not None else _Columns(copies)
+    computed = ahead.rows if ahead is not None else {}
     placed = _Placed(copies, columns)
     slots = placed.slots
     cols = (TwinColumn * max(n_cols * len(copies), 1))(
@@ -564,10 +571,9 @@ def _step(
     step = plan.step_ns
     counters = TwinCounters()
     every = driven_every(plan)
-    ahead = ahead or {}
     for k, k1, kept_rows in _chunks(stretches):
         out_every = plan.out_every if kept_rows else _NO_ROWS
-        driven = ahead.pop((k, k1), None)  # freed once its call is made
+        driven = computed.pop((k, k1), None)  # freed once its call is made
         if driven is None:
             driven = _driven(copies, columns, k, k1, every)
         view = rows.values[rows.done :]

@@ -45,11 +45,13 @@ static void commit(TwinSlot *s, int64_t k, unsigned char *fetched) {
     *s->pending_at = -1;
 }
 
+/* whether input j's connection transforms what it reads (a factor or an offset) */
+static int transforms(const TwinSlot *s, int32_t j) { return s->in_factor[j] != 1.0 || s->in_offset[j] != 0.0; }
+
 /* what a connection gives its input: factor * output + offset, the output itself (bit for bit,
  * a -0.0 included) when the connection transforms nothing */
 static double transformed(const TwinSlot *s, int32_t j, double v) {
-    const double f = s->in_factor[j], o = s->in_offset[j];
-    return (f != 1.0 || o != 0.0) ? v * f + o : v;
+    return transforms(s, j) ? v * s->in_factor[j] + s->in_offset[j] : v;
 }
 
 /* The first tick >= k that is a multiple of p (p > 0; k may be negative). */
@@ -104,7 +106,7 @@ static int find_sources(const TwinSlot *slots, int32_t n_slots, Sources *to) {
         for (j = 0; j < s->n_in; j++, n++) {
             const int linked = s->in_kind[j] == IN_CONNECTION || s->in_kind[j] == IN_DELAYED;
             to->source[n] = linked ? &slots[s->in_src[j]].out_cur[s->in_idx[j]] : NULL;
-            to->plain[n] = s->in_factor[j] == 1.0 && s->in_offset[j] == 0.0;
+            to->plain[n] = !transforms(s, j);
         }
     }
     return 1;
