@@ -306,7 +306,12 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
     result goes to ``out``; without it to ``runs/calibrate/`` unless ``write`` asks for the file
     the scenario includes (the committed calibration is replaced only on request).
     """
-    from twin.config.load import default_scenario_path, load_scenario_data, read_scenario_data
+    from twin.config.load import (
+        check_not_installed_copy,
+        default_scenario_path,
+        load_scenario_data,
+        read_scenario_data,
+    )
 
     path = scenario_path or default_scenario_path()
     data = read_scenario_data(path)
@@ -323,6 +328,8 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
         path.parent / own[0] if own else path.parent / "calibration" / f"{path.stem}-thermal-network.toml"
     )
     target = out or (committed if write else Path("runs") / "calibrate" / committed.name)
+    if out is None and write:  # before the fits: seconds, and a plain install's copy is refused
+        check_not_installed_copy(committed, "--write")
     scenario = load_scenario_data(data, str(path), path.resolve().parent)
     cal = calibrate(scenario)
     # the scenario's own room is the first shape; the others keep its start, rise and rise time

@@ -30,7 +30,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     target.add_argument(
         "--write",
         action="store_true",
-        help="replace the calibration file the scenario includes (the committed one) instead",
+        help="replace the calibration file the scenario includes instead (for the shipped scenarios: the "
+        "repository's, which needs the editable install `pip install -e .`)",
     )
     return p
 

@@ -33,7 +33,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         p,
         "--write",
         "also write the updated tester file where the record's [tester] file says (the paper's: "
-        "scenarios/records/li2017-updated.toml, the tester `twin run` runs by default)",
+        "the repository's scenarios/records/li2017-updated.toml, the tester `twin run` runs by "
+        "default; it needs the editable install `pip install -e .`)",
     )
     flag(p, "--quiet", "print only the last line")
     return p
@@ -42,7 +43,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 def command(args: argparse.Namespace) -> int:
     """Run the update; exit code 0 (a goal missed is a figure, not an error)."""
     from twin.calibration.update import check_out, load_record, report_lines, run_update
-    from twin.config.load import scenarios_dir
+    from twin.config.load import check_not_installed_copy, scenarios_dir
     from twin.outputs.run_folder import check_output_folder
 
     for option in ("seed", "walkers", "steps", "burn"):
@@ -58,6 +59,8 @@ def command(args: argparse.Namespace) -> int:
         if not Path(args.prior).is_file():
             raise ConfigError("no such prior file", source=f"--prior {args.prior}")
         record = dataclasses.replace(record, prior=Path(args.prior).resolve())
+    if args.write and record.tester_file is not None:  # before the update's minute
+        check_not_installed_copy(record.tester_file, "--write")
     out = Path(args.out) if args.out is not None else Path("runs") / f"update-{record.name}"
     check_output_folder(out, "--out")
     check_out(out)

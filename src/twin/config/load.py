@@ -32,6 +32,7 @@ __all__ = [
     "FAULTS",
     "MAX_DURATION_NS",
     "apply_overrides",
+    "check_not_installed_copy",
     "default_scenario_path",
     "find_scenario",
     "format_duration",
@@ -314,3 +315,28 @@ def scenarios_dir() -> Path:
     """The shipped scenarios: package data of ``twin.config``, or ``scenarios/`` of the checkout."""
     candidates = shipped_folder("twin.config", "scenarios", "scenarios")
     return next((c for c in candidates if c.is_dir()), candidates[-1])
+
+
+def installed_scenarios() -> Path | None:
+    """The installed copy of the scenarios (package data of a plain ``pip install .``), or
+    None when the twin runs from a checkout (an editable install reads the repository's)."""
+    copy = shipped_folder("twin.config", "scenarios", "scenarios")[0]
+    return copy if copy.is_dir() and copy == scenarios_dir() else None
+
+
+def check_not_installed_copy(target: Path, option: str, installed: Path | None = None) -> None:
+    """Refuse to write ``target`` when it lies in the installed copy of the scenarios.
+
+    A plain install runs its own copy of ``scenarios/``: a file written there is not the
+    repository's, the next ``pip install .`` puts the old one back, and a command that then
+    writes the clone (``twin identify --out scenarios/...``) would split a tester from its
+    coefficients. ``installed`` defaults to :func:`installed_scenarios`.
+    """
+    copy = installed if installed is not None else installed_scenarios()
+    if copy is not None and target.resolve().is_relative_to(copy.resolve()):
+        raise ConfigError(
+            f"{target} is in the installed copy of the scenarios, not the repository's (the next "
+            "`pip install .` would put it back): install with `pip install -e .` to write the "
+            "repository's scenarios/",
+            source=option,
+        )
