@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.config.load import check_not_installed_copy
+from twin.config.load import check_not_installed_copy, installed_scenarios
 from twin.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,8 +71,27 @@ def test_a_target_inside_the_installed_copy_is_refused_with_its_option(tmp_path:
     (tmp_path / "link").symlink_to(copy / "records")
     with pytest.raises(ConfigError):
         check_not_installed_copy(tmp_path / "link" / "x.toml", "--write", installed=copy)
-    # a lab's own file, elsewhere, is written as asked
-    check_not_installed_copy(tmp_path / "lab" / "tester.toml", "--write", installed=copy)
+    # a lab's own file, elsewhere, is written as asked; one that is a link into the copy too,
+    # since a file is written by replacing it in its folder (the link, not what it points to)
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    check_not_installed_copy(lab / "tester.toml", "--write", installed=copy)
+    (copy / "records" / "li2017-updated.toml").write_text("")
+    (lab / "linked.toml").symlink_to(copy / "records" / "li2017-updated.toml")
+    check_not_installed_copy(lab / "linked.toml", "--write", installed=copy)
+    # and the reverse: a link inside the copy that points to the lab's folder lands in the copy
+    (copy / "records" / "out.toml").symlink_to(lab / "tester.toml")
+    with pytest.raises(ConfigError):
+        check_not_installed_copy(copy / "records" / "out.toml", "--write", installed=copy)
+
+
+def test_this_process_finds_the_installed_copy_only_when_installed_plainly() -> None:
+    """The twin the tests import: from the checkout (the editable install of the README's test
+    command) it writes the repository's scenarios; from a plain install it has a copy."""
+    import twin
+
+    from_checkout = Path(twin.__file__).resolve().is_relative_to(ROOT / "src")
+    assert (installed_scenarios() is None) == from_checkout
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +119,7 @@ def test_the_installed_copy_is_found_only_in_a_wheel_layout(
 @pytest.mark.parametrize(
     ("argv", "option"),
     [
-        (("geometry",), "--scenarios"),
+        (("geometry",), "the scenarios folder (default; --scenarios DIR names another)"),
         (("calibrate", "--write"), "--write"),
         (("update", "--write", "--quiet"), "--write"),
     ],

@@ -441,12 +441,13 @@ def derived_file_text(model: str, params: dict[str, Derived]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: the models with a derived parameter file, and that file's stem (``base/geometry-<stem>.toml``)
+MODELS = {"FixtureMechanics": "mechanics", "ThermalNetwork": "thermal", "OscillationDrive": "oscillation"}
+
+
 def derived_file(scenarios_dir: Path, model: str) -> Path:
     """Where a model's derived parameter file lives."""
-    stem = {"FixtureMechanics": "mechanics", "ThermalNetwork": "thermal", "OscillationDrive": "oscillation"}[
-        model
-    ]
-    return scenarios_dir / "base" / f"geometry-{stem}.toml"
+    return scenarios_dir / "base" / f"geometry-{MODELS[model]}.toml"
 
 
 def write_derived_files(scenarios_dir: Path) -> list[Path]:

@@ -304,7 +304,8 @@ def calibrate_file(scenario_path: Path | None = None, out: Path | None = None, w
 
     The scenario's own calibration file is left out, so the fit starts from the drawing. The
     result goes to ``out``; without it to ``runs/calibrate/`` unless ``write`` asks for the file
-    the scenario includes (the committed calibration is replaced only on request).
+    the scenario includes (the repository's calibration is replaced only on request, and never
+    a plain install's own copy of it: refused before the fits).
     """
     from twin.config.load import (
         check_not_installed_copy,

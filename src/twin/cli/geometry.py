@@ -16,17 +16,23 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--scenarios",
         metavar="DIR",
-        help="scenarios folder (default: the repository's; a plain install's own copy is refused)",
+        help="scenarios folder (default: the one the twin runs: the repository's from an editable "
+        "install; a plain install's own copy is refused)",
     )
     return p
 
 
 def command(args: argparse.Namespace) -> int:
-    from twin.calibration.geometry import write_derived_files
+    from twin.calibration.geometry import MODELS, derived_file, write_derived_files
     from twin.config.load import check_not_installed_copy, scenarios_dir
 
     folder = Path(args.scenarios) if args.scenarios else scenarios_dir()
-    check_not_installed_copy(folder, "--scenarios")  # its default included
+    option = (
+        "--scenarios" if args.scenarios else "the scenarios folder (default; --scenarios DIR names another)"
+    )
+    # the folder and each file: a base/ that is a link into the installed copy lands there too
+    for target in (folder, *(derived_file(folder, model) for model in MODELS)):
+        check_not_installed_copy(target, option)
     for path in write_derived_files(folder):
         print(f"derived parameters written to {path}")
     return 0

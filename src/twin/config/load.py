@@ -11,6 +11,7 @@ by :mod:`~twin.config.events`; what a model declares comes from :mod:`twin.fmu.c
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from importlib.resources import files
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -320,20 +321,26 @@ def scenarios_dir() -> Path:
 def installed_scenarios() -> Path | None:
     """The installed copy of the scenarios (package data of a plain ``pip install .``), or
     None when the twin runs from a checkout (an editable install reads the repository's)."""
-    copy = shipped_folder("twin.config", "scenarios", "scenarios")[0]
-    return copy if copy.is_dir() and copy == scenarios_dir() else None
+    copy = files("twin.config") / "scenarios"
+    return copy if isinstance(copy, Path) and copy.is_dir() else None
 
 
 def check_not_installed_copy(target: Path, option: str, installed: Path | None = None) -> None:
-    """Refuse to write ``target`` when it lies in the installed copy of the scenarios.
+    """Refuse to write ``target`` (a file, or a folder written into) when the write would land
+    in the installed copy of the scenarios.
 
     A plain install runs its own copy of ``scenarios/``: a file written there is not the
     repository's, the next ``pip install .`` puts the old one back, and a command that then
     writes the clone (``twin identify --out scenarios/...``) would split a tester from its
-    coefficients. ``installed`` defaults to :func:`installed_scenarios`.
+    coefficients. A file is written by replacing it in its folder (:mod:`twin.files`), so a
+    file that is a link lands where the link is, not where it points. ``installed`` defaults
+    to :func:`installed_scenarios`.
     """
     copy = installed if installed is not None else installed_scenarios()
-    if copy is not None and target.resolve().is_relative_to(copy.resolve()):
+    if copy is None:
+        return
+    lands = target.resolve() if target.is_dir() else target.parent.resolve() / target.name
+    if lands.is_relative_to(copy.resolve()):
         raise ConfigError(
             f"{target} is in the installed copy of the scenarios, not the repository's (the next "
             "`pip install .` would put it back): install with `pip install -e .` to write the "
