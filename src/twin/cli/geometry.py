@@ -30,9 +30,9 @@ def command(args: argparse.Namespace) -> int:
     option = (
         "--scenarios" if args.scenarios else "the scenarios folder (default; --scenarios DIR names another)"
     )
-    # the folder and each file: a base/ that is a link into the installed copy lands there too
-    for target in (folder, *(derived_file(folder, model) for model in MODELS)):
-        check_not_installed_copy(target, option)
+    # each file it writes (where it lands: a folder or a base/ linked into the copy lands there)
+    for model in MODELS:
+        check_not_installed_copy(derived_file(folder, model), option)
     for path in write_derived_files(folder):
         print(f"derived parameters written to {path}")
     return 0
